@@ -1,0 +1,53 @@
+"""uamfleet: communication-aware ride-sharing route planning for Urban Air Mobility fleets.
+
+Public surface::
+
+    uamfleet.SCENARIOS                                   # scenario names
+    env = uamfleet.parallel_env("berlin_p4", sinr_min_db=-3.0, num_taxis=1)   # PettingZoo ParallelEnv
+    venv = uamfleet.vector_env("berlin_p4", num_envs=64, num_taxis=4)          # the batched core
+    radio = uamfleet.load_radio_map("berlin")                                  # RadioMap
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from uamfleet.config import (
+    REWARD_TERMS,
+    SCENARIOS,
+    DemandConfig,
+    EnvConfig,
+    Request,
+    RewardConfig,
+    make_config,
+)
+from uamfleet.env.parallel_env import UAMFleetParallelEnv, parallel_env
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.radio import RADIO_MAPS, RadioMap, load_radio_map
+
+__version__ = "0.1.0"
+
+
+def vector_env(
+    scenario: str | EnvConfig = "berlin_p4", num_envs: int = 1, autoreset: bool = True, **overrides: Any
+) -> VectorEnv:
+    """The batched core: ``num_envs`` envs of a scenario with config overrides (any EnvConfig field)."""
+    return VectorEnv(make_config(scenario, **overrides), num_envs=num_envs, autoreset=autoreset)
+
+
+__all__ = [
+    "RADIO_MAPS",
+    "REWARD_TERMS",
+    "SCENARIOS",
+    "DemandConfig",
+    "EnvConfig",
+    "RadioMap",
+    "Request",
+    "RewardConfig",
+    "UAMFleetParallelEnv",
+    "VectorEnv",
+    "load_radio_map",
+    "make_config",
+    "parallel_env",
+    "vector_env",
+]

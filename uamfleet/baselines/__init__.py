@@ -1,0 +1,1 @@
+"""uamfleet.baselines (see DESIGN.md)."""

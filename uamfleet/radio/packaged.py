@@ -1,0 +1,187 @@
+"""The radio maps shipped with the package, by name (SPEC §2).
+
+- ``"berlin"``: the authors' WinProp map (Traffic-Alpha/UAM-Path-Planning, MIT; uamfleet/data/LICENSE.berlin),
+  stored losslessly as ``uamfleet/data/berlin_sinr_100m.npz`` (see ``_build_packaged.py``).
+- ``"detroit_estimate"``: 320 m block means digitised from the authors' figure: an ESTIMATE, faithful only
+  at the threshold -17 dB (``uamfleet/data/detroit_block_sinr_estimate.csv``).
+- ``"detroit_3gpp"``: a synthetic TR 36.777 UMi-AV map with 10 GBS at the estimate's SINR peaks.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
+from uamfleet.radio.radio_map import BaseStation, RadioMap
+from uamfleet.radio.winprop import read_winprop
+
+RADIO_MAPS: tuple[str, ...] = ("berlin", "detroit_estimate", "detroit_3gpp")
+
+BERLIN_NPZ = "berlin_sinr_100m.npz"
+BERLIN_LICENSE = "LICENSE.berlin"
+DETROIT_CSV = "detroit_block_sinr_estimate.csv"
+# The npz stores SINR as int32 in units of 1e-4 dB (the WinProp file's 4 decimals): int / 1e4 is bit-identical
+# to parsing the text, and compresses better than float32.
+BERLIN_NC = np.iinfo(np.int32).min
+
+# Detroit estimate geometry (the CSV's header): 35 x 35 blocks of 320 m over [0, 11130]^2, last block 250 m.
+DETROIT_SIDE_M = 11130.0
+DETROIT_BLOCK_M = 320.0
+# Blocks drawn as masked in the authors' figure are only known to have a mean below -17 dB. This stand-in lies
+# below every threshold the paper uses for Detroit (-21 ... -17 dB) *and* below -17, but only the -17 dB
+# feasibility of such blocks is known; any other threshold on this map is a guess.
+DETROIT_BELOW_FLOOR_DB = -25.0
+
+# Synthetic Detroit (SPEC §2): GBS at the estimate's SINR peaks, grid frame, each known to +-160 m.
+DETROIT_GBS_SITES_M: tuple[tuple[float, float], ...] = (
+    (2080.0, 1760.0),
+    (8160.0, 1760.0),
+    (5280.0, 3360.0),
+    (1120.0, 4640.0),
+    (8160.0, 4640.0),
+    (5920.0, 6880.0),
+    (9440.0, 7520.0),
+    (7840.0, 10080.0),
+    (2080.0, 6880.0),
+    (4320.0, 10400.0),
+)
+DETROIT_3GPP_RESOLUTION_M = 10.0
+DETROIT_3GPP_GBS_HEIGHT_M = 20.0
+DETROIT_3GPP_POWER_DBM = 40.0
+DETROIT_3GPP_LOADING = 1.0
+# Effective noise floor: thermal noise (-95 dBm in 10 MHz, NF 9 dB) plus the interference of the many real
+# Detroit cells that 10 sites leave out, lumped as a uniform floor 36 dB above thermal. Calibrated on the
+# estimate's 320 m blocks: 27.3 % below -17 dB (estimate 26.6 %), median -13.1 dB (estimate -12.3 dB), block
+# maximum +16 dB (estimate +11 dB). With thermal noise only the 10-GBS map is interference-limited at
+# -5 ... +43 dB and no threshold of the paper (-21 ... -17 dB) would bind anywhere.
+DETROIT_3GPP_NOISE_DBM = -59.0
+
+
+# The package's data folder (package-data "data/*"); a plain path works for regular and editable installs.
+DATA_DIR = Path(__file__).resolve().parent.parent / "data"
+
+
+def _data_bytes(filename: str) -> bytes:
+    return (DATA_DIR / filename).read_bytes()
+
+
+def _berlin() -> RadioMap:
+    with np.load(io.BytesIO(_data_bytes(BERLIN_NPZ)), allow_pickle=False) as z:
+        raw = z["sinr_1e4_db"]
+        sinr = np.where(raw == BERLIN_NC, np.nan, raw / 1e4)  # / 1e4 (not * 1e-4): correctly rounded decimals
+        names = z["bs_name"]
+        bs = z["bs_xyh_power_freq"]
+        stations = tuple(
+            BaseStation(x_m=x, y_m=y, height_m=h, power_dbm=p, frequency_mhz=f, name=str(n))
+            for (x, y, h, p, f), n in zip(bs.tolist(), names.tolist(), strict=True)
+        )
+        return RadioMap(
+            sinr_db=sinr,
+            resolution_m=float(z["resolution_m"]),
+            name="berlin",
+            altitude_m=float(z["altitude_m"]),
+            base_stations=stations,
+            utm_origin_m=(float(z["utm_origin_m"][0]), float(z["utm_origin_m"][1])),
+            source=str(z["source"]),
+        )
+
+
+def read_detroit_estimate_csv(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(sinr_db [35, 35] indexed [col, row] = [ix, iy], status [35, 35] str)`` from the estimate CSV."""
+    rows = list(csv.DictReader(line for line in io.StringIO(text) if not line.startswith("#")))
+    n = math.ceil(DETROIT_SIDE_M / DETROIT_BLOCK_M)
+    sinr = np.full((n, n), np.nan)
+    status = np.full((n, n), "", dtype=object)
+    for r in rows:
+        # The CSV's rows are y (row 0 = south) and its columns x; the map is indexed [ix, iy].
+        ix, iy = int(r["col"]), int(r["row"])
+        status[ix, iy] = r["status"]
+        if r["status"] == "est":
+            sinr[ix, iy] = float(r["sinr_db_est"])
+        elif r["status"] == "below_-17":
+            sinr[ix, iy] = DETROIT_BELOW_FLOOR_DB
+        elif r["status"] != "unknown":
+            raise ValueError(f"unknown status {r['status']!r} in {DETROIT_CSV}; expected est, below_-17 or unknown")
+    if (status == "").any():
+        raise ValueError(f"{DETROIT_CSV} does not cover all {n} x {n} blocks")
+    return sinr, status.astype(str)
+
+
+def _detroit_estimate() -> RadioMap:
+    sinr, _ = read_detroit_estimate_csv(_data_bytes(DETROIT_CSV).decode("utf-8"))
+    return RadioMap(
+        sinr_db=sinr,
+        resolution_m=DETROIT_BLOCK_M,
+        origin_m=(
+            DETROIT_BLOCK_M / 2,
+            DETROIT_BLOCK_M / 2,
+        ),  # one raster point per block, at the block centre
+        side_m=DETROIT_SIDE_M,
+        name="detroit_estimate",
+        is_estimate=True,
+        altitude_m=100.0,
+        source=(
+            "ESTIMATE: 320 m block means digitised from the authors' figure (Traffic-Alpha/UAM-Path-Planning "
+            f"assets/gif/sinr_-17.gif), not their WinProp data; valid only at threshold -17 dB; blocks below "
+            f"-17 dB set to {DETROIT_BELOW_FLOOR_DB} dB, blocks hidden by the legend are N.C."
+        ),
+    )
+
+
+def _detroit_3gpp() -> RadioMap:
+    stations = tuple(
+        BaseStation(
+            x_m=x,
+            y_m=y,
+            height_m=DETROIT_3GPP_GBS_HEIGHT_M,
+            power_dbm=DETROIT_3GPP_POWER_DBM,
+            loading=DETROIT_3GPP_LOADING,
+            name=f"GBS {k}",
+        )
+        for k, (x, y) in enumerate(DETROIT_GBS_SITES_M)
+    )
+    return expected_sinr_map_3gpp(
+        stations,
+        side_m=DETROIT_SIDE_M,
+        resolution_m=DETROIT_3GPP_RESOLUTION_M,
+        altitude_m=100.0,
+        carrier_ghz=2.0,
+        noise_dbm=DETROIT_3GPP_NOISE_DBM,
+        name="detroit_3gpp",
+        source=(
+            "SYNTHETIC: 3GPP TR 36.777 UMi-AV expected SINR (paper Eq. 6), 10 GBS at the Detroit estimate's "
+            "SINR peaks; not measured or ray-traced data"
+        ),
+    )
+
+
+@functools.cache
+def _packaged(name: str) -> RadioMap:
+    builders = {"berlin": _berlin, "detroit_estimate": _detroit_estimate, "detroit_3gpp": _detroit_3gpp}
+    return builders[name]()
+
+
+def load_radio_map(name_or_path: str | os.PathLike[str] | RadioMap) -> RadioMap:
+    """A packaged map by name (one of :data:`RADIO_MAPS`), or a WinProp ASCII file by path.
+
+    Packaged maps are built once per process and shared (they are immutable). A :class:`RadioMap` is
+    returned as is, so callers can accept either a name, a path or a map.
+    """
+    if isinstance(name_or_path, RadioMap):
+        return name_or_path
+    if isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
+        return _packaged(name_or_path)
+    path = Path(name_or_path)
+    if path.is_file():
+        return read_winprop(path)
+    raise ValueError(
+        f"unknown radio map {str(name_or_path)!r}: use one of {', '.join(map(repr, RADIO_MAPS))}, "
+        "or the path to an existing WinProp ASCII file"
+    )

@@ -1,0 +1,1 @@
+"""uamfleet.rl (see DESIGN.md)."""

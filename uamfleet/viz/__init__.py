@@ -1,0 +1,1 @@
+"""uamfleet.viz (see DESIGN.md)."""
