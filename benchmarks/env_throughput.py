@@ -1,0 +1,80 @@
+"""Environment throughput: agent-steps per second of the batched core and the PettingZoo face.
+
+A step is the full step: dynamics, rewards, observations and action masks (plus autoreset). Actions are
+random allowed headings, drawn before timing. Run on one core:
+
+    OMP_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/env_throughput.py
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import tyro
+
+import uamfleet
+from uamfleet.env.parallel_env import UAMFleetParallelEnv
+
+
+@dataclass
+class Args:
+    scenario: str = "berlin_random"
+    num_envs: tuple[int, ...] = (1, 64, 256)
+    num_taxis: tuple[int, ...] = (1, 4, 16)
+    seconds: float = 2.0
+    """time each configuration for about this long"""
+    pettingzoo_scenario: str = "berlin_p4"
+
+
+def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    scores = rng.random(mask.shape) * np.where(mask.any(-1, keepdims=True), mask, 1)
+    return np.argmax(scores, axis=-1)
+
+
+def bench_core(scenario: str, num_envs: int, num_taxis: int, seconds: float) -> float:
+    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis)
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    steps, start = 0, time.perf_counter()
+    while True:
+        obs, *_ = env.step(_allowed_actions(obs["action_mask"], rng))
+        steps += 1
+        elapsed = time.perf_counter() - start
+        if elapsed > seconds and steps >= 5:
+            return steps * num_envs * num_taxis / elapsed
+
+
+def bench_pettingzoo(scenario: str, num_taxis: int, seconds: float) -> float:
+    env = UAMFleetParallelEnv(uamfleet.make_config(scenario, num_taxis=num_taxis))
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    steps, start = 0, time.perf_counter()
+    while True:
+        if not env.agents:
+            obs, _ = env.reset()
+        actions = {a: int(_allowed_actions(obs[a]["action_mask"][None], rng)[0]) for a in env.agents}
+        obs, *_ = env.step(actions)
+        steps += 1
+        elapsed = time.perf_counter() - start
+        if elapsed > seconds and steps >= 5:
+            return steps / elapsed
+
+
+def main(args: Args) -> None:
+    print(f"core: {args.scenario}, full step incl. observations and masks")
+    print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15} {'env-steps/s':>13}")
+    for num_envs in args.num_envs:
+        for num_taxis in args.num_taxis:
+            rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds)
+            print(f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f} {rate / num_taxis:>13,.0f}")
+    print(f"\nPettingZoo face: {args.pettingzoo_scenario} (E = 1)")
+    print(f"{'A':>4} {'env-steps/s':>13} {'agent-steps/s':>15}")
+    for num_taxis in args.num_taxis:
+        rate = bench_pettingzoo(args.pettingzoo_scenario, num_taxis, args.seconds)
+        print(f"{num_taxis:>4} {rate:>13,.0f} {rate * num_taxis:>15,.0f}")
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))

@@ -1,0 +1,79 @@
+"""Roll a policy out on a scenario and print what it did.
+
+python -m eval.rollout --scenario berlin_p4 --policy random --episodes 3
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import tyro
+
+import uamfleet
+from uamfleet.rollout import RandomPolicy, run_episode
+
+
+@dataclass
+class Args:
+    scenario: str = "berlin_p4"
+    """scenario name (one of uamfleet.SCENARIOS)"""
+    sinr_min_db: float | None = None
+    """SINR threshold in dB (default: the scenario's)"""
+    num_taxis: int | None = None
+    """fleet size (default: the scenario's)"""
+    policy: Literal["random"] = "random"
+    """policy to roll out"""
+    episodes: int = 3
+    """number of episodes"""
+    seed: int = 0
+    """seed of the first episode (episode i uses seed + i)"""
+    time_limit_steps: int | None = None
+    """episode time limit in steps (default: the scenario's)"""
+
+
+def main(args: Args) -> list[dict[str, float]]:
+    overrides = {
+        k: v
+        for k, v in (
+            ("sinr_min_db", args.sinr_min_db),
+            ("num_taxis", args.num_taxis),
+            ("time_limit_steps", args.time_limit_steps),
+        )
+        if v is not None
+    }
+    cfg = uamfleet.make_config(args.scenario, **overrides)
+    env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
+    policy = RandomPolicy(seed=args.seed)
+    print(
+        f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
+        f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"
+    )
+    rows = []
+    for i in range(args.episodes):
+        traj = run_episode(env, policy, seed=args.seed + i)
+        ep = traj.episode
+        seg_min = np.stack([e.segment_min_sinr_db[0] for e in traj.events])  # [T, A]
+        row = {
+            "episode": i,
+            "steps": int(ep["length"]),
+            "delivered": int(ep["delivered"]),
+            "requests": int(ep["num_requests"]),
+            "distance_m": float(np.sum(ep["distance_m"])),
+            "return": float(np.sum(ep["return"])),
+            "steps_connected_pct": float(100 * np.mean(seg_min >= cfg.sinr_min_db)),
+            "min_sinr_db": float(seg_min.min()),
+        }
+        rows.append(row)
+        end = "terminated" if traj.terminated else "truncated"
+        print(
+            f"  episode {i}: {end} after {row['steps']} steps, delivered {row['delivered']}/{row['requests']}, "
+            f"flown {row['distance_m']:.0f} m, return {row['return']:.1f}, "
+            f"connected steps {row['steps_connected_pct']:.1f} %, min SINR {row['min_sinr_db']:.2f} dB"
+        )
+    return rows
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))

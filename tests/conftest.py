@@ -1,0 +1,64 @@
+"""Shared test helpers: radio maps drawn as ASCII art, and small configs on them."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from uamfleet.config import EnvConfig, Request
+from uamfleet.radio import RadioMap
+
+GOOD_DB = 0.0
+BAD_DB = -10.0
+
+
+def drawn_map(art: str, cell_m: float = 100.0) -> RadioMap:
+    """A radio map from ASCII art: '.' = 0 dB, '#' = -10 dB, one character per ``cell_m`` block.
+
+    The first line of ``art`` is the north edge. Cell centres sit at block centres (origin cell_m / 2), so
+    with ``block_m == cell_m`` every block holds exactly one raster point and its mean is that value.
+    """
+    rows = [line.strip() for line in art.strip().splitlines()]
+    grid = np.array([[GOOD_DB if ch == "." else BAD_DB for ch in row] for row in rows[::-1]])  # [y, x]
+    n = grid.shape[0]
+    assert grid.shape == (n, n), "drawn maps are square"
+    return RadioMap(
+        sinr_db=grid.T.copy(),
+        resolution_m=cell_m,
+        origin_m=(cell_m / 2, cell_m / 2),
+        side_m=n * cell_m,
+        name="drawn",
+    )
+
+
+OPEN_5 = """
+.....
+.....
+.....
+.....
+.....
+"""
+
+
+def small_config(art: str = OPEN_5, **overrides: Any) -> EnvConfig:
+    """A one-taxi config on a drawn map with 100 m steps, threshold -3 dB, one request by default."""
+    base: dict[str, Any] = dict(
+        radio=drawn_map(art),
+        sinr_min_db=-3.0,
+        step_m=100.0,
+        starts_m=((150.0, 150.0),),
+        requests=(Request(0, (350.0, 150.0), (350.0, 350.0)),),
+        time_limit_steps=50,
+        patch_size=4,
+    )
+    base.update(overrides)
+    if "starts_m" in overrides and "num_taxis" not in overrides:
+        base["num_taxis"] = len(overrides["starts_m"])
+    return EnvConfig(**base)
+
+
+@pytest.fixture
+def open_map() -> RadioMap:
+    return drawn_map(OPEN_5)

@@ -1,0 +1,1 @@
+"""The batched fleet environment (core) and its PettingZoo face."""

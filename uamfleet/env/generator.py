@@ -1,0 +1,205 @@
+"""Scenario / demand -> initial state: fixed instances, random Poisson demand, random feasible starts.
+
+Randomness comes only from the ``np.random.Generator`` passed in (one per env).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from uamfleet.config import Request
+from uamfleet.env.world import World
+from uamfleet.types import HIDDEN, WAITING, FleetState
+
+
+class InfeasibleInstanceError(ValueError):
+    """A start or stop lies outside the map, in a block below the threshold, or out of reach of every start."""
+
+
+def validate_instance(world: World, starts_m: np.ndarray, requests: Sequence[Request]) -> None:
+    """Raise :class:`InfeasibleInstanceError` naming the point, the threshold and the fix.
+
+    Reachability is judged on 8-connected flyable blocks (SINR block map at the threshold): a stop is
+    reachable when its block lies in the same component as some taxi's start block.
+    """
+    thr = world.threshold_db
+    fix = "move the point, or lower sinr_min_db"
+    for a, start in enumerate(np.asarray(starts_m, dtype=float)):
+        _check_point(world, start, f"start of taxi {a}", fix)
+        if not world.action_mask(start).any():
+            raise InfeasibleInstanceError(
+                f"start of taxi {a} at {tuple(start.tolist())} has no allowed move at sinr_min_db={thr} dB: every "
+                f"heading leaves the map or enters a block below the threshold; {fix}."
+            )
+    start_components = set(world.component_of(np.asarray(starts_m, dtype=float)).tolist())
+    for i, req in enumerate(requests):
+        for what, point in (("origin", req.origin_m), ("destination", req.destination_m)):
+            label = f"{what} of passenger {i} (P{i + 1})"
+            p = np.asarray(point, dtype=float)
+            _check_point(world, p, label, fix)
+            if int(world.component_of(p)) not in start_components:
+                raise InfeasibleInstanceError(
+                    f"{label} at {point} is unreachable from the start(s) at sinr_min_db={thr} dB: no path of "
+                    f"flyable {world.blocks.block_m:g} m blocks connects them; lower sinr_min_db or move it."
+                )
+
+
+def _check_point(world: World, point: np.ndarray, label: str, fix: str) -> None:
+    side = world.side_m
+    if not bool(world.in_domain(point)):
+        raise InfeasibleInstanceError(
+            f"{label} at {tuple(point.tolist())} lies outside the map [0, {side:g}] x [0, {side:g}] m "
+            f"({world.radio.label}); use world-frame metres inside it."
+        )
+    if not bool(world.point_feasible(point)):
+        sinr = float(world.blocks.sinr_at(point))
+        raise InfeasibleInstanceError(
+            f"{label} at {tuple(point.tolist())} is in a block with SINR {sinr:.2f} dB, below "
+            f"sinr_min_db={world.threshold_db} dB ({world.cfg.feasibility} rule); {fix}."
+        )
+
+
+# ---- random instances ---------------------------------------------------------------------------------
+
+
+def flyable_sites(world: World) -> np.ndarray:
+    """[S, 2] block centres of the largest component of flyable blocks (where random stops are drawn)."""
+    if world.num_components == 0:
+        raise InfeasibleInstanceError(
+            f"no block of {world.radio.label} reaches sinr_min_db={world.threshold_db} dB; lower the threshold."
+        )
+    sizes = np.bincount(world.components.ravel())[1:]
+    largest = int(np.argmax(sizes)) + 1
+    bx, by = np.nonzero(world.components == largest)
+    b = world.blocks.block_m
+    centres = np.stack([(bx + 0.5) * b, (by + 0.5) * b], axis=-1)
+    centres = np.minimum(centres, world.side_m - 1e-6)
+    return centres[world.point_feasible(centres) & world.action_mask(centres).any(-1)]
+
+
+def sample_starts(world: World, rng: np.random.Generator, sites: np.ndarray) -> np.ndarray:
+    num_taxis = world.cfg.num_taxis
+    idx = rng.choice(len(sites), size=num_taxis, replace=len(sites) < num_taxis)
+    return sites[idx]
+
+
+def sample_requests(world: World, rng: np.random.Generator, sites: np.ndarray) -> list[Request]:
+    """Poisson arrivals: ``num_initial`` at step 0, then rate ``rate_per_step`` until ``horizon_steps``."""
+    demand = world.cfg.demand
+    release = [0] * demand.num_initial
+    t = 0.0
+    while demand.rate_per_step > 0 and len(release) < demand.max_requests:
+        t += rng.exponential(1.0 / demand.rate_per_step)
+        if t > demand.horizon_steps:
+            break
+        release.append(max(1, int(np.ceil(t))))
+    if not release:  # an episode needs at least one request
+        release = [0]
+    points = np.asarray(demand.vertiports, dtype=float) if demand.vertiports else sites
+    requests = []
+    for step in release:
+        o = int(rng.integers(len(points)))
+        far = np.linalg.norm(points - points[o], axis=-1) >= demand.min_trip_m
+        candidates = np.nonzero(far)[0] if far.any() else np.nonzero(np.arange(len(points)) != o)[0]
+        d = int(rng.choice(candidates))
+        requests.append(Request(step, tuple(points[o]), tuple(points[d])))
+    return requests
+
+
+# ---- state allocation and reset ---------------------------------------------------------------------------
+
+
+def allocate_state(world: World, num_envs: int) -> FleetState:
+    cfg = world.cfg
+    E, A, P, H, k = num_envs, cfg.num_taxis, cfg.num_passengers, cfg.history_len, cfg.patch_size
+    nbx, nby = world.num_blocks
+    return FleetState(
+        t=np.zeros(E, np.int64),
+        pos_m=np.zeros((E, A, 2)),
+        free_seats=np.zeros((E, A), np.int64),
+        history_m=np.zeros((E, A, H, 2)),
+        history_seats=np.zeros((E, A, H), np.int64),
+        visits=np.zeros((E, A, nbx + k, nby + k), np.int32),
+        distance_m=np.zeros((E, A)),
+        action_mask=np.zeros((E, A, 16), bool),
+        pax_exists=np.zeros((E, P), bool),
+        pax_release=np.zeros((E, P), np.int64),
+        pax_origin_m=np.zeros((E, P, 2)),
+        pax_dest_m=np.zeros((E, P, 2)),
+        pax_status=np.zeros((E, P), np.int8),
+        pax_taxi=np.full((E, P), -1, np.int64),
+        pax_pickup_step=np.full((E, P), -1, np.int64),
+        pax_dropoff_step=np.full((E, P), -1, np.int64),
+    )
+
+
+def write_instance(state: FleetState, e: int, world: World, starts_m: np.ndarray, requests: Sequence[Request]) -> None:
+    """Reset env ``e`` of ``state`` in place to the given instance (validated by the caller)."""
+    cfg = world.cfg
+    n = len(requests)
+    if n > cfg.num_passengers:
+        raise ValueError(f"{n} requests do not fit max_passengers={cfg.num_passengers}; raise max_passengers.")
+    starts = np.asarray(starts_m, dtype=float).reshape(cfg.num_taxis, 2)
+    state.t[e] = 0
+    state.pos_m[e] = starts
+    state.free_seats[e] = cfg.seats
+    state.history_m[e] = starts[:, None, :]
+    state.history_seats[e] = cfg.seats
+    state.visits[e] = 0
+    bx, by = world.block_index(starts)
+    state.visits[e, np.arange(cfg.num_taxis), bx + world.patch_lo, by + world.patch_lo] += 1
+    state.distance_m[e] = 0.0
+    state.action_mask[e] = world.action_mask(starts)
+    state.pax_exists[e] = np.arange(cfg.num_passengers) < n
+    state.pax_release[e] = 0
+    state.pax_origin_m[e] = 0.0
+    state.pax_dest_m[e] = 0.0
+    if n:
+        state.pax_release[e, :n] = [r.release_step for r in requests]
+        state.pax_origin_m[e, :n] = [r.origin_m for r in requests]
+        state.pax_dest_m[e, :n] = [r.destination_m for r in requests]
+    state.pax_status[e] = np.where(state.pax_exists[e] & (state.pax_release[e] <= 0), WAITING, HIDDEN)
+    state.pax_taxi[e] = -1
+    state.pax_pickup_step[e] = -1
+    state.pax_dropoff_step[e] = -1
+
+
+class InstanceSource:
+    """Where each episode's instance comes from: the config's fixed one, or drawn from the demand model."""
+
+    def __init__(self, world: World) -> None:
+        cfg = world.cfg
+        self.world = world
+        self._sites: np.ndarray | None = None
+        self.fixed_starts = None if cfg.starts_m is None else np.asarray(cfg.starts_m, dtype=float)
+        self.fixed_requests = cfg.requests
+        if self.fixed_starts is not None or self.fixed_requests is not None:
+            # Validate what is fixed once; random parts are drawn from flyable sites by construction.
+            starts = self.fixed_starts if self.fixed_starts is not None else np.empty((0, 2))
+            if self.fixed_starts is not None:
+                validate_instance(world, starts, self.fixed_requests or ())
+            else:
+                for i, req in enumerate(self.fixed_requests or ()):
+                    for what, point in (("origin", req.origin_m), ("destination", req.destination_m)):
+                        _check_point(
+                            world,
+                            np.asarray(point, float),
+                            f"{what} of passenger {i} (P{i + 1})",
+                            "move the point, or lower sinr_min_db",
+                        )
+
+    @property
+    def sites(self) -> np.ndarray:
+        if self._sites is None:
+            self._sites = flyable_sites(self.world)
+        return self._sites
+
+    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, list[Request]]:
+        starts = self.fixed_starts if self.fixed_starts is not None else sample_starts(self.world, rng, self.sites)
+        if self.fixed_requests is not None:
+            requests = list(self.fixed_requests)
+        else:
+            requests = sample_requests(self.world, rng, self.sites)
+        return starts, requests

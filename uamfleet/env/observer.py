@@ -1,0 +1,128 @@
+"""Per-taxi observations and the global state, computed for all envs and taxis at once.
+
+Positions are relative to the observing taxi and divided by the map side, so they lie in [-1, 1]; SINR is in
+dB relative to the threshold (>= 0 means flyable), clipped to [-30, 30]; visit ratios are the taxi's visits
+of a block divided by the steps flown so far (the paper's "uncertainty map").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from uamfleet.config import NUM_HEADINGS
+from uamfleet.env import kernels
+from uamfleet.env.world import PATCH_CLIP_DB, PATCH_PAD_DB, World
+from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, WAITING, FleetState
+
+PASSENGER_FEATURES: tuple[str, ...] = (
+    "origin_dx",  # (origin - taxi) / side
+    "origin_dy",
+    "dest_dx",  # (destination - taxi) / side
+    "dest_dy",
+    "dist_to_origin",  # |origin - taxi| / side
+    "dist_to_dest",  # |destination - taxi| / side
+    "trip_length",  # |destination - origin| / side
+    "waiting",  # released, not yet picked up
+    "on_board_self",  # on board this taxi
+    "on_board_other",  # on board another taxi
+    "delivered",
+    "age",  # (t - release step) / time limit
+)
+SELF_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "time")  # x, y / side; seats / capacity; t / limit
+HISTORY_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+OTHER_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+
+
+class Observer:
+    """Builds the observation dict ``{name: [E, A, ...] array}`` and the global ``state`` [E, S]."""
+
+    def __init__(self, world: World) -> None:
+        cfg = world.cfg
+        self.world = world
+        self.cfg = cfg
+        self.num_taxis = cfg.num_taxis
+        self.num_others = max(cfg.num_taxis - 1, 1)  # keep one masked row for a single taxi (no 0-size spaces)
+        k = cfg.patch_size
+        self.patch_offsets = np.arange(k)  # [k]
+        # Index of the other taxis as seen by taxi a: all b != a, in increasing order.
+        A = cfg.num_taxis
+        self.other_index = np.array([[b for b in range(A) if b != a] for a in range(A)], dtype=np.int64).reshape(
+            A, A - 1
+        )
+        self.observation_space = self._observation_space()
+        self.state_size = A * 4 + cfg.num_passengers * 9 + 1
+        self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
+
+    def _observation_space(self) -> spaces.Dict:
+        cfg = self.cfg
+        k, P, H = cfg.patch_size, cfg.num_passengers, cfg.history_len
+        f32 = np.float32
+        return spaces.Dict(
+            {
+                "self": spaces.Box(-1.0, 1.0, (len(SELF_FEATURES),), f32),
+                "history": spaces.Box(-2.0, 2.0, (H, len(HISTORY_FEATURES)), f32),
+                "passengers": spaces.Box(-2.0, 2.0, (P, len(PASSENGER_FEATURES)), f32),
+                "passenger_mask": spaces.Box(0, 1, (P,), np.int8),
+                "sinr_patch": spaces.Box(PATCH_PAD_DB, PATCH_CLIP_DB, (k, k), f32),
+                "visit_patch": spaces.Box(0.0, 1.0, (k, k), f32),
+                "others": spaces.Box(-2.0, 2.0, (self.num_others, len(OTHER_FEATURES)), f32),
+                "others_mask": spaces.Box(0, 1, (self.num_others,), np.int8),
+                "action_mask": spaces.Box(0, 1, (NUM_HEADINGS,), np.int8),
+            }
+        )
+
+    def observe(self, state: FleetState) -> dict[str, np.ndarray]:
+        """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
+        cfg, world = self.cfg, self.world
+        E, A = state.num_envs, state.num_taxis
+        P, H, k, n_others = cfg.num_passengers, cfg.history_len, cfg.patch_size, self.num_others
+        f32 = np.float32
+        obs: dict[str, np.ndarray] = {
+            "self": np.empty((E, A, len(SELF_FEATURES)), f32),
+            "history": np.empty((E, A, H, len(HISTORY_FEATURES)), f32),
+            "passengers": np.empty((E, A, P, len(PASSENGER_FEATURES)), f32),
+            "passenger_mask": np.empty((E, A, P), np.int8),
+            "sinr_patch": np.empty((E, A, k, k), f32),
+            "visit_patch": np.empty((E, A, k, k), f32),
+            "others": np.empty((E, A, n_others, len(OTHER_FEATURES)), f32),
+            "others_mask": np.empty((E, A, n_others), np.int8),
+            "action_mask": np.empty((E, A, NUM_HEADINGS), np.int8),
+        }
+        kernels.observe(
+            state.t, state.pos_m, state.free_seats, state.history_m, state.history_seats, state.visits,
+            state.action_mask, state.pax_exists, state.pax_release, state.pax_origin_m, state.pax_dest_m,
+            state.pax_status, state.pax_taxi, world.sinr_patch_source, world.blocks.block_m, world.side_m,
+            float(cfg.seats), float(cfg.time_limit_steps), obs["self"], obs["history"], obs["passengers"],
+            obs["passenger_mask"], obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"],
+            obs["action_mask"],
+        )  # fmt: skip
+        return obs
+
+    def state(self, state: FleetState) -> np.ndarray:
+        """[E, S] float32 global state for centralised critics: taxis (x, y, seats, time in episode) and the
+        released passengers (origin, destination, status one-hot, carrier); unreleased rows are zero."""
+        side, cfg = self.world.side_m, self.cfg
+        E, A = state.num_envs, state.num_taxis
+        P = state.pax_status.shape[1]
+        taxis = np.concatenate(
+            [state.pos_m / side, (state.free_seats / cfg.seats)[..., None], np.zeros((E, A, 1))], axis=-1
+        )  # [E, A, 4]; last column: taxi index / A tells the taxis apart
+        taxis[..., 3] = np.arange(A) / A
+        status = state.pax_status
+        visible = ((status != HIDDEN) & state.pax_exists)[..., None]
+        pax = (
+            np.concatenate(
+                [
+                    state.pax_origin_m / side,
+                    state.pax_dest_m / side,
+                    status[..., None] == np.array([WAITING, ON_BOARD, DELIVERED]),
+                    ((state.pax_taxi + 1) / A)[..., None],
+                    ((state.t[:, None] - state.pax_release) / cfg.time_limit_steps)[..., None],
+                ],
+                axis=-1,
+            )
+            * visible
+        )  # [E, P, 9]
+        time = np.minimum(state.t / cfg.time_limit_steps, 1.0)[:, None]
+        return np.concatenate([taxis.reshape(E, A * 4), pax.reshape(E, P * 9), time], axis=-1).astype(np.float32)

@@ -1,0 +1,159 @@
+"""PettingZoo ParallelEnv face of the batched core (one env slice, E = 1).
+
+Environment
+-----------
+N air taxis (agents ``uam_0 … uam_{N-1}``) fly at a fixed altitude over one radio map, pick up and drop off
+passengers who request rides over time (``seats`` each, 2 by default), and may only fly where the expected
+SINR of the block (or of the whole segment, ``feasibility="segment_raster"``) is at or above
+``sinr_min_db``. N = 1 with ``scenario="berlin_p4"`` is the MSHA-RL paper's setup.
+
+Action space
+------------
+``Discrete(16)``: heading k flies one ``step_m`` along 22.5°·k counter-clockwise from east. Moves that leave
+the map or break the SINR rule are 0 in ``observation["action_mask"]`` (np.int8); taking one anyway costs a
+step in place and the ``blocked`` penalty (never a teleport, never a clamp).
+
+Observation space
+-----------------
+A ``Dict`` per taxi (see :mod:`uamfleet.env.observer` for the feature lists): ``self`` (position, free seats,
+time), ``history`` (the last ``history_len`` positions relative to the taxi and free seats), ``passengers``
+(P rows of the paper's passenger fields, relative to the taxi) with ``passenger_mask`` (1 = released),
+``sinr_patch`` and ``visit_patch`` (k × k blocks around the taxi: SINR minus threshold in dB, visit ratio),
+``others`` (other taxis relative to this one) with ``others_mask``, and ``action_mask``. ``state()`` returns
+the global state for centralised critics (``state_space``).
+
+Rewards
+-------
+Per taxi, the sum of named terms (:data:`uamfleet.config.REWARD_TERMS`) weighted by :class:`RewardConfig`:
+step cost, exploration / repeat visits, pick-up, drop-off, blocked move, optional potential-based shaping.
+``infos[agent]["reward_terms"]`` holds this step's terms; at an episode's end ``infos[agent]["episode"]``
+holds the per-term episode sums, return, length, delivered count and distance.
+
+Episode end
+-----------
+Terminated when every passenger of the instance is delivered; truncated at ``time_limit_steps`` (or when a
+taxi visits a block more than ``max_block_visits`` times). Both flags are set for all agents at once; the
+agent list is then empty until ``reset``.
+
+Arguments
+---------
+``parallel_env(scenario="berlin_p4", render_mode=None, **overrides)``: any :class:`uamfleet.config.EnvConfig`
+field as a keyword (``sinr_min_db``, ``num_taxis``, ``starts_m``, ``requests``, ``radio``, ...).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
+from uamfleet.env.vector_env import VectorEnv
+
+AgentID = str
+
+
+class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "uamfleet_v0",
+        "render_modes": ["rgb_array"],
+        "is_parallelizable": True,
+        "render_fps": 5,
+    }
+
+    def __init__(self, cfg: EnvConfig, render_mode: str | None = None) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not supported; use one of {self.metadata['render_modes']} or None."
+            )
+        self.cfg = cfg
+        self.render_mode = render_mode
+        self.core = VectorEnv(cfg, num_envs=1, autoreset=False)
+        self.possible_agents = [f"uam_{i}" for i in range(cfg.num_taxis)]
+        self.agents: list[AgentID] = []
+        self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
+        self._obs_space = self.core.single_observation_space
+        self._act_space = spaces.Discrete(16)
+        self.state_space = self.core.state_space
+        self._trails: list[np.ndarray] = []
+
+    # PettingZoo requires the identical space object on every call.
+    def observation_space(self, agent: AgentID) -> spaces.Space:
+        return self._obs_space
+
+    def action_space(self, agent: AgentID) -> spaces.Space:
+        return self._act_space
+
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[AgentID, dict[str, np.ndarray]], dict[AgentID, dict[str, Any]]]:
+        obs, _ = self.core.reset(seed=seed)
+        self.agents = list(self.possible_agents)
+        self._trails = [self.core.state.pos_m[0].copy()]
+        return self._split(obs), {agent: {} for agent in self.agents}
+
+    def step(self, actions: dict[AgentID, int]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents:
+            raise RuntimeError("step() called with no live agents: call reset() first.")
+        missing = [a for a in self.agents if a not in actions]
+        unknown = [a for a in actions if a not in self._index]
+        if missing or unknown:
+            raise ValueError(
+                f"actions must have one entry per live agent {self.agents}; missing {missing}, unknown {unknown}."
+            )
+        batch = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
+        obs, rewards, terminated, truncated, info = self.core.step(batch)
+        self._trails.append(self.core.state.pos_m[0].copy())
+        agents = self.agents
+        terms = info["reward_terms"][0]  # [A, T]
+        infos: dict[AgentID, dict[str, Any]] = {}
+        for agent in agents:
+            i = self._index[agent]
+            infos[agent] = {"reward_terms": dict(zip(REWARD_TERMS, terms[i].tolist(), strict=True))}
+            if "episode" in info:
+                ep = info["episode"]
+                infos[agent]["episode"] = {
+                    key: (float(v[0, i]) if v.ndim == 2 else float(v[0])) for key, v in ep.items()
+                }
+        out_obs = self._split(obs)
+        out_rew = {a: float(rewards[0, self._index[a]]) for a in agents}
+        out_term = dict.fromkeys(agents, bool(terminated[0]))
+        out_trunc = dict.fromkeys(agents, bool(truncated[0]))
+        if terminated[0] or truncated[0]:
+            self.agents = []
+        return out_obs, out_rew, out_term, out_trunc, infos
+
+    def _split(self, obs: dict[str, np.ndarray]) -> dict[AgentID, dict[str, np.ndarray]]:
+        # Views, not copies: the core returns fresh arrays every step and never writes into them again.
+        return {agent: {k: v[0, self._index[agent]] for k, v in obs.items()} for agent in self.agents}
+
+    def state(self) -> np.ndarray:
+        return self.core.global_state()[0]
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            return None
+        from uamfleet.viz.figures import render_frame
+
+        return render_frame(self.core.world, self.core.state, np.stack(self._trails, axis=1))
+
+    def close(self) -> None:
+        pass
+
+
+def parallel_env(
+    scenario: str | EnvConfig = "berlin_p4", render_mode: str | None = None, **overrides: Any
+) -> UAMFleetParallelEnv:
+    """The PettingZoo parallel env of a scenario (see :data:`uamfleet.SCENARIOS`) with config overrides."""
+    return UAMFleetParallelEnv(make_config(scenario, **overrides), render_mode=render_mode)
+
+
+@functools.wraps(parallel_env)
+def env(**kwargs: Any) -> Any:
+    """The AEC version (PettingZoo's ``parallel_to_aec``)."""
+    from pettingzoo.utils.conversions import parallel_to_aec
+
+    return parallel_to_aec(parallel_env(**kwargs))

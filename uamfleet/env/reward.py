@@ -1,0 +1,66 @@
+"""Named reward terms computed from step events (never from physics).
+
+Each term is [E, A]; the reward of a taxi is their sum. Weights come from :class:`RewardConfig`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from uamfleet.config import REWARD_TERMS, RewardConfig
+from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
+
+
+def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray | None = None) -> np.ndarray:
+    """[E, A, len(REWARD_TERMS)] weighted terms in the order of ``REWARD_TERMS``:
+
+    ``step`` every step; ``explore``: ``first_visit`` on entering a new block, else ``repeat_visit * (visits -
+    1)`` (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move;
+    ``shaping`` as given (see :func:`shaping_term`).
+    """
+    w = np.array([weights.step, weights.first_visit, weights.repeat_visit, weights.pickup, weights.dropoff,
+                  weights.blocked])  # fmt: skip
+    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, w)
+    if shaping is not None:
+        terms[..., REWARD_TERMS.index("shaping")] = shaping
+    return terms
+
+
+@njit(cache=True)
+def _terms(
+    moved: np.ndarray, block_visits: np.ndarray, pickups: np.ndarray, dropoffs: np.ndarray, w: np.ndarray
+) -> np.ndarray:
+    num_envs, num_taxis = moved.shape
+    out = np.zeros((num_envs, num_taxis, 6))
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            visits = block_visits[e, a]
+            out[e, a, 0] = w[0]
+            out[e, a, 1] = w[1] if visits == 1 else w[2] * (visits - 1)
+            out[e, a, 2] = w[3] * pickups[e, a]
+            out[e, a, 3] = w[4] * dropoffs[e, a]
+            out[e, a, 4] = 0.0 if moved[e, a] else w[5]
+    return out
+
+
+def potential(state: FleetState, step_m: float) -> np.ndarray:
+    """[E, A] shaping potential: minus the distance (in steps) from each taxi to its nearest actionable stop.
+
+    Actionable stops: the destinations of its passengers on board, and, while it has a free seat, the origins of
+    released passengers waiting. A taxi with nothing to do has potential 0.
+    """
+    A = state.free_seats.shape[1]
+    pos = state.pos_m[:, :, None, :]  # [E, A, 1, 2]
+    mine = (state.pax_status == ON_BOARD)[:, None, :] & (state.pax_taxi[:, None, :] == np.arange(A)[None, :, None])
+    waiting = (state.pax_status == WAITING)[:, None, :] & (state.free_seats[:, :, None] > 0)  # [E, A, P]
+    d_dest = np.where(mine, np.linalg.norm(state.pax_dest_m[:, None] - pos, axis=-1), np.inf)
+    d_orig = np.where(waiting, np.linalg.norm(state.pax_origin_m[:, None] - pos, axis=-1), np.inf)
+    nearest = np.minimum(d_dest.min(axis=-1, initial=np.inf), d_orig.min(axis=-1, initial=np.inf))  # [E, A]
+    return np.where(np.isfinite(nearest), -nearest / step_m, 0.0)
+
+
+def shaping_term(phi_before: np.ndarray, phi_after: np.ndarray, done: np.ndarray, weights: RewardConfig) -> np.ndarray:
+    """``w * (gamma * Phi(s') - Phi(s))`` with Phi(terminal) = 0 (Ng, Harada & Russell 1999)."""
+    phi_next = np.where(done[:, None], 0.0, phi_after)
+    return weights.shaping * (weights.shaping_gamma * phi_next - phi_before)

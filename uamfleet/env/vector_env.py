@@ -1,0 +1,155 @@
+"""The batched environment core: E independent envs of A taxis each, one policy call per step for all.
+
+This is the only place that wires generator, dynamics, reward and observer together; the PettingZoo env is
+this class with E = 1.
+
+Autoreset (``autoreset=True``, the default): an env that terminates or truncates is reset *within the same*
+``step`` call; the returned observation is the first one of its new episode, and the last observation of the
+finished episode is in ``info["final_obs"]`` (valid where ``info["_episode"]`` is True), together with the
+episode statistics in ``info["episode"]``. This is Gymnasium's ``SAME_STEP`` autoreset mode, which PPO needs
+to bootstrap truncated episodes from their real final observation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from uamfleet.config import REWARD_TERMS, EnvConfig
+from uamfleet.env import dynamics, generator, reward
+from uamfleet.env.observer import Observer
+from uamfleet.env.world import World
+from uamfleet.types import DELIVERED, FleetState, StepEvents
+
+
+class VectorEnv:
+    """Batched fleet environment.
+
+    Args:
+        cfg: the environment config (see :func:`uamfleet.config.make_config`).
+        num_envs: number E of independent envs stepped together.
+        autoreset: reset finished envs inside ``step`` (see the module docstring).
+
+    ``reset(seed)`` seeds env e with ``seed + e`` (Gymnasium's vector convention), so env e here and a
+    PettingZoo env reset with ``seed + e`` run the same episodes.
+    """
+
+    def __init__(self, cfg: EnvConfig, num_envs: int = 1, autoreset: bool = True) -> None:
+        if int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1.")
+        self.cfg = cfg
+        self.num_envs = int(num_envs)
+        self.num_taxis = cfg.num_taxis
+        self.autoreset = autoreset
+        self.world = World(cfg)
+        self.observer = Observer(self.world)
+        self.source = generator.InstanceSource(self.world)
+        self.single_observation_space: spaces.Dict = self.observer.observation_space
+        self.single_action_space = spaces.Discrete(16)
+        self.state_space = self.observer.state_space
+        self.state: FleetState = generator.allocate_state(self.world, self.num_envs)
+        self.rngs: list[np.random.Generator] = []
+        self.episode_terms = np.zeros((self.num_envs, self.num_taxis, len(REWARD_TERMS)))
+        self.needs_reset = True
+        self.last_events: StepEvents | None = None
+
+    # ---- reset ---------------------------------------------------------------------------------------
+    def reset(self, seed: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        if seed is None:
+            # Gymnasium semantics: without a seed, continue the generators of the last seeded reset.
+            if not self.rngs:
+                self.rngs = [np.random.default_rng(s) for s in np.random.SeedSequence().spawn(self.num_envs)]
+        else:
+            if int(seed) != seed or seed < 0:
+                raise ValueError(f"seed={seed!r} must be a non-negative integer or None.")
+            self.rngs = [np.random.default_rng(int(seed) + e) for e in range(self.num_envs)]
+        for e in range(self.num_envs):
+            self._reset_env(e)
+        self.needs_reset = False
+        return self.observer.observe(self.state), {}
+
+    def _reset_env(self, e: int) -> None:
+        starts, requests = self.source.draw(self.rngs[e])
+        generator.write_instance(self.state, e, self.world, starts, requests)
+        self.episode_terms[e] = 0.0
+
+    # ---- step ----------------------------------------------------------------------------------------
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Advance all envs. ``actions`` [E, A] int headings. Returns obs, rewards [E, A], terminated [E],
+        truncated [E], info (``reward_terms`` [E, A, T], ``events``, and at episode ends ``episode``,
+        ``_episode``, ``final_obs``)."""
+        if self.needs_reset:
+            raise RuntimeError("step() called before reset() (or after an episode ended with autoreset=False).")
+        actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis)
+        state, weights = self.state, self.cfg.reward
+        shaping = weights.shaping > 0
+        phi_before = reward.potential(state, self.cfg.step_m) if shaping else None
+
+        events = dynamics.step(state, actions, self.world)
+        terminated = events.all_delivered  # [E]
+        truncated = (state.t >= self.cfg.time_limit_steps) & ~terminated
+        if self.cfg.max_block_visits is not None:
+            truncated |= np.any(events.block_visits > self.cfg.max_block_visits, axis=1) & ~terminated
+
+        shaping_values = None
+        if phi_before is not None:
+            phi_after = reward.potential(state, self.cfg.step_m)
+            shaping_values = reward.shaping_term(phi_before, phi_after, terminated, weights)
+        terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
+        self.episode_terms += terms
+        rewards = terms.sum(axis=-1)
+        self.last_events = events
+
+        obs = self.observer.observe(state)
+        info: dict[str, Any] = {"reward_terms": terms, "events": events}
+        done = terminated | truncated
+        if done.any():
+            info["_episode"] = done
+            info["episode"] = self._episode_stats()
+            info["final_obs"] = {k: v.copy() for k, v in obs.items()}
+            if self.autoreset:
+                self._autoreset(np.nonzero(done)[0], obs)
+            else:
+                self.needs_reset = True
+        return obs, rewards, terminated, truncated, info
+
+    def _autoreset(self, done_envs: np.ndarray, obs: dict[str, np.ndarray]) -> None:
+        for e in done_envs:
+            self._reset_env(int(e))
+        fresh = self.observer.observe(self.state.take(done_envs))
+        for key, value in fresh.items():
+            obs[key][done_envs] = value
+
+    def _episode_stats(self) -> dict[str, np.ndarray]:
+        """Statistics of the episode that just ended, for every env (read them where ``_episode``)."""
+        s = self.state
+        delivered = np.sum(s.pax_status == DELIVERED, axis=1)
+        num_requests = np.sum(s.pax_exists, axis=1)
+        stats = {
+            "return": self.episode_terms.sum(-1).copy(),  # [E, A]
+            "length": s.t.copy(),  # [E]
+            "delivered": delivered,  # [E]
+            "num_requests": num_requests,  # [E]
+            "service_rate": delivered / np.maximum(num_requests, 1),  # [E]
+            "distance_m": s.distance_m.copy(),  # [E, A]
+        }
+        for i, name in enumerate(REWARD_TERMS):
+            stats[f"reward/{name}"] = self.episode_terms[..., i].copy()  # [E, A]
+        return stats
+
+    # ---- views ---------------------------------------------------------------------------------------
+    def observe(self) -> dict[str, np.ndarray]:
+        return self.observer.observe(self.state)
+
+    def global_state(self) -> np.ndarray:
+        """[E, S] global state for centralised critics."""
+        return self.observer.state(self.state)
+
+    @property
+    def action_mask(self) -> np.ndarray:
+        """[E, A, 16] np.int8: 1 where the heading is allowed."""
+        return self.state.action_mask.astype(np.int8)

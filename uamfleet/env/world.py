@@ -1,0 +1,80 @@
+"""Static, precomputed geometry of one environment config: blocks, feasibility tables, headings.
+
+Built once per config (a few hundred ms for Berlin: the per-heading segment table) and shared by the
+generator, the dynamics, the observer and the baselines, so that every one of them applies the same rule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from uamfleet.config import NUM_HEADINGS, EnvConfig, heading_vectors
+from uamfleet.env import kernels
+from uamfleet.radio import BlockMap
+
+PATCH_PAD_DB = -30.0
+"""Value of SINR-patch cells outside the map (relative to the threshold, dB): clearly not flyable."""
+PATCH_CLIP_DB = 30.0
+
+
+class World:
+    """Geometry derived from an :class:`EnvConfig`; read-only after construction."""
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        self.cfg = cfg
+        self.radio = cfg.radio
+        self.side_m = cfg.side_m
+        self.step_m = cfg.step_m
+        self.threshold_db = cfg.sinr_min_db
+        self.headings = heading_vectors()  # [16, 2]
+        self.moves_m = cfg.step_m * self.headings  # [16, 2]
+        self.blocks: BlockMap = self.radio.block_map(cfg.block_size_m, nc_rule=cfg.nc_rule)
+        with np.errstate(invalid="ignore"):
+            self.block_ok = np.asarray(self.blocks.sinr_db >= self.threshold_db)  # [nbx, nby] bool, NaN -> False
+        self.num_blocks = self.block_ok.shape
+        k = cfg.patch_size
+        self.patch_lo = k // 2  # patch rows b - k//2 ... b + k - k//2 - 1 around the taxi's block b
+        rel = np.nan_to_num(self.blocks.sinr_db - self.threshold_db, nan=PATCH_PAD_DB)
+        rel = np.clip(rel, PATCH_PAD_DB, PATCH_CLIP_DB)
+        self.sinr_patch_source = np.pad(
+            rel, ((self.patch_lo, k - self.patch_lo),) * 2, constant_values=PATCH_PAD_DB
+        ).astype(np.float32)  # [nbx + k, nby + k]
+        self.raster_origin = np.asarray(self.radio.origin_m, dtype=np.float64)
+        self.rule = kernels.RULE_ENDPOINT_BLOCK if cfg.feasibility == "endpoint_block" else kernels.RULE_SEGMENT_RASTER
+        # 8-connected components of flyable blocks: the reachability test for stops.
+        self.components, self.num_components = ndimage.label(self.block_ok, structure=np.ones((3, 3), bool))
+
+    # ---- points --------------------------------------------------------------------------------------
+    def in_domain(self, points: np.ndarray) -> np.ndarray:
+        """bool [...]: inside the square operating area [0, side]^2."""
+        return np.all((points >= 0.0) & (points <= self.side_m), axis=-1)
+
+    def block_index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.blocks.block_index(points)
+
+    def point_feasible(self, points: np.ndarray) -> np.ndarray:
+        """bool [...]: a taxi may be at this point under the config's feasibility rule."""
+        inside = self.in_domain(points)
+        if self.cfg.feasibility == "endpoint_block":
+            bx, by = self.block_index(points)
+            return inside & self.block_ok[bx, by]
+        return inside & self.radio.feasible(points, self.threshold_db)
+
+    def component_of(self, points: np.ndarray) -> np.ndarray:
+        """int [...]: label of the flyable-block component containing each point (0 = not flyable)."""
+        bx, by = self.block_index(points)
+        labels = np.asarray(self.components[bx, by])
+        return np.where(self.in_domain(points), labels, 0)
+
+    # ---- moves ---------------------------------------------------------------------------------------
+    def action_mask(self, pos_m: np.ndarray) -> np.ndarray:
+        """bool [..., 16]: which headings are allowed from each position."""
+        pos = np.ascontiguousarray(pos_m, dtype=np.float64)
+        flat = pos.reshape(-1, 2)
+        out = np.empty((flat.shape[0], NUM_HEADINGS), dtype=bool)
+        kernels.action_mask(
+            flat, self.moves_m, self.side_m, self.rule, self.block_ok, self.blocks.block_m, self.radio.sinr_db,
+            self.raster_origin, self.radio.resolution_m, self.threshold_db, out,
+        )  # fmt: skip
+        return out.reshape(*pos.shape[:-1], NUM_HEADINGS)
