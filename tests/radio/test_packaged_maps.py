@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import io
-import time
 from pathlib import Path
 
 import numpy as np
@@ -61,18 +60,14 @@ def test_berlin_facts() -> None:
     assert min(b.frequency_mhz for b in stations) == 2115.0 and max(b.frequency_mhz for b in stations) == 2165.0
 
 
-def test_berlin_loads_fast() -> None:
-    start = time.perf_counter()
-    radio = packaged._berlin()  # uncached
-    assert time.perf_counter() - start < 0.5
+def test_berlin_loads_uncached() -> None:
+    radio = packaged._berlin()  # uncached (load times: benchmarks/radio_load.py)
     assert radio.shape == (328, 327)
 
 
 @pytest.mark.skipif(not BERLIN_TXT.is_file(), reason="shared WinProp source file not available")
 def test_berlin_equals_the_winprop_file() -> None:
-    start = time.perf_counter()
     source = read_winprop(BERLIN_TXT)
-    assert time.perf_counter() - start < 1.5
     radio = load_radio_map("berlin")
     np.testing.assert_array_equal(np.isnan(radio.sinr_db), np.isnan(source.sinr_db))
     np.testing.assert_allclose(radio.sinr_db, source.sinr_db, rtol=0, atol=1e-4, equal_nan=True)
@@ -118,6 +113,7 @@ def test_detroit_estimate_blocks_reproduce_the_csv() -> None:
     assert mean.shape == (35, 35)
     rows = detroit_rows()
     assert len(rows) == 35 * 35
+    estimated = {(int(r["col"]), int(r["row"])): float(r["sinr_db_est"]) for r in rows if r["status"] == "est"}
     for r in rows:
         ix, iy = int(r["col"]), int(r["row"])
         centre = [(float(r["x0"]) + float(r["x1"])) / 2, (float(r["y0"]) + float(r["y1"])) / 2]
@@ -128,36 +124,40 @@ def test_detroit_estimate_blocks_reproduce_the_csv() -> None:
         elif r["status"] == "below_-17":
             assert mean.sinr_db[ix, iy] == DETROIT_BELOW_FLOOR_DB
             assert not mean.feasible(centre, -17.0) and not radio.feasible(centre, -17.0)
-        else:  # unknown: not computed
-            assert np.isnan(mean.sinr_db[ix, iy])
-            assert global_min.sinr_db[ix, iy] == DETROIT_BELOW_FLOOR_DB  # the global minimum
-            assert not mean.feasible(centre, -30.0)
+        else:  # unknown (hidden in the figure): mean of the estimated 4-neighbours, N.C. if there is none
+            near = [estimated[n] for n in ((ix - 1, iy), (ix + 1, iy), (ix, iy - 1), (ix, iy + 1)) if n in estimated]
+            if near:
+                assert mean.sinr_db[ix, iy] == pytest.approx(sum(near) / len(near))
+            else:
+                assert np.isnan(mean.sinr_db[ix, iy])
+                assert global_min.sinr_db[ix, iy] == DETROIT_BELOW_FLOOR_DB  # the global minimum
     assert {r["status"] for r in rows} == {"est", "below_-17", "unknown"}
+    # The Detroit P5 start (6290, 9450) lies in a hidden block: neighbours -16.4, -14.6, -14.6 (and one below -17).
+    assert global_min.sinr_at([6290.0, 9450.0]) == pytest.approx((-16.4 - 14.6 - 14.6) / 3)
 
 
 def test_detroit_3gpp() -> None:
-    start = time.perf_counter()
     radio = packaged._detroit_3gpp()  # uncached
-    assert time.perf_counter() - start < 3.0
     assert isinstance(radio, RadioMap)
     assert radio.name == "detroit_3gpp" and not radio.is_estimate and "SYNTHETIC" in radio.source
     assert radio.resolution_m == 10.0 and radio.side_m == 11130.0 and radio.shape == (1114, 1114)
     assert len(radio.base_stations) == 10
     assert not np.isnan(radio.sinr_db).any()
-    # Calibrated to the estimate (packaged.DETROIT_3GPP_NOISE_DBM): about a quarter of the 320 m blocks
-    # below -17 dB, median block in the low -10s.
-    blocks = radio.block_map(320.0).sinr_db
-    assert 0.2 < (blocks < -17).mean() < 0.35
-    assert -16 < np.median(blocks) < -10
+    # Calibrated (packaged.DETROIT_3GPP_NOISE_DBM): every Detroit P5 stop flyable at -17 dB, 10-35 % of the
+    # 320 m blocks below -17 dB (estimate: 26.6 %), median block in the low -10s (estimate: -12.3 dB).
+    blocks = radio.block_map(320.0)
+    p5_stops = [(6290, 9450), (6594, 7563), (9570, 7210), (7494, 5855), (1375, 6530), (3500, 5220), (5100, 2500),
+                (2175, 6906), (2234, 3850), (3781, 3438), (7830, 2430)]  # fmt: skip
+    assert blocks.feasible(np.array(p5_stops, float), -17.0).all()
+    assert 0.1 < (blocks.sinr_db < -17).mean() < 0.35
+    assert -16 < np.median(blocks.sinr_db) < -10
     # The peaks sit at the GBS sites.
     for bs in radio.base_stations:
         assert radio.sinr_at([bs.x_m, bs.y_m]) > 10.0
 
 
-def test_berlin_heading_table_is_fast() -> None:
+def test_berlin_heading_table() -> None:
     radio = load_radio_map("berlin")
     fresh = RadioMap(radio.sinr_db, resolution_m=radio.resolution_m)
-    start = time.perf_counter()
     table = fresh.heading_segment_min_sinr(100.0, 16)
-    assert time.perf_counter() - start < 1.0
     assert table.shape == (16, 328, 327)
