@@ -54,7 +54,7 @@ def small_config(art: str = OPEN_5, **overrides: Any) -> EnvConfig:
         patch_size=4,
     )
     base.update(overrides)
-    if "starts_m" in overrides and "num_taxis" not in overrides:
+    if overrides.get("starts_m") is not None and "num_taxis" not in overrides:
         base["num_taxis"] = len(overrides["starts_m"])
     return EnvConfig(**base)
 

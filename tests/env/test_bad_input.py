@@ -122,3 +122,33 @@ def test_pettingzoo_bad_action_and_missing_agent():
 def test_step_before_reset():
     with pytest.raises(RuntimeError, match="before reset"):
         VectorEnv(small_config()).step(np.array([[0]]))
+
+
+def test_observation_of_wrong_shape_is_named():
+    from uamfleet.env.observer import ObservationShapeError, check_observation
+
+    env = VectorEnv(small_config(), num_envs=2)
+    obs, _ = env.reset(seed=0)
+    check_observation(obs, env.single_observation_space, batch_dims=2)  # the env's own observations pass
+    other = VectorEnv(small_config(patch_size=6), num_envs=2).reset(seed=0)[0]
+    with pytest.raises(
+        ObservationShapeError, match=r"'sinr_patch' has shape \(2, 1, 6, 6\), expected \('\*', '\*', 4, 4\)"
+    ):
+        check_observation(other, env.single_observation_space, batch_dims=2)
+    with pytest.raises(ObservationShapeError, match=r"lacks field\(s\) \['action_mask'\]"):
+        check_observation({k: v for k, v in obs.items() if k != "action_mask"}, env.single_observation_space, 2)
+    single = {k: v[0, 0] for k, v in obs.items()}
+    check_observation(single, env.single_observation_space)
+    with pytest.raises(ObservationShapeError, match=r"'action_mask' has shape \(2, 1, 16\), expected \(16,\)"):
+        check_observation(obs, env.single_observation_space)  # batched obs where one taxi's was expected
+
+
+def test_vertiport_in_a_bad_block():
+    from uamfleet.config import DemandConfig
+
+    demand = DemandConfig(num_initial=1, vertiports=((50.0, 50.0), (150.0, 350.0)))
+    with pytest.raises(InfeasibleInstanceError, match=r"vertiport 1 at \(150.0, 350.0\).*below sinr_min_db"):
+        VectorEnv(small_config(ISLAND, starts_m=((50.0, 50.0),), requests=None, demand=demand))
+    enclosed = DemandConfig(num_initial=1, vertiports=((50.0, 50.0), (250.0, 250.0)))
+    with pytest.raises(InfeasibleInstanceError, match=r"vertiport 1 at \(250.0, 250.0\) is unreachable"):
+        VectorEnv(small_config(ISLAND, starts_m=None, requests=None, demand=enclosed))

@@ -190,6 +190,18 @@ class InstanceSource:
                             "move the point, or lower sinr_min_db",
                         )
 
+        ports = np.asarray(cfg.demand.vertiports if cfg.requests is None else (), float).reshape(-1, 2)
+        for i, port in enumerate(ports):
+            _check_point(world, port, f"vertiport {i}", "move the vertiport, or lower sinr_min_db")
+        if len(ports) and self.fixed_starts is None:
+            starts_area = world.component_of(self.sites[:1])[0]  # random starts come from this component
+            for i, label in enumerate(world.component_of(ports)):
+                if label != starts_area:
+                    raise InfeasibleInstanceError(
+                        f"vertiport {i} at {tuple(ports[i].tolist())} is unreachable from the flyable area where "
+                        f"taxis start at sinr_min_db={world.threshold_db} dB; move it or lower sinr_min_db."
+                    )
+
     @property
     def sites(self) -> np.ndarray:
         if self._sites is None:

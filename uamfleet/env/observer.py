@@ -126,3 +126,38 @@ class Observer:
         )  # [E, P, 9]
         time = np.minimum(state.t / cfg.time_limit_steps, 1.0)[:, None]
         return np.concatenate([taxis.reshape(E, A * 4), pax.reshape(E, P * 9), time], axis=-1).astype(np.float32)
+
+
+class ObservationShapeError(ValueError):
+    """An observation does not match the observation space of the env config it is used with."""
+
+
+def check_observation(obs: dict[str, np.ndarray], space: spaces.Dict, batch_dims: int = 0) -> None:
+    """Raise :class:`ObservationShapeError` naming the field, its shape and the expected one.
+
+    ``batch_dims`` leading axes are allowed before each field's shape (2 for the core's ``[E, A, ...]``).
+    Policies call this on their input so that an observation from another config (another number of
+    passengers, patch size or fleet size) fails loudly instead of being silently broadcast.
+    """
+    if not isinstance(obs, dict):
+        raise ObservationShapeError(f"observation must be a dict of arrays, got {type(obs).__name__}.")
+    missing = sorted(set(space.spaces) - set(obs))
+    if missing:
+        raise ObservationShapeError(f"observation lacks field(s) {missing}; expected fields {sorted(space.spaces)}.")
+    batch_shape: tuple[int, ...] | None = None
+    for key, sub in space.spaces.items():
+        value = np.asarray(obs[key])
+        expected = tuple(sub.shape or ())
+        shape = value.shape
+        if len(shape) != batch_dims + len(expected) or shape[batch_dims:] != expected:
+            raise ObservationShapeError(
+                f"observation field {key!r} has shape {shape}, expected {('*',) * batch_dims + expected} "
+                f"({batch_dims} batch axes); build observations with an env of the same config "
+                "(num_passengers, patch_size, history_len, num_taxis)."
+            )
+        if batch_shape is None:
+            batch_shape = shape[:batch_dims]
+        elif shape[:batch_dims] != batch_shape:
+            raise ObservationShapeError(
+                f"observation field {key!r} has batch shape {shape[:batch_dims]}, other fields {batch_shape}."
+            )
