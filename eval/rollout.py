@@ -12,6 +12,7 @@ import numpy as np
 import tyro
 
 import uamfleet
+from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import RandomPolicy, run_episode
 
 
@@ -53,24 +54,14 @@ def main(args: Args) -> list[dict[str, float]]:
     rows = []
     for i in range(args.episodes):
         traj = run_episode(env, policy, seed=args.seed + i)
-        ep = traj.episode
-        seg_min = np.stack([e.segment_min_sinr_db[0] for e in traj.events])  # [T, A]
-        row = {
-            "episode": i,
-            "steps": int(ep["length"]),
-            "delivered": int(ep["delivered"]),
-            "requests": int(ep["num_requests"]),
-            "distance_m": float(np.sum(ep["distance_m"])),
-            "return": float(np.sum(ep["return"])),
-            "steps_connected_pct": float(100 * np.mean(seg_min >= cfg.sinr_min_db)),
-            "min_sinr_db": float(seg_min.min()),
-        }
-        rows.append(row)
+        m = episode_metrics(traj, cfg.radio)
+        rows.append(m.as_dict())
         end = "terminated" if traj.terminated else "truncated"
         print(
-            f"  episode {i}: {end} after {row['steps']} steps, delivered {row['delivered']}/{row['requests']}, "
-            f"flown {row['distance_m']:.0f} m, return {row['return']:.1f}, "
-            f"connected steps {row['steps_connected_pct']:.1f} %, min SINR {row['min_sinr_db']:.2f} dB"
+            f"  episode {i}: {end} after {m.steps} steps, PR {m.pr_pct:.0f} % ({m.delivered}/{m.num_requests}), "
+            f"TD {m.td_m:.0f} m, ATT {m.att_s:.1f} s, AWT {m.awt_s:.1f} s, ELR {m.elr_pct:.1f} %, "
+            f"connectivity {m.connectivity_pct:.1f} % (min {m.min_sinr_db:.2f} dB), "
+            f"return {float(np.sum(traj.episode['return'])):.1f}"
         )
     return rows
 

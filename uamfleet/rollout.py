@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -13,7 +14,11 @@ from uamfleet.types import StepEvents
 
 
 class Policy(Protocol):
-    """Maps a batch of observations ``{name: [E, A, ...]}`` to headings [E, A]."""
+    """Maps a batch of observations ``{name: [E, A, ...]}`` to headings [E, A].
+
+    A policy may also define ``reset(env)``, called at the start of every episode with the core it acts in
+    (planners read the instance and the positions from ``env.state``).
+    """
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray: ...
 
@@ -33,20 +38,41 @@ class RandomPolicy:
 
 @dataclass
 class Trajectory:
-    """One episode of env 0 of a core: the initial positions and every step's events and rewards."""
+    """One episode of a one-env core: the instance, and every step's events, rewards and decision latency.
 
+    Everything a metric or a viewer needs is here (never the simulator itself).
+    """
+
+    scenario: str
+    radio_name: str
+    sinr_min_db: float
+    step_m: float
+    slot_s: float
+    seats: int
     start_pos_m: np.ndarray  # [A, 2]
+    pax_exists: np.ndarray  # [P] bool
+    release_step: np.ndarray  # [P] int
+    origin_m: np.ndarray  # [P, 2]
+    destination_m: np.ndarray  # [P, 2]
     events: list[StepEvents] = field(default_factory=list)
     rewards: list[np.ndarray] = field(default_factory=list)  # each [A]
+    decision_s: list[float] = field(default_factory=list)  # wall time of each policy call
     episode: dict[str, Any] = field(default_factory=dict)
     terminated: bool = False
     truncated: bool = False
 
     @property
+    def num_steps(self) -> int:
+        return len(self.events)
+
+    @property
     def positions_m(self) -> np.ndarray:
         """[A, T + 1, 2] positions from the start to the last step."""
-        steps = [e.pos_m[0] for e in self.events]
-        return np.stack([self.start_pos_m, *steps], axis=1)
+        return np.stack([self.start_pos_m, *[e.pos_m[0] for e in self.events]], axis=1)
+
+    def stacked(self, name: str) -> np.ndarray:
+        """[T, ...] one event field of env 0 over the episode (e.g. ``"moved"`` -> [T, A])."""
+        return np.stack([getattr(e, name)[0] for e in self.events])
 
 
 def run_episode(
@@ -61,9 +87,28 @@ def run_episode(
             f"autoreset={env.autoreset}."
         )
     obs, _ = env.reset(seed=seed)
-    traj = Trajectory(start_pos_m=env.state.pos_m[0].copy())
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset(env)
+    cfg, s = env.cfg, env.state
+    traj = Trajectory(
+        scenario=cfg.scenario,
+        radio_name=cfg.radio.label,
+        sinr_min_db=cfg.sinr_min_db,
+        step_m=cfg.step_m,
+        slot_s=cfg.slot_s,
+        seats=cfg.seats,
+        start_pos_m=s.pos_m[0].copy(),
+        pax_exists=s.pax_exists[0].copy(),
+        release_step=s.pax_release[0].copy(),
+        origin_m=s.pax_origin_m[0].copy(),
+        destination_m=s.pax_dest_m[0].copy(),
+    )
     while True:
-        obs, rewards, terminated, truncated, info = env.step(policy(obs))
+        start = time.perf_counter()
+        actions = policy(obs)
+        traj.decision_s.append(time.perf_counter() - start)
+        obs, rewards, terminated, truncated, info = env.step(actions)
         traj.events.append(info["events"])
         traj.rewards.append(rewards[0])
         if terminated[0] or truncated[0]:
