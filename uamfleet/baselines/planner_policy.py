@@ -1,0 +1,278 @@
+"""Classic planners as policies: a stop plan, flown through the same environment as every other policy.
+
+Planners (SPEC §7; the paper's baseline code was never published, these follow its text):
+
+- ``cptsp``: capacity 1 (flown with ``seats=1``), best order of the requests known at the start, late
+  requests appended in release order.
+- ``pdpcc``: capacity 2 pickup-and-delivery with precedence, best sequence of the requests known at the
+  start, late requests appended, never re-planned.
+- ``replan``: exact re-optimisation from the current state (position, passengers on board, waiting ones)
+  whenever a request is released.
+- ``opt``: clairvoyant: every request and its release time known at the start (exact); the lower bound for
+  every online method flown under the same rules.
+- ``straight``: a given stop order (default: ``opt``'s) flown in straight lines, ignoring SINR (flown with
+  the threshold switched off; measure its connectivity against the real threshold).
+
+"Best" means the earliest completion (makespan), with travel times from shortest feasible paths on the
+raster graph of the env's flyable cells (:mod:`uamfleet.baselines.grid_graph`) at the env's speed.
+
+Flying a plan: each taxi's target is the first stop of its plan that it can act on (a pick-up while it has a
+free seat, a drop-off of a passenger it carries); among the allowed headings it takes the one whose endpoint
+is closest to the target along feasible paths (a Dijkstra distance field per target). Boarding is automatic
+in the env, so a passenger met on the way boards early; the plan then simply skips that pick-up.
+"""
+
+from __future__ import annotations
+
+import itertools
+import weakref
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from uamfleet.baselines.grid_graph import GridGraph, StopPaths, feasible_raster, feasible_raster_from_blocks
+from uamfleet.baselines.sequencing import Plan, solve_pdp
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.world import World
+from uamfleet.radio import RadioMap
+from uamfleet.types import HIDDEN, ON_BOARD, WAITING
+
+PLANNERS: tuple[str, ...] = ("cptsp", "pdpcc", "replan", "opt", "straight")
+
+NO_SINR_DB = -1000.0
+"""Threshold that makes every cell flyable: the straight-line baseline flies with it."""
+
+
+def planner_env_overrides(planner: str) -> dict[str, Any]:
+    """Config overrides a planner is flown with (capacity 1 for CPTSP, SINR ignored for straight lines)."""
+    if planner not in PLANNERS:
+        raise ValueError(f"unknown planner {planner!r}; choose one of {PLANNERS}.")
+    overrides: dict[str, dict[str, Any]] = {"cptsp": {"seats": 1}, "straight": {"sinr_min_db": NO_SINR_DB}}
+    return overrides.get(planner, {})
+
+
+# Per radio map (weakly, so a map's graphs go with it): (threshold, rule, block size) -> graph.
+_GRAPHS: weakref.WeakKeyDictionary[RadioMap, dict[tuple[float, str, float], GridGraph]] = weakref.WeakKeyDictionary()
+
+
+def graph_for(world: World) -> GridGraph:
+    """The raster graph of the cells flyable under the world's rule (cached per map, threshold, rule, block)."""
+    cfg = world.cfg
+    graphs = _GRAPHS.setdefault(world.radio, {})
+    key = (world.threshold_db, cfg.feasibility, cfg.block_size_m)
+    if key not in graphs:
+        if cfg.feasibility == "endpoint_block":
+            feasible = feasible_raster_from_blocks(world.radio, world.blocks, world.threshold_db)
+        else:
+            feasible = feasible_raster(world.radio, world.threshold_db)
+        label = f"{world.radio.label} at sinr_min_db={world.threshold_db:g} dB"
+        graphs[key] = GridGraph(feasible, world.radio.resolution_m, world.radio.origin_m, label=label)
+    return graphs[key]
+
+
+def _sub_plan(
+    dist_m: np.ndarray, speed_mps: float, release_s: np.ndarray, passengers: list[int], capacity: int, wait: bool
+) -> tuple[Plan, list[tuple[int, str]]]:
+    nodes = [0] + [n for i in passengers for n in (1 + 2 * i, 2 + 2 * i)]
+    release = [float(release_s[i]) if wait else 0.0 for i in passengers]
+    plan = solve_pdp(dist_m[np.ix_(nodes, nodes)], speed_mps, release, capacity=capacity)
+    return plan, [(passengers[p], kind) for p, kind in plan.stops]
+
+
+def offline_plan(
+    dist_m: np.ndarray, speed_mps: float, release_s: np.ndarray, capacity: int
+) -> tuple[Plan, list[tuple[int, str]]]:
+    """CPTSP (capacity 1) / PDPCC (capacity 2): the best order of the requests known at the start (release 0);
+    the later ones are appended by :func:`append_late` when they arrive. Stop matrix: node 0 = start,
+    1 + 2i / 2 + 2i = origin / destination of passenger i."""
+    known = [i for i in range(len(release_s)) if release_s[i] <= 0]
+    return _sub_plan(dist_m, speed_mps, release_s, known, capacity, wait=False)
+
+
+def clairvoyant_plan(
+    dist_m: np.ndarray, speed_mps: float, release_s: np.ndarray, capacity: int
+) -> tuple[Plan, list[tuple[int, str]]]:
+    """OPT: every request and its release time known at the start; the earliest completion (exact)."""
+    return _sub_plan(dist_m, speed_mps, release_s, list(range(len(release_s))), capacity, wait=True)
+
+
+def append_late(passengers: list[int], release_s: np.ndarray) -> list[tuple[int, str]]:
+    """Stops appended for requests that arrive after the plan was made: in release order, each served alone
+    (pick-up then drop-off), as the paper describes its offline baselines."""
+    order = sorted(passengers, key=lambda p: (float(release_s[p]), p))
+    return [stop for p in order for stop in ((p, "pickup"), (p, "dropoff"))]
+
+
+@dataclass
+class _TaxiPlan:
+    stops: list[tuple[int, str]] = field(default_factory=list)
+
+
+class PlannerPolicy:
+    """One of :data:`PLANNERS` as a policy for a one-taxi, one-env core (``VectorEnv(cfg, 1, autoreset=False)``).
+
+    After an episode, ``planned`` holds every plan made (for reports) and ``stop_paths`` the shortest paths
+    between the instance's stops (start, origins, destinations) at the env's threshold.
+    """
+
+    def __init__(self, planner: str, order: list[tuple[int, str]] | None = None) -> None:
+        if planner not in PLANNERS:
+            raise ValueError(f"unknown planner {planner!r}; choose one of {PLANNERS}.")
+        self.planner = planner
+        self.order = order
+        self.env: VectorEnv | None = None
+        self.planned: list[Plan] = []
+        self.plan = _TaxiPlan()
+        self._fields: dict[tuple[float, float], np.ndarray] = {}
+
+    # ---- episode start -------------------------------------------------------------------------------
+    def reset(self, env: VectorEnv) -> None:
+        if env.num_envs != 1 or env.num_taxis != 1:
+            raise ValueError(
+                f"planner {self.planner!r} flies one taxi in one env; got num_envs={env.num_envs}, "
+                f"num_taxis={env.num_taxis}. (Fleet dispatch is not one of these single-taxi baselines.)"
+            )
+        if env.needs_reset:
+            raise RuntimeError("reset the env before the planner: PlannerPolicy.reset(env) reads its instance.")
+        self.env = env
+        self.world = env.world
+        self.graph = graph_for(env.world) if self.planner != "straight" else None
+        self.planned = []
+        self._fields = {}
+        s = env.state
+        self.num_pax = int(s.pax_exists[0].sum())
+        self.release_s = s.pax_release[0, : self.num_pax] * env.cfg.slot_s
+        self.speed_mps = env.cfg.step_m / env.cfg.slot_s
+        self.stops_m = np.concatenate(
+            [s.pos_m[0, :1], np.stack([s.pax_origin_m[0], s.pax_dest_m[0]], axis=1)[: self.num_pax].reshape(-1, 2)]
+        )  # node 0 = start, 1 + 2i = origin of i, 2 + 2i = destination of i
+        labels = ["start"] + [f"{kind} of passenger {i} (P{i + 1})" for i in range(self.num_pax)
+                              for kind in ("origin", "destination")]  # fmt: skip
+        if self.graph is not None:
+            self.stop_paths: StopPaths | None = self.graph.shortest_paths(self.stops_m, labels)
+            dist = self.stop_paths.distance_m
+        else:
+            self.stop_paths = None
+            dist = np.linalg.norm(self.stops_m[:, None] - self.stops_m[None], axis=-1)
+        self.dist_m = dist
+        self._seen = s.pax_status[0, : self.num_pax] != HIDDEN
+        self.plan = _TaxiPlan(self._initial_plan())
+
+    def _initial_plan(self) -> list[tuple[int, str]]:
+        if self.planner in ("cptsp", "pdpcc", "replan"):
+            capacity = 1 if self.planner == "cptsp" else 2
+            plan, stops = offline_plan(self.dist_m, self.speed_mps, self.release_s, capacity)
+        elif self.order is not None:
+            return list(self.order)
+        else:
+            plan, stops = clairvoyant_plan(self.dist_m, self.speed_mps, self.release_s, capacity=2)
+        self.planned.append(plan)
+        return stops
+
+    # ---- acting ----------------------------------------------------------------------------------------
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.env is not None, "call reset(env) first (run_episode does)"
+        s = self.env.state
+        status = s.pax_status[0, : self.num_pax]
+        newly = (status != HIDDEN) & ~self._seen
+        if newly.any():
+            self._on_release([int(i) for i in np.flatnonzero(newly)])
+            self._seen |= newly
+        target = self._target()
+        pos = s.pos_m[0, 0]
+        mask = s.action_mask[0, 0]
+        if target is None:  # nothing to do now: stay close to where we are
+            target = pos
+        candidates = pos + self.world.moves_m  # [16, 2]
+        if self.planner == "straight":
+            cost = np.linalg.norm(candidates - target, axis=-1)
+        else:
+            cost = self._field_cost(target, candidates)
+        cost = np.where(mask, cost, np.inf)
+        return np.array([[int(np.argmin(cost))]])
+
+    def _on_release(self, passengers: list[int]) -> None:
+        if self.planner in ("cptsp", "pdpcc"):
+            self.plan.stops += append_late(passengers, self.release_s)
+        elif self.planner == "replan":
+            self.plan.stops = self._replan()
+
+    def _replan(self) -> list[tuple[int, str]]:
+        """Exact re-optimisation from the current position with who is on board and who waits."""
+        assert self.env is not None and self.graph is not None
+        s = self.env.state
+        status = s.pax_status[0, : self.num_pax]
+        active = [i for i in range(self.num_pax) if status[i] in (WAITING, ON_BOARD)]
+        points = np.concatenate([s.pos_m[0, :1], self.stops_m[1:][np.ravel([[2 * i, 2 * i + 1] for i in active])]])
+        if not active:
+            return []
+        paths = self.graph.shortest_paths(points)
+        on_board = [bool(status[i] == ON_BOARD) for i in active]
+        plan = solve_pdp(paths.distance_m, self.speed_mps, [0.0] * len(active), capacity=self.env.cfg.seats,
+                         on_board=on_board, start_s=float(s.t[0]) * self.env.cfg.slot_s)  # fmt: skip
+        self.planned.append(plan)
+        return [(active[p], kind) for p, kind in plan.stops]
+
+    def _target(self) -> np.ndarray | None:
+        assert self.env is not None
+        s = self.env.state
+        status, carrier = s.pax_status[0], s.pax_taxi[0]
+        free = int(s.free_seats[0, 0])
+        for passenger, kind in self.plan.stops:
+            if kind == "pickup" and status[passenger] in (HIDDEN, WAITING) and free > 0:
+                return np.asarray(s.pax_origin_m[0, passenger])
+            if kind == "dropoff" and status[passenger] == ON_BOARD and carrier[passenger] == 0:
+                return np.asarray(s.pax_dest_m[0, passenger])
+        return None
+
+    def _field_cost(self, target: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+        """Remaining feasible-path distance from each candidate endpoint to ``target`` (inf if unreachable)."""
+        assert self.graph is not None
+        key = (float(target[0]), float(target[1]))
+        if key not in self._fields:
+            self._fields[key] = self.graph.distances_from(target)
+        field_m = self._fields[key]
+        radio = self.world.radio
+        # best of the 4 surrounding cell centres: a point near a block edge may have its nearest centre across it
+        res, (ox, oy) = radio.resolution_m, radio.origin_m
+        fx = (candidates[:, 0] - ox) / res
+        fy = (candidates[:, 1] - oy) / res
+        best = np.full(len(candidates), np.inf)
+        nx, ny = field_m.shape
+        for dx in (0, 1):
+            for dy in (0, 1):
+                ix = np.clip(np.floor(fx).astype(int) + dx, 0, nx - 1)
+                iy = np.clip(np.floor(fy).astype(int) + dy, 0, ny - 1)
+                centre = np.stack([ox + ix * res, oy + iy * res], axis=-1)
+                best = np.minimum(best, field_m[ix, iy] + np.linalg.norm(candidates - centre, axis=-1))
+        return best
+
+
+def exact_stop_length(service_order: list[tuple[int, str]], dist_m: np.ndarray) -> float:
+    """Length of the path from the start through the exact stops in the order they were served, from a stop
+    distance matrix (node 0 = start, 1 + 2i / 2 + 2i = origin / destination of i): with a planner's
+    ``dist_m`` that is the shortest feasible path (what the paper's baselines report, as opposed to the
+    distance flown in steps), or the straight-line length for the straight-line baseline."""
+    nodes = [0] + [1 + 2 * p if kind == "pickup" else 2 + 2 * p for p, kind in service_order]
+    return float(sum(dist_m[a, b] for a, b in itertools.pairwise(nodes)))
+
+
+def service_order(picked_steps: np.ndarray, dropped_steps: np.ndarray) -> list[tuple[int, str]]:
+    """Stops in the order they happened (at the same step drop-offs come first, as in the env; then by
+    passenger index). Steps are -1 for stops that never happened."""
+    events = [(int(t), 1, p, "pickup") for p, t in enumerate(picked_steps) if t >= 0]
+    events += [(int(t), 0, p, "dropoff") for p, t in enumerate(dropped_steps) if t >= 0]
+    return [(p, kind) for _, _, p, kind in sorted(events)]
+
+
+__all__ = [
+    "PLANNERS",
+    "PlannerPolicy",
+    "append_late",
+    "clairvoyant_plan",
+    "exact_stop_length",
+    "offline_plan",
+    "planner_env_overrides",
+    "service_order",
+]

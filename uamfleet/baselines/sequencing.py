@@ -1,0 +1,368 @@
+"""Exact sequencing of one taxi's pick-ups and drop-offs (SPEC §7: CPTSP, PDPCC, REPLAN, clairvoyant OPT).
+
+Node indexing: 0 is the taxi's current position; passenger ``i`` (0-based) has origin node ``1 + 2i`` and
+destination node ``2 + 2i``. ``dist_m[a, b]`` is the flight distance from node a to node b (any metric, e.g.
+:class:`~uamfleet.baselines.grid_graph.StopPaths` distances). The taxi flies at ``speed_mps`` and waits at an
+origin until the passenger's release (request) time.
+
+Objectives and ties (deterministic): ``"makespan"`` minimises the time of the last stop, then the total ride
+time, then the node sequence lexicographically; ``"distance"`` minimises the distance flown, then the
+makespan, the ride time and the sequence. Times and distances are compared rounded to 1e-6 (s or m), so
+that mathematically equal totals summed in different orders tie instead of being split by round-off.
+
+:func:`solve_pdp` is a label-setting dynamic programme over (status of each passenger in {waiting, on board,
+delivered}, last node). A state keeps every label (time, ride, distance, sequence) that no other label
+dominates; since the taxi may wait, arriving earlier is never worse, which makes the pruning exact for the
+lexicographic objectives above. :func:`brute_force_pdp` enumerates every sequence and is its independent
+check. Measured on random instances: N = 6 in ~0.01-0.03 s, N = 8 in ~0.15-0.4 s; the limit is
+:data:`MAX_PASSENGERS` = 8 (the state space grows as 3^N·(2N+1)).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+OBJECTIVES: tuple[str, ...] = ("makespan", "distance")
+MAX_PASSENGERS = 8  # 3^8 statuses x 17 last nodes: ~0.2-0.4 s in pure Python; beyond, use an insertion heuristic
+PICKUP, DROPOFF = "pickup", "dropoff"
+_KEY_DECIMALS = 6
+# A label whose accumulated ride time or distance is worse by more than this can never tie after rounding,
+# whatever the rest of the sequence: it is dominated regardless of its sequence.
+_GAP = 1e-3
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A visiting order and its schedule. Times in seconds, distances in metres."""
+
+    stops: tuple[tuple[int, str], ...]  # ((passenger, "pickup" | "dropoff"), ...) in visiting order
+    nodes: tuple[int, ...]  # node index of each stop
+    arrival_s: tuple[float, ...]  # when each stop is served (pick-ups wait for the release)
+    finish_s: float  # time of the last stop (start_s for an empty plan)
+    distance_m: float  # flown from node 0 through every stop
+    total_ride_s: float  # sum over passengers dropped in this plan of (drop-off time - release)
+    total_wait_s: float  # sum over passengers picked up in this plan of (pick-up time - release)
+
+
+@dataclass(frozen=True)
+class _Problem:
+    travel_s: list[list[float]]  # [S][S] dist / speed
+    dist_m: list[list[float]]  # [S][S]
+    release_s: tuple[float, ...]  # [N]
+    active: tuple[int, ...]  # passengers still to serve (not done), ascending
+    on_board: frozenset[int]
+    capacity: int
+    start_s: float
+    objective: str
+
+
+def _flag_list(values: Sequence[bool] | None, n: int, what: str) -> list[bool]:
+    if values is None:
+        return [False] * n
+    flags = [bool(v) for v in values]
+    if len(flags) != n:
+        raise ValueError(f"{what} has {len(flags)} entries but release_s has {n}; pass one flag per passenger")
+    return flags
+
+
+def _problem(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    capacity: int,
+    on_board: Sequence[bool] | None,
+    done: Sequence[bool] | None,
+    start_s: float,
+    objective: str,
+) -> _Problem:
+    release = tuple(float(r) for r in release_s)
+    n = len(release)
+    dist = np.asarray(dist_m, dtype=np.float64)
+    if dist.ndim != 2 or dist.shape[0] != dist.shape[1]:
+        raise ValueError(f"dist_m must be a square [S, S] matrix, got shape {dist.shape}")
+    if dist.shape[0] != 1 + 2 * n:
+        raise ValueError(
+            f"dist_m has {dist.shape[0]} nodes but {n} passengers need 1 + 2N = {1 + 2 * n} "
+            "(node 0 = taxi, 1 + 2i = origin i, 2 + 2i = destination i)"
+        )
+    if not np.isfinite(dist).all():
+        raise ValueError("dist_m has non-finite entries; every pair of stops needs a finite flight distance")
+    if (dist < 0).any():
+        a, b = np.argwhere(dist < 0)[0]
+        raise ValueError(f"dist_m[{a}, {b}] = {dist[a, b]} is negative; distances must be >= 0 metres")
+    speed = float(speed_mps)
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed_mps must be a finite number > 0, got {speed_mps!r}")
+    if not all(math.isfinite(r) for r in release):
+        raise ValueError(f"release_s must be finite times in seconds, got {list(release)}")
+    if int(capacity) != capacity or capacity < 1:
+        raise ValueError(f"capacity must be an integer >= 1 (seats), got {capacity!r}")
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(map(repr, OBJECTIVES))}")
+    start = float(start_s)
+    if not math.isfinite(start):
+        raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
+    board = _flag_list(on_board, n, "on_board")
+    finished = _flag_list(done, n, "done")
+    both = [i for i in range(n) if board[i] and finished[i]]
+    if both:
+        raise ValueError(f"passenger {both[0]} is marked both on_board and done; a passenger is one or the other")
+    if sum(board) > capacity:
+        raise ValueError(f"{sum(board)} passengers are on board but capacity is {capacity}; raise capacity")
+    return _Problem(
+        travel_s=(dist / speed).tolist(),
+        dist_m=dist.tolist(),
+        release_s=release,
+        active=tuple(i for i in range(n) if not finished[i]),
+        on_board=frozenset(i for i in range(n) if board[i]),
+        capacity=int(capacity),
+        start_s=start,
+        objective=objective,
+    )
+
+
+def _node(passenger: int, kind: str) -> int:
+    return 1 + 2 * passenger + (kind == DROPOFF)
+
+
+def _stop(node: int) -> tuple[int, str]:
+    return ((node - 1) // 2, PICKUP if node % 2 == 1 else DROPOFF)
+
+
+# -- one shared schedule arithmetic: the DP, the enumerator and solve_in_order add in the same order ---------
+def _advance(pb: _Problem, t: float, ride: float, dist: float, last: int, node: int) -> tuple[float, float, float]:
+    t = t + pb.travel_s[last][node]
+    passenger = (node - 1) // 2
+    if node % 2 == 1:
+        t = max(t, pb.release_s[passenger])
+    else:
+        ride = ride + (t - pb.release_s[passenger])
+    return t, ride, dist + pb.dist_m[last][node]
+
+
+def _key(pb: _Problem, t: float, ride: float, dist: float, nodes: tuple[int, ...]) -> tuple[object, ...]:
+    r = _KEY_DECIMALS
+    if pb.objective == "makespan":
+        return (round(t, r), round(ride, r), nodes)
+    return (round(dist, r), round(t, r), round(ride, r), nodes)
+
+
+def _plan(pb: _Problem, nodes: Sequence[int]) -> Plan:
+    t, ride, dist, wait, last = pb.start_s, 0.0, 0.0, 0.0, 0
+    arrival = []
+    for node in nodes:
+        t, ride, dist = _advance(pb, t, ride, dist, last, node)
+        if node % 2 == 1:
+            wait += t - pb.release_s[(node - 1) // 2]
+        arrival.append(t)
+        last = node
+    return Plan(
+        stops=tuple(_stop(v) for v in nodes),
+        nodes=tuple(nodes),
+        arrival_s=tuple(arrival),
+        finish_s=t,
+        distance_m=dist,
+        total_ride_s=ride,
+        total_wait_s=wait,
+    )
+
+
+# -- exact DP -----------------------------------------------------------------------------------------------
+_Label = tuple[float, float, float, tuple[int, ...]]  # (time, ride, distance, node sequence)
+
+
+def _dominates(a: _Label, b: _Label, objective: str) -> bool:
+    """True if every completion of ``a`` is at least as good as the same completion of ``b``.
+
+    Completions are monotone in time, ride and distance (float addition and max are monotone), so ``a`` no
+    worse on all three suffices when its sequence is smaller (final ties go to it); otherwise a gap in an
+    accumulated sum (ride, or distance when it is the objective) that rounding cannot close is needed —
+    a gap in time can be closed by waiting for a release.
+    """
+    if a[0] > b[0] or a[1] > b[1]:
+        return False
+    if objective == "distance" and a[2] > b[2]:
+        return False
+    if a[3] < b[3] or b[1] - a[1] > _GAP:
+        return True
+    return objective == "distance" and b[2] - a[2] > _GAP
+
+
+def _insert(bucket: list[_Label], label: _Label, objective: str) -> None:
+    for other in bucket:
+        if _dominates(other, label, objective):
+            return
+    bucket[:] = [other for other in bucket if not _dominates(label, other, objective)]
+    bucket.append(label)
+
+
+def _moves(pb: _Problem, status: tuple[int, ...]) -> list[tuple[int, int]]:
+    """(digit, node) of every stop that may come next; status[k] of passenger active[k]: 0/1/2."""
+    free = pb.capacity - status.count(1)
+    out = []
+    for k, s in enumerate(status):
+        if s == 0 and free > 0:
+            out.append((k, 1 + 2 * pb.active[k]))
+        elif s == 1:
+            out.append((k, 2 + 2 * pb.active[k]))
+    return out
+
+
+def _dp(pb: _Problem) -> tuple[int, ...]:
+    status0 = tuple(1 if i in pb.on_board else 0 for i in pb.active)
+    layer: dict[tuple[tuple[int, ...], int], list[_Label]] = {(status0, 0): [(pb.start_s, 0.0, 0.0, ())]}
+    moves_of: dict[tuple[int, ...], list[tuple[int, int]]] = {}
+    for _ in range(sum(2 - s for s in status0)):
+        nxt: dict[tuple[tuple[int, ...], int], list[_Label]] = {}
+        for (status, last), labels in layer.items():
+            if status not in moves_of:
+                moves_of[status] = _moves(pb, status)
+            for k, node in moves_of[status]:
+                new_status = (*status[:k], status[k] + 1, *status[k + 1 :])
+                bucket = nxt.setdefault((new_status, node), [])
+                for t, ride, dist, seq in labels:
+                    _insert(bucket, (*_advance(pb, t, ride, dist, last, node), (*seq, node)), pb.objective)
+        layer = nxt
+    finals = [label for labels in layer.values() for label in labels]
+    best = min(finals, key=lambda lab: _key(pb, *lab))
+    return best[3]
+
+
+def solve_pdp(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    *,
+    capacity: int = 2,
+    on_board: Sequence[bool] | None = None,
+    done: Sequence[bool] | None = None,
+    start_s: float = 0.0,
+    objective: str = "makespan",
+) -> Plan:
+    """Optimal pick-up and drop-off order for one taxi (exact DP; see the module docstring).
+
+    ``release_s[i]`` is passenger i's request time (a pick-up waits for it); ``on_board`` passengers need only
+    their drop-off, ``done`` passengers are ignored. Raises ValueError for malformed input or more than
+    :data:`MAX_PASSENGERS` passengers still to serve.
+    """
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective)
+    if len(pb.active) > MAX_PASSENGERS:
+        raise ValueError(
+            f"solve_pdp is exact and exponential: N = {len(pb.active)} passengers to serve exceeds "
+            f"{MAX_PASSENGERS}; use an insertion heuristic for larger instances"
+        )
+    return _plan(pb, _dp(pb))
+
+
+# -- enumeration ----------------------------------------------------------------------------------------------
+def _sequences(pb: _Problem) -> Iterator[tuple[int, ...]]:
+    """Every precedence- and capacity-feasible node sequence serving all active passengers (depth first)."""
+    waiting = [i for i in pb.active if i not in pb.on_board]
+    total = 2 * len(waiting) + len(pb.on_board)
+
+    def extend(seq: list[int], waiting: list[int], riding: list[int]) -> Iterator[tuple[int, ...]]:
+        if len(seq) == total:
+            yield tuple(seq)
+            return
+        if len(riding) < pb.capacity:
+            for i in waiting:
+                seq.append(_node(i, PICKUP))
+                yield from extend(seq, [w for w in waiting if w != i], [*riding, i])
+                seq.pop()
+        for i in riding:
+            seq.append(_node(i, DROPOFF))
+            yield from extend(seq, waiting, [r for r in riding if r != i])
+            seq.pop()
+
+    yield from extend([], waiting, sorted(pb.on_board))
+
+
+def brute_force_pdp(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    *,
+    capacity: int = 2,
+    on_board: Sequence[bool] | None = None,
+    done: Sequence[bool] | None = None,
+    start_s: float = 0.0,
+    objective: str = "makespan",
+) -> Plan:
+    """Same contract as :func:`solve_pdp` by enumerating every feasible sequence (a check; fine up to N = 5)."""
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective)
+    best_key: tuple[object, ...] | None = None
+    best: tuple[int, ...] = ()
+    for seq in _sequences(pb):
+        t, ride, dist, last = pb.start_s, 0.0, 0.0, 0
+        for node in seq:
+            t, ride, dist = _advance(pb, t, ride, dist, last, node)
+            last = node
+        key = _key(pb, t, ride, dist, seq)
+        if best_key is None or key < best_key:
+            best_key, best = key, seq
+    return _plan(pb, best)
+
+
+def count_feasible_sequences(n: int, capacity: int) -> int:
+    """Number of precedence- and capacity-feasible sequences for n waiting passengers (N!·3^(N−1) for 2 seats)."""
+    if int(n) != n or n < 0:
+        raise ValueError(f"n must be an integer >= 0 passengers, got {n!r}")
+    size = 1 + 2 * int(n)
+    pb = _problem(np.zeros((size, size)), 1.0, [0.0] * int(n), capacity, None, None, 0.0, "makespan")
+    return sum(1 for _ in _sequences(pb))
+
+
+def solve_in_order(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    order: Sequence[tuple[int, str]],
+    *,
+    start_s: float = 0.0,
+    on_board: Sequence[bool] | None = None,
+    done: Sequence[bool] | None = None,
+    capacity: int = 2,
+) -> Plan:
+    """Schedule a given stop order (appending late requests, flying the straight-line baseline).
+
+    The order must serve every passenger that is not done exactly once: a pick-up (unless on board) before
+    its drop-off, never more than ``capacity`` on board. Raises ValueError naming the offending stop.
+    """
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, "makespan")
+    n = len(pb.release_s)
+    riding = set(pb.on_board)
+    served: set[tuple[int, str]] = set()
+    nodes = []
+    for pos, stop in enumerate(order):
+        try:
+            passenger, kind = int(stop[0]), str(stop[1])
+        except (TypeError, ValueError, IndexError):
+            raise ValueError(f"order[{pos}] = {stop!r} is not a (passenger, 'pickup' | 'dropoff') pair") from None
+        what = f"order[{pos}] = ({passenger}, {kind!r})"
+        if kind not in (PICKUP, DROPOFF):
+            raise ValueError(f"{what}: kind must be 'pickup' or 'dropoff'")
+        if not 0 <= passenger < n:
+            raise ValueError(f"{what}: passenger must lie in [0, {n - 1}]")
+        if passenger not in pb.active:
+            raise ValueError(f"{what}: passenger {passenger} is already done; leave them out of the order")
+        if (passenger, kind) in served or (kind == PICKUP and passenger in pb.on_board):
+            raise ValueError(f"{what}: this stop was already served; each stop appears once")
+        if kind == PICKUP:
+            if len(riding) >= pb.capacity:
+                raise ValueError(f"{what}: the taxi is full ({pb.capacity} seats); drop someone off first")
+            riding.add(passenger)
+        else:
+            if passenger not in riding:
+                raise ValueError(f"{what}: drop-off before pick-up; put ({passenger}, 'pickup') earlier")
+            riding.remove(passenger)
+        served.add((passenger, kind))
+        nodes.append(_node(passenger, kind))
+    for i in pb.active:
+        if (i, DROPOFF) not in served:
+            needs = f"({i}, 'dropoff')" if i in riding else f"({i}, 'pickup') and ({i}, 'dropoff')"
+            raise ValueError(f"order never delivers passenger {i}; add {needs}")
+    return _plan(pb, nodes)
