@@ -1,0 +1,126 @@
+"""GAE against hand computations, the PPO loss, normalisers, and the trainer: determinism, checkpoints, resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from uamfleet.rl.buffer import RunningMeanStd, compute_gae
+from uamfleet.rl.ppo import ppo_loss
+
+
+def gae(terminated, truncated):
+    return compute_gae(
+        rewards=np.array([[1.0], [2.0], [3.0]]),
+        values=np.array([[0.5], [1.0], [1.5]]),
+        terminated=np.array(terminated, bool)[:, None],
+        truncated=np.array(truncated, bool)[:, None],
+        final_values=np.array([[0.0], [4.0], [0.0]]),
+        next_value=np.array([2.0]),
+        gamma=0.9,
+        lam=0.8,
+    )
+
+
+def test_gae_bootstraps_a_truncation_from_the_final_value():
+    adv, ret = gae([0, 0, 0], [0, 1, 0])
+    # t=2: 3 + 0.9*2.0 - 1.5 = 3.3; t=1 (truncated): 2 + 0.9*4.0 - 1.0 = 4.6, nothing flows back across the end;
+    # t=0: 1 + 0.9*1.0 - 0.5 = 1.4, plus 0.9*0.8*4.6
+    np.testing.assert_allclose(adv[:, 0], [1.4 + 0.72 * 4.6, 4.6, 3.3])
+    np.testing.assert_allclose(ret[:, 0], [1.4 + 0.72 * 4.6 + 0.5, 5.6, 4.8])
+
+
+def test_gae_does_not_bootstrap_a_termination():
+    adv, _ = gae([0, 1, 0], [0, 0, 0])
+    np.testing.assert_allclose(adv[:, 0], [1.4 + 0.72 * 1.0, 2.0 - 1.0, 3.3])
+
+
+def test_gae_without_episode_ends_equals_discounted_td_sum():
+    rng = np.random.default_rng(0)
+    r, v, nv = rng.normal(size=(5, 3)), rng.normal(size=(5, 3)), rng.normal(size=3)
+    zeros = np.zeros((5, 3), bool)
+    adv, _ = compute_gae(r, v, zeros, zeros, np.zeros((5, 3)), nv, 0.97, 0.9)
+    nxt = np.concatenate([v[1:], nv[None]])
+    deltas = r + 0.97 * nxt - v
+    expected = [sum((0.97 * 0.9) ** (k - t) * deltas[k] for k in range(t, 5)) for t in range(5)]
+    np.testing.assert_allclose(adv, np.array(expected))
+
+
+def test_running_mean_std_matches_numpy():
+    data = np.random.default_rng(1).normal(3.0, 2.0, size=(1000, 2))
+    rms = RunningMeanStd((2,))
+    for chunk in np.split(data, 10):
+        rms.update(chunk)
+    np.testing.assert_allclose(rms.mean, data.mean(0), rtol=1e-3)
+    np.testing.assert_allclose(rms.var, data.var(0), rtol=1e-3)
+
+
+def test_ppo_loss_clips_the_ratio():
+    old = torch.zeros(4)
+    new = torch.log(torch.tensor([1.5, 1.5, 0.5, 0.5]))  # ratios 1.5, 1.5, 0.5, 0.5
+    adv = torch.tensor([1.0, -1.0, 1.0, -1.0])
+    zeros = torch.zeros(4)
+    _, info = ppo_loss(new, old, zeros, zeros, zeros, adv, zeros, 0.2, 0.5, 0.0, norm_adv=False)
+    # per sample max(-A r, -A clip(r)): A=1,r=1.5 -> -1.2; A=-1,r=1.5 -> 1.5; A=1,r=0.5 -> -0.5; A=-1,r=0.5 -> 0.8
+    assert info.policy_loss == pytest.approx((-1.2 + 1.5 - 0.5 + 0.8) / 4)
+    assert info.clipfrac == 1.0
+
+
+# ---- the trainer ----------------------------------------------------------------------------------------------
+
+from conftest import small_config  # noqa: E402
+
+from uamfleet.config import Request  # noqa: E402
+from uamfleet.rl.trainer import TrainArgs, load_policy, train  # noqa: E402
+
+
+def tiny_args(tmp_path, **overrides) -> TrainArgs:
+    base = dict(
+        total_timesteps=2 * 64 * 4, num_envs=4, num_steps=64, num_minibatches=2, update_epochs=2, eval_every=1,
+        checkpoint_every=1, run_dir=tmp_path, run_name="tiny", progress=False, tensorboard=False, threads=1,
+        time_limit_steps=30, eval_time_limit_steps=30, d_model=16, num_heads=2,
+    )  # fmt: skip
+    base.update(overrides)
+    return TrainArgs(**base)
+
+
+ONE_PASSENGER = small_config(requests=(Request(0, (350.0, 150.0), (350.0, 350.0)),), time_limit_steps=30)
+
+
+def test_two_short_cpu_runs_with_one_seed_give_identical_losses(tmp_path):
+    a = train(tiny_args(tmp_path / "a", seed=3), env_config=ONE_PASSENGER)
+    b = train(tiny_args(tmp_path / "b", seed=3), env_config=ONE_PASSENGER)
+    assert a.losses and a.losses == b.losses
+    c = train(tiny_args(tmp_path / "c", seed=4), env_config=ONE_PASSENGER)
+    assert c.losses != a.losses
+
+
+def test_checkpoint_resume_continues_the_run(tmp_path):
+    args = tiny_args(tmp_path, total_timesteps=4 * 64 * 4)
+    first = train(tiny_args(tmp_path, total_timesteps=2 * 64 * 4), env_config=ONE_PASSENGER)
+    assert (tmp_path / "tiny" / "last.pt").exists() and (tmp_path / "tiny" / "progress.csv").exists()
+    assert first.iterations == 2
+    resumed = train(TrainArgs(**{**args.__dict__, "resume": True}), env_config=ONE_PASSENGER)
+    assert resumed.global_step == 4 * 64 * 4 and resumed.iterations == 4  # 2 before + 2 after, in one CSV
+    policy, saved = load_policy(tmp_path / "tiny" / "last.pt", env_config=ONE_PASSENGER)
+    assert saved.seed == args.seed
+    obs = {k: v for k, v in __import__("uamfleet").VectorEnv(ONE_PASSENGER).reset(seed=0)[0].items()}
+    assert policy(obs).shape == (1, 1)
+
+
+def test_resume_without_checkpoint_names_the_path(tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"no checkpoint at .*last.pt"):
+        train(tiny_args(tmp_path, resume=True), env_config=ONE_PASSENGER)
+
+
+@pytest.mark.slow
+def test_must_learn_one_passenger_optimal_route(tmp_path):
+    # Optimal: east (pick-up within 100 m), north, north (drop-off): 3 steps, TD 300 m, return 199 - 1 + 299 = 497.
+    result = train(
+        tiny_args(tmp_path, total_timesteps=60_000, num_envs=8, num_steps=64, eval_every=5, shaping=0.0,
+                  d_model=32, num_heads=2, learning_rate=1e-3, update_epochs=4, num_minibatches=4),
+        env_config=ONE_PASSENGER,
+    )  # fmt: skip
+    assert result.best_eval["pr_pct"] == 100.0
+    assert result.best_eval["td_m"] == 300.0

@@ -1,0 +1,33 @@
+"""Train the shared MSHA policy with PPO on a scenario, then evaluate it greedily beside the planners.
+
+    .venv/bin/python train/ppo.py --scenario berlin_p4 --sinr-min-db -3
+    .venv/bin/python train/ppo.py --help                  # every option
+    .venv/bin/python train/ppo.py ... --resume            # continue from runs/<name>/last.pt
+
+Logs: runs/<name>/progress.csv and TensorBoard events in runs/<name>/tb (CleanRL's metric names plus
+reward/<term>); checkpoints runs/<name>/last.pt (periodic, atomic) and best.pt (best greedy evaluation).
+"""
+
+from __future__ import annotations
+
+import tyro
+
+from uamfleet.rl.trainer import TrainArgs, train
+
+
+def main(args: TrainArgs) -> None:
+    result = train(args)
+    best = {k: result.best_eval.get(k, float("nan")) for k in ("pr_pct", "td_m", "att_s", "awt_s", "elr_pct")}
+    conn = result.best_eval.get("connectivity_pct", float("nan"))
+    print(
+        f"done: {result.global_step:,} agent-steps in {result.wall_s:.0f} s; best greedy evaluation at step "
+        f"{result.best_step:,}: PR {best['pr_pct']:.0f} %, TD {best['td_m']:.0f} m, ATT {best['att_s']:.1f} s, "
+        f"AWT {best['awt_s']:.1f} s, ELR {best['elr_pct']:.1f} %, connectivity {conn:.1f} %"
+    )
+    if result.target_reached_step is not None:
+        print(f"target TD reached after {result.target_reached_step:,} agent-steps, {result.target_reached_s:.0f} s")
+    print(f"checkpoints and logs in {result.run_dir}")
+
+
+if __name__ == "__main__":
+    main(tyro.cli(TrainArgs))

@@ -1,0 +1,492 @@
+"""The MSHA actor-critic (paper §IV-B) and its ablation variants (paper Table III).
+
+One shared policy for every taxi: the observation is already relative to the observing taxi, so the trainer
+flattens ``[env, taxi]`` into one batch axis ``B`` and the network sees ``{field: [B, ...]}``.
+
+Variants (:data:`VARIANTS`):
+
+- ``"le"``: a linear encoder of each flattened source (unreleased passengers and absent taxis zeroed first).
+- ``"de"``: designed encoders: history → LSTM, passengers → transformer encoder with a key-padding mask,
+  SINR and visit patches → two separate CNNs keeping the k × k grid, other taxis → masked DeepSets; each
+  output pooled and concatenated.
+- ``"de_msfea"``: + multi-source features: the token mean (taxi + released passengers) broadcast over the
+  grid and concatenated with both maps' features, then a per-cell FFN and a mean over the grid.
+- ``"full"``: + hybrid attention fusion over the k × k fused tokens (local-window heads + global heads).
+
+Inputs are used as given (the trainer's ObservationNormalizer standardises the continuous fields; raw SINR
+is in dB); masks are read as booleans (> 0.5), never rescaled.
+
+Widths: tokens (taxi, passengers, other taxis) have ``d_model`` channels; each map CNN has ``d_model // 8``
+(at least 4) and the fused grid ``d_model // 2``. The grid holds k² tokens per taxi (100 for k = 10), so its
+width and the global heads' k² × k² scores, not the parameter count, set the cost of a batch.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from gymnasium import spaces
+from torch import nn
+from torch.distributions import Categorical
+
+from uamfleet.env.observer import ObservationShapeError
+
+VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
+NUM_ACTIONS = 16
+MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
+
+
+@dataclass(frozen=True)
+class NetConfig:
+    """Network hyper-parameters; checked on construction."""
+
+    variant: str = "full"
+    d_model: int = 64  # token / feature width
+    num_heads: int = 4  # split into num_heads // 2 local heads and the rest global
+    local_window: int = 2  # side of the non-overlapping windows of the local heads; must divide the patch size k
+    hidden: int = 128  # width of the 3-layer actor and critic MLPs
+    critic_state_dim: int | None = None  # set: the critic reads the global state [B, S] (MAPPO)
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ValueError(f"variant={self.variant!r} is unknown; use one of {VARIANTS}.")
+        if self.num_heads < 2:
+            raise ValueError(
+                f"num_heads={self.num_heads} is too few: the hybrid attention needs at least one local and one "
+                "global head; use num_heads >= 2 (e.g. 4 = 2 local + 2 global)."
+            )
+        if self.d_model < 8 or self.d_model % (2 * self.num_heads) != 0:
+            raise ValueError(
+                f"d_model={self.d_model} must be >= 8 and a multiple of 2 * num_heads = {2 * self.num_heads} "
+                "(the fused grid has d_model // 2 channels split over num_heads heads); e.g. d_model=64."
+            )
+        if self.local_window < 2:
+            raise ValueError(
+                f"local_window={self.local_window} makes 1 x 1 windows, where local attention is an identity; "
+                "use a window side >= 2 that divides the patch size (e.g. 2 or 5 for a 10 x 10 patch)."
+            )
+        if self.hidden < 1:
+            raise ValueError(f"hidden={self.hidden} must be >= 1 (e.g. 128).")
+        if self.critic_state_dim is not None and self.critic_state_dim < 1:
+            raise ValueError(
+                f"critic_state_dim={self.critic_state_dim} must be >= 1 (the env's state_space size) or None."
+            )
+
+
+def layer_init(layer: nn.Linear, std: float = math.sqrt(2), bias: float = 0.0) -> nn.Linear:
+    """Orthogonal weights and constant bias, as CleanRL."""
+    nn.init.orthogonal_(layer.weight, std)
+    nn.init.constant_(layer.bias, bias)
+    return layer
+
+
+def mlp3(in_dim: int, hidden: int, out_dim: int, out_std: float) -> nn.Sequential:
+    """The paper's 3-layer head; CleanRL init (sqrt 2 inside, ``out_std`` on the output layer)."""
+    return nn.Sequential(
+        layer_init(nn.Linear(in_dim, hidden)),
+        nn.Tanh(),
+        layer_init(nn.Linear(hidden, hidden)),
+        nn.Tanh(),
+        layer_init(nn.Linear(hidden, out_dim), std=out_std),
+    )
+
+
+def masked_mean(x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean of ``x`` [B, N, ...] over the rows where ``mask`` [B, N] (bool) holds; zero where none does."""
+    m = mask.reshape(*mask.shape, *([1] * (x.dim() - 2)))  # [B, N, 1, ...]
+    # where, not multiply: garbage (even inf / NaN) in a masked row must not leak through 0 * x.
+    total = torch.where(m, x, x.new_zeros(())).sum(1)  # [B, ...]
+    count = mask.sum(1).clamp(min=1).to(x.dtype)  # [B]
+    return total / count.reshape(-1, *([1] * (total.dim() - 1)))  # [B, ...]
+
+
+def mask_logits(logits: torch.Tensor, action_mask: torch.Tensor) -> torch.Tensor:
+    """Disallowed actions get the most negative finite logit, so their probability is exactly 0.
+
+    A row with no allowed action (cannot come from the env) is left unmasked rather than made all -inf (NaN).
+    """
+    allowed = action_mask if action_mask.dtype == torch.bool else action_mask > 0.5  # [B, 16]
+    allowed = allowed | ~allowed.any(-1, keepdim=True)  # [B, 16]
+    return logits.masked_fill(~allowed, torch.finfo(logits.dtype).min)  # [B, 16]
+
+
+def _as_bool(mask: torch.Tensor) -> torch.Tensor:
+    return mask if mask.dtype == torch.bool else mask > 0.5
+
+
+# ----------------------------------------------------------------------------------------------- encoders
+
+
+class TaxiEncoder(nn.Module):
+    """History (newest first in the observation) → LSTM over oldest → newest; the last output is the token."""
+
+    def __init__(self, history_features: int, self_features: int, d_model: int) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(history_features + self_features, d_model, batch_first=True)
+
+    def forward(self, history: torch.Tensor, own: torch.Tensor) -> torch.Tensor:
+        steps = history.flip(1)  # [B, H, 3] oldest first, so the final state summarises up to now
+        own = own.unsqueeze(1).expand(-1, steps.shape[1], -1)  # [B, H, 4]
+        out, _ = self.lstm(torch.cat([steps, own], dim=-1))  # [B, H, D]
+        return out[:, -1]  # [B, D]
+
+
+class PassengerEncoder(nn.Module):
+    """Passenger rows → transformer encoder; unreleased rows are keys nobody attends to."""
+
+    def __init__(self, features: int, d_model: int, num_heads: int) -> None:
+        super().__init__()
+        self.embed = nn.Linear(features, d_model)
+        layer = nn.TransformerEncoderLayer(
+            d_model, num_heads, dim_feedforward=2 * d_model, dropout=0.0, batch_first=True, norm_first=True
+        )
+        # enable_nested_tensor=False: one code path in training and inference (same numbers, no warning).
+        self.encoder = nn.TransformerEncoder(layer, num_layers=1, enable_nested_tensor=False)
+
+    def forward(self, passengers: torch.Tensor, released: torch.Tensor) -> torch.Tensor:
+        """passengers [B, P, F], released [B, P] bool → tokens [B, P, D] (rows not released are meaningless)."""
+        rows = torch.where(released.unsqueeze(-1), passengers, passengers.new_zeros(()))  # [B, P, F]
+        padding = ~released  # [B, P] True = ignore as a key; the raw boolean mask, never rescaled
+        # With no released passenger every key would be masked and softmax would give NaN: let such rows attend
+        # to their (zeroed) rows instead; the caller drops those tokens anyway.
+        padding = padding & released.any(-1, keepdim=True)  # [B, P]
+        return self.encoder(self.embed(rows), src_key_padding_mask=padding)  # [B, P, D]
+
+
+class MapEncoder(nn.Module):
+    """A k × k patch → k × k × C features (padding keeps the grid; paper §IV-B1, v_R and v_E)."""
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Conv2d(1, channels, 3, padding=1),
+            nn.ReLU(),
+            nn.Conv2d(channels, channels, 3, padding=1),
+            nn.ReLU(),
+        )
+
+    def forward(self, patch: torch.Tensor) -> torch.Tensor:
+        out = self.net(patch.unsqueeze(1))  # [B, C, k, k]
+        return out.flatten(2).transpose(1, 2)  # [B, k*k, C] row-major grid tokens
+
+
+class SetEncoder(nn.Module):
+    """DeepSets over the other taxis: masked mean of a per-row MLP; zero when there is no other taxi."""
+
+    def __init__(self, features: int, d_model: int) -> None:
+        super().__init__()
+        self.phi = nn.Sequential(nn.Linear(features, d_model), nn.ReLU(), nn.Linear(d_model, d_model), nn.ReLU())
+
+    def forward(self, rows: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+        return masked_mean(self.phi(rows), present)  # [B, D]
+
+
+# ------------------------------------------------------------------------------------ multi-source features
+
+
+def multi_source_features(tokens: torch.Tensor, token_mask: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
+    """Paper §IV-B1 (e_UP, f_EUP, f_RUP, f_M): every token [B, N, D] broadcast over the grid and concatenated
+    with the map features [B, G, C] (G = k²), averaged over the valid tokens (``token_mask`` [B, N]) →
+    [B, G, D + C].
+
+    The map channels are the same for every token, so the mean of the concatenations is the concatenation of
+    the token mean with the maps; computing it that way avoids a [B, N, G, D + C] tensor. (The paper's two
+    copies of the token mean, one beside each map, are merged: the next linear layer sees the same thing.)
+    """
+    pooled = masked_mean(tokens, token_mask)  # [B, D]
+    grid = pooled.unsqueeze(1).expand(-1, maps.shape[1], -1)  # [B, G, D]
+    return torch.cat([grid, maps], dim=-1)  # [B, G, D + C]
+
+
+class MultiSourceFusion(nn.Module):
+    """Multi-source features followed by a per-cell FFN → fused grid tokens [B, G, Dg].
+
+    The ReLU matters: the grid mean of a *linear* map of [token mean, map features] would just be the
+    pooled concatenation of the "de" variant, with no token-map interaction.
+    """
+
+    def __init__(self, token_dim: int, map_dim: int, out_dim: int) -> None:
+        super().__init__()
+        self.token_dim = token_dim
+        self.proj = nn.Linear(token_dim + map_dim, out_dim)
+
+    def forward(self, tokens: torch.Tensor, token_mask: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
+        # = relu(proj(multi_source_features(...))) with the weight split by input block: the token part is
+        # the same in every cell, so it is projected once per sample instead of once per cell.
+        w_token, w_map = self.proj.weight.split([self.token_dim, maps.shape[-1]], dim=1)
+        pooled = masked_mean(tokens, token_mask)  # [B, D]
+        from_token = F.linear(pooled, w_token, self.proj.bias)  # [B, Dg]
+        from_maps = F.linear(maps, w_map)  # [B, G, Dg]
+        return F.relu(from_maps + from_token.unsqueeze(1))  # [B, G, Dg]
+
+
+# ------------------------------------------------------------------------------------ hybrid attention
+
+
+def window_order(grid: int, window: int) -> torch.Tensor:
+    """Permutation [grid²] taking row-major grid tokens to window-major order: window after window
+    (row-major over windows), the window × window tokens of each contiguous (row-major inside)."""
+    n = grid // window
+    cells = torch.arange(grid * grid).reshape(n, window, n, window)  # [row block, row, col block, col]
+    return cells.permute(0, 2, 1, 3).reshape(-1)  # [grid²]
+
+
+def local_attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, window: int) -> torch.Tensor:
+    """Attention inside each window (paper §IV-B2, Atten_i and h_local); tokens in :func:`window_order`.
+
+    q, k, v: [B, h, G, d] → [B, h, G, d]; token i attends only to the window² tokens of its own window;
+    scale 1 / sqrt(d_k), d_k the head width as in the paper (the original code's 1 / sqrt(32) was a bug).
+    """
+    B, h, G, d = q.shape
+    win = window * window
+    qw, kw, vw = (t.reshape(B * h, G // win, win, d) for t in (q, k, v))  # [B*h, n_win, w², d] each
+    out = F.scaled_dot_product_attention(qw, kw, vw, scale=d**-0.5)  # [B*h, n_win, w², d]
+    return out.reshape(B, h, G, d)  # [B, h, G, d]
+
+
+def global_attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """Attention over all tokens: q, k, v [B, h, G, d] → [B, h, G, d]; scale 1 / sqrt(d)."""
+    return F.scaled_dot_product_attention(q, k, v, scale=q.shape[-1] ** -0.5)  # [B, h, G, d]
+
+
+class HybridAttention(nn.Module):
+    """Self-attention over the k × k fused tokens with the heads split in two groups (paper §IV-B2): the
+    first num_heads // 2 attend inside non-overlapping window × window blocks, the others over all k²
+    tokens; outputs concatenated, projected, added back and layer-normalised.
+
+    Tokens come in and go out in row-major grid order; inside, they are put in window-major order once so
+    that every window is a contiguous block (attention, projections and LayerNorm do not care about order).
+    """
+
+    order: torch.Tensor  # [G] row-major → window-major
+    inverse: torch.Tensor  # [G] window-major → row-major
+
+    def __init__(self, dim: int, num_heads: int, grid: int, window: int) -> None:
+        super().__init__()
+        if window < 2 or grid % window != 0:
+            raise ValueError(
+                f"local_window={window} must be >= 2 and divide the patch size k={grid}; use a divisor of {grid}."
+            )
+        if dim % num_heads != 0:
+            raise ValueError(f"dim={dim} must be a multiple of num_heads={num_heads}.")
+        self.window = window
+        self.num_heads = num_heads
+        self.local_heads = num_heads // 2
+        self.head_dim = dim // num_heads
+        self.qkv = nn.Linear(dim, 3 * dim)
+        self.proj = nn.Linear(dim, dim)
+        self.norm = nn.LayerNorm(dim)
+        order = window_order(grid, window)  # [G]
+        self.register_buffer("order", order, persistent=False)
+        self.register_buffer("inverse", torch.argsort(order), persistent=False)
+
+    def _heads(self, x: torch.Tensor) -> torch.Tensor:
+        """x [B, G, dim] window-major → local and global head outputs [B, G, dim] (local heads first)."""
+        B, G, dim = x.shape
+        qkv = self.qkv(x).reshape(B, G, 3, self.num_heads, self.head_dim).permute(2, 0, 3, 1, 4)  # [3, B, h, G, d]
+        q, k, v = qkv.unbind(0)  # [B, h, G, d] each
+        L = self.local_heads
+        local = local_attention(q[:, :L], k[:, :L], v[:, :L], self.window)  # [B, hL, G, d]
+        glob = global_attention(q[:, L:], k[:, L:], v[:, L:])  # [B, hG, G, d]
+        return torch.cat([local, glob], dim=1).transpose(1, 2).reshape(B, G, dim)  # [B, G, dim]
+
+    def heads(self, x: torch.Tensor) -> torch.Tensor:
+        """The concatenated head outputs [B, G, dim] (row-major), before the output projection: channels
+        [:local_heads * head_dim] are the local branch, the rest the global branch. For tests and probing."""
+        return self._heads(x[:, self.order])[:, self.inverse]  # [B, G, dim]
+
+    def local_branch(self, x: torch.Tensor) -> torch.Tensor:
+        """The local heads' output [B, G, local_heads * head_dim] for row-major tokens x [B, G, dim]."""
+        return self.heads(x)[..., : self.local_heads * self.head_dim]  # [B, G, hL * d]
+
+    def global_branch(self, x: torch.Tensor) -> torch.Tensor:
+        """The global heads' output [B, G, (num_heads - local_heads) * head_dim] for row-major tokens x."""
+        return self.heads(x)[..., self.local_heads * self.head_dim :]  # [B, G, hG * d]
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        xw = x[:, self.order]  # [B, G, dim] window-major
+        out = self.norm(xw + self.proj(self._heads(xw)))  # [B, G, dim]
+        return out[:, self.inverse]  # [B, G, dim] row-major
+
+
+# ---------------------------------------------------------------------------------------------- torsos
+
+
+class LinearTorso(nn.Module):
+    """Variant "le": one linear layer (+ ReLU) per flattened source, concatenated."""
+
+    def __init__(self, shapes: dict[str, tuple[int, ...]], d_model: int) -> None:
+        super().__init__()
+
+        def size(key: str) -> int:
+            return int(np.prod(shapes[key]))
+
+        self.taxi = nn.Linear(size("self") + size("history"), d_model)
+        self.passengers = nn.Linear(size("passengers"), d_model)
+        self.sinr = nn.Linear(size("sinr_patch"), d_model)
+        self.visit = nn.Linear(size("visit_patch"), d_model)
+        self.others = nn.Linear(size("others"), d_model)
+        self.out_dim = 5 * d_model
+
+    def forward(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        zero = obs["self"].new_zeros(())
+        pax = torch.where(_as_bool(obs["passenger_mask"]).unsqueeze(-1), obs["passengers"], zero)  # [B, P, F]
+        others = torch.where(_as_bool(obs["others_mask"]).unsqueeze(-1), obs["others"], zero)  # [B, O, 3]
+        parts = [
+            self.taxi(torch.cat([obs["self"], obs["history"].flatten(1)], dim=-1)),  # [B, D]
+            self.passengers(pax.flatten(1)),  # [B, D]
+            self.sinr(obs["sinr_patch"].flatten(1)),  # [B, D]
+            self.visit(obs["visit_patch"].flatten(1)),  # [B, D]
+            self.others(others.flatten(1)),  # [B, D]
+        ]
+        return F.relu(torch.cat(parts, dim=-1))  # [B, 5D]
+
+
+class DesignedTorso(nn.Module):
+    """Variants "de", "de_msfea" and "full": the designed encoders, then pooling, MSFea or MSFea + HAF."""
+
+    def __init__(self, shapes: dict[str, tuple[int, ...]], cfg: NetConfig) -> None:
+        super().__init__()
+        D = cfg.d_model
+        C = max(D // 8, 4)  # channels per map CNN
+        Dg = D // 2  # fused grid width: k² tokens per sample make this the costly part
+        k = shapes["sinr_patch"][0]
+        self.variant = cfg.variant
+        self.taxi = TaxiEncoder(shapes["history"][1], shapes["self"][0], D)
+        self.passengers = PassengerEncoder(shapes["passengers"][1], D, cfg.num_heads)
+        self.sinr_cnn = MapEncoder(C)
+        self.visit_cnn = MapEncoder(C)  # a separate CNN: SINR and visit ratio are different physical fields
+        self.others = SetEncoder(shapes["others"][1], D)
+        self.fusion: MultiSourceFusion | None = None
+        self.attention: HybridAttention | None = None
+        if cfg.variant == "de":
+            self.out_dim = 3 * D + 2 * C
+        else:
+            self.fusion = MultiSourceFusion(D, 2 * C, Dg)
+            self.out_dim = Dg + D
+        if cfg.variant == "full":
+            self.attention = HybridAttention(Dg, cfg.num_heads, k, cfg.local_window)
+            self.pos_embed = nn.Parameter(torch.randn(k * k, Dg) * 0.02)  # [G, Dg] learned, one per cell
+
+    def forward(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        released = _as_bool(obs["passenger_mask"])  # [B, P]
+        taxi = self.taxi(obs["history"], obs["self"])  # [B, D]
+        pax = self.passengers(obs["passengers"], released)  # [B, P, D]
+        maps = torch.cat([self.sinr_cnn(obs["sinr_patch"]), self.visit_cnn(obs["visit_patch"])], dim=-1)  # [B, G, 2C]
+        others = self.others(obs["others"], _as_bool(obs["others_mask"]))  # [B, D]
+        if self.fusion is None:  # "de": pool each source on its own
+            pooled = [taxi, masked_mean(pax, released), maps.mean(1), others]  # [B, D], [B, D], [B, 2C], [B, D]
+            return torch.cat(pooled, dim=-1)  # [B, 3D + 2C]
+        tokens = torch.cat([taxi.unsqueeze(1), pax], dim=1)  # [B, 1 + P, D]
+        valid = torch.cat([torch.ones_like(released[:, :1]), released], dim=1)  # [B, 1 + P] the taxi always
+        grid = self.fusion(tokens, valid, maps)  # [B, G, Dg]
+        if self.attention is not None:
+            grid = self.attention(grid + self.pos_embed)  # [B, G, Dg]
+        return torch.cat([grid.mean(1), others], dim=-1)  # [B, Dg + D]
+
+
+# ---------------------------------------------------------------------------------------------- the policy
+
+
+class MSHAActorCritic(nn.Module):
+    """Shared actor-critic over one taxi's observation; ``critic_state_dim`` makes the critic centralised."""
+
+    def __init__(self, observation_space: spaces.Dict, cfg: NetConfig = NetConfig()) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.shapes = {key: tuple(sub.shape or ()) for key, sub in observation_space.spaces.items()}
+        required = ("self", "history", "passengers", "sinr_patch", "visit_patch", "others", *MASK_FIELDS)
+        missing = [key for key in required if key not in self.shapes]
+        if missing:
+            raise ValueError(f"observation_space lacks field(s) {missing}; build it with uamfleet's env.")
+        k = self.shapes["sinr_patch"][0]
+        if cfg.variant == "full" and k % cfg.local_window != 0:
+            raise ValueError(
+                f"local_window={cfg.local_window} does not divide the patch size k={k}; "
+                f"use a divisor of {k} that is >= 2 (NetConfig(local_window=...))."
+            )
+        if self.shapes["action_mask"] != (NUM_ACTIONS,):
+            raise ValueError(f"action_mask has shape {self.shapes['action_mask']}, expected ({NUM_ACTIONS},).")
+        self.torso: LinearTorso | DesignedTorso = (
+            LinearTorso(self.shapes, cfg.d_model) if cfg.variant == "le" else DesignedTorso(self.shapes, cfg)
+        )
+        features = self.torso.out_dim
+        self.actor = mlp3(features, cfg.hidden, NUM_ACTIONS, out_std=0.01)
+        self.critic = mlp3(cfg.critic_state_dim or features, cfg.hidden, 1, out_std=1.0)
+
+    def check(self, obs: dict[str, torch.Tensor]) -> int:
+        """Raise :class:`ObservationShapeError` unless every field is [B, *space shape]; return B."""
+        batch: int | None = None
+        for key, expected in self.shapes.items():
+            if key not in obs:
+                raise ObservationShapeError(
+                    f"observation lacks field {key!r}; expected fields {sorted(self.shapes)} with one batch axis."
+                )
+            shape = tuple(obs[key].shape)
+            if len(shape) != 1 + len(expected) or shape[1:] != expected or (batch is not None and shape[0] != batch):
+                want = "(" + ", ".join(str(n) for n in (batch if batch is not None else "B", *expected)) + ")"
+                raise ObservationShapeError(
+                    f"observation field {key!r} has shape {shape}, expected {want} (one batch axis); flatten "
+                    "[env, taxi] into one axis and use an env of the config the network was built for."
+                )
+            batch = shape[0]
+        assert batch is not None
+        return batch
+
+    def _check_state(self, state: torch.Tensor | None, batch: int) -> None:
+        S = self.cfg.critic_state_dim
+        if S is None:
+            if state is not None:
+                raise ValueError(
+                    "state was given but the network has no centralised critic; build it with "
+                    "NetConfig(critic_state_dim=...) or pass state=None."
+                )
+            return
+        if state is None:
+            raise ValueError(
+                f"the critic is centralised (critic_state_dim={S}) and needs state [B, {S}]; pass state=... "
+                "(for the actor alone use masked_logits(obs))."
+            )
+        if tuple(state.shape) != (batch, S):
+            raise ObservationShapeError(f"state has shape {tuple(state.shape)}, expected ({batch}, {S}).")
+
+    def masked_logits(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The actor alone (no state needed, even with a centralised critic): masked logits [B, 16]."""
+        self.check(obs)
+        return mask_logits(self.actor(self.torso(obs)), obs["action_mask"])  # [B, 16]
+
+    def forward(
+        self, obs: dict[str, torch.Tensor], state: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """obs: per-taxi fields [B, ...]; state: global state [B, S] for a centralised critic.
+
+        Returns (masked logits [B, 16], value [B]).
+        """
+        self._check_state(state, self.check(obs))
+        features = self.torso(obs)  # [B, F]
+        logits = mask_logits(self.actor(features), obs["action_mask"])  # [B, 16]
+        critic_in = features if state is None else state  # [B, F] or [B, S]
+        value = self.critic(critic_in).squeeze(-1)  # [B]
+        return logits, value
+
+    def get_action_and_value(
+        self,
+        obs: dict[str, torch.Tensor],
+        action: torch.Tensor | None = None,
+        state: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """CleanRL's call: (action [B] long, log-prob [B], entropy [B], value [B]); samples if action is None."""
+        logits, value = self(obs, state)  # [B, 16], [B]
+        dist = Categorical(logits=logits)
+        action = dist.sample() if action is None else action.long()  # [B]
+        return action, dist.log_prob(action), dist.entropy(), value
+
+
+def obs_to_torch(obs: dict[str, np.ndarray], device: torch.device | str) -> dict[str, torch.Tensor]:
+    """numpy fields [B, ...] → float32 tensors on ``device`` (masks stay 0/1 values; the network reads them
+    as booleans, never rescaled)."""
+    return {key: torch.as_tensor(np.asarray(value), dtype=torch.float32, device=device) for key, value in obs.items()}
