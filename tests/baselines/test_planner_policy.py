@@ -131,3 +131,15 @@ def test_stop_reachable_only_through_a_corner_is_named_with_the_threshold():
     env.reset(seed=0)
     with pytest.raises(UnreachableStopError, match=r"origin of passenger 0 \(P1\).*sinr_min_db=-4 dB"):
         PlannerPolicy("opt").reset(env)
+
+
+def test_greedy_fleet_serves_a_random_berlin_demand():
+    from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
+
+    cfg = uamfleet.make_config("berlin_random", num_taxis=4)
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), GreedyFleetPolicy(), seed=0)
+    m = episode_metrics(traj, cfg.radio)
+    assert traj.terminated and m.pr_pct == 100.0
+    assert cfg.radio.block_map(100.0).feasible(traj.positions_m.reshape(-1, 2), cfg.sinr_min_db).all()
+    # every taxi took part
+    assert np.all(traj.stacked("pickups").sum(axis=0) > 0)

@@ -71,6 +71,48 @@ def graph_for(world: World) -> GridGraph:
     return graphs[key]
 
 
+class DistanceFields:
+    """Steering on feasible paths: Dijkstra distance fields to goals on the world's raster graph (cached per goal)
+    and the remaining distance from candidate step endpoints, for every policy that flies to a stop."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self.graph = graph_for(world)
+        self._fields: dict[tuple[float, float], np.ndarray | None] = {}
+
+    def remaining_m(self, goal: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+        """[K] feasible-path distance from each candidate point [K, 2] to ``goal``. A point near a block edge may
+        have its nearest cell centre across it, so the best of the 4 surrounding centres is used. A goal that no
+        flyable cell reaches falls back to the straight-line distance."""
+        key = (float(goal[0]), float(goal[1]))
+        if key not in self._fields:
+            try:
+                self._fields[key] = self.graph.distances_from(goal)
+            except ValueError:  # the goal is out of every flyable cell's reach: head straight for it
+                self._fields[key] = None
+        field_m = self._fields[key]
+        if field_m is None:
+            return np.linalg.norm(candidates - goal, axis=-1)
+        radio = self.world.radio
+        res, (ox, oy) = radio.resolution_m, radio.origin_m
+        fx = (candidates[:, 0] - ox) / res
+        fy = (candidates[:, 1] - oy) / res
+        best = np.full(len(candidates), np.inf)
+        nx, ny = field_m.shape
+        for dx in (0, 1):
+            for dy in (0, 1):
+                ix = np.clip(np.floor(fx).astype(int) + dx, 0, nx - 1)
+                iy = np.clip(np.floor(fy).astype(int) + dy, 0, ny - 1)
+                centre = np.stack([ox + ix * res, oy + iy * res], axis=-1)
+                best = np.minimum(best, field_m[ix, iy] + np.linalg.norm(candidates - centre, axis=-1))
+        return best
+
+    def heading(self, pos: np.ndarray, allowed: np.ndarray, goal: np.ndarray) -> int:
+        """The allowed heading whose endpoint is nearest ``goal`` along feasible paths."""
+        cost = self.remaining_m(goal, pos + self.world.moves_m)
+        return int(np.argmin(np.where(allowed, cost, np.inf)))
+
+
 def _sub_plan(
     dist_m: np.ndarray, speed_mps: float, release_s: np.ndarray, passengers: list[int], capacity: int, wait: bool
 ) -> tuple[Plan, list[tuple[int, str]]]:
@@ -124,7 +166,6 @@ class PlannerPolicy:
         self.env: VectorEnv | None = None
         self.planned: list[Plan] = []
         self.plan = _TaxiPlan()
-        self._fields: dict[tuple[float, float], np.ndarray] = {}
 
     # ---- episode start -------------------------------------------------------------------------------
     def reset(self, env: VectorEnv) -> None:
@@ -137,9 +178,9 @@ class PlannerPolicy:
             raise RuntimeError("reset the env before the planner: PlannerPolicy.reset(env) reads its instance.")
         self.env = env
         self.world = env.world
-        self.graph = graph_for(env.world) if self.planner != "straight" else None
+        self.fields = DistanceFields(env.world) if self.planner != "straight" else None
+        self.graph = self.fields.graph if self.fields is not None else None
         self.planned = []
-        self._fields = {}
         s = env.state
         self.num_pax = int(s.pax_exists[0].sum())
         self.release_s = s.pax_release[0, : self.num_pax] * env.cfg.slot_s
@@ -184,13 +225,10 @@ class PlannerPolicy:
         mask = s.action_mask[0, 0]
         if target is None:  # nothing to do now: stay close to where we are
             target = pos
-        candidates = pos + self.world.moves_m  # [16, 2]
-        if self.planner == "straight":
-            cost = np.linalg.norm(candidates - target, axis=-1)
-        else:
-            cost = self._field_cost(target, candidates)
-        cost = np.where(mask, cost, np.inf)
-        return np.array([[int(np.argmin(cost))]])
+        if self.fields is None:  # straight line: the nearest endpoint as the crow flies
+            cost = np.linalg.norm(pos + self.world.moves_m - target, axis=-1)
+            return np.array([[int(np.argmin(np.where(mask, cost, np.inf)))]])
+        return np.array([[self.fields.heading(pos, mask, target)]])
 
     def _on_release(self, passengers: list[int]) -> None:
         if self.planner in ("cptsp", "pdpcc"):
@@ -225,28 +263,6 @@ class PlannerPolicy:
             if kind == "dropoff" and status[passenger] == ON_BOARD and carrier[passenger] == 0:
                 return np.asarray(s.pax_dest_m[0, passenger])
         return None
-
-    def _field_cost(self, target: np.ndarray, candidates: np.ndarray) -> np.ndarray:
-        """Remaining feasible-path distance from each candidate endpoint to ``target`` (inf if unreachable)."""
-        assert self.graph is not None
-        key = (float(target[0]), float(target[1]))
-        if key not in self._fields:
-            self._fields[key] = self.graph.distances_from(target)
-        field_m = self._fields[key]
-        radio = self.world.radio
-        # best of the 4 surrounding cell centres: a point near a block edge may have its nearest centre across it
-        res, (ox, oy) = radio.resolution_m, radio.origin_m
-        fx = (candidates[:, 0] - ox) / res
-        fy = (candidates[:, 1] - oy) / res
-        best = np.full(len(candidates), np.inf)
-        nx, ny = field_m.shape
-        for dx in (0, 1):
-            for dy in (0, 1):
-                ix = np.clip(np.floor(fx).astype(int) + dx, 0, nx - 1)
-                iy = np.clip(np.floor(fy).astype(int) + dy, 0, ny - 1)
-                centre = np.stack([ox + ix * res, oy + iy * res], axis=-1)
-                best = np.minimum(best, field_m[ix, iy] + np.linalg.norm(candidates - centre, axis=-1))
-        return best
 
 
 def exact_stop_length(service_order: list[tuple[int, str]], dist_m: np.ndarray) -> float:

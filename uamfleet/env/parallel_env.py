@@ -59,7 +59,7 @@ AgentID = str
 class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     metadata: ClassVar[dict[str, Any]] = {
         "name": "uamfleet_v0",
-        "render_modes": ["rgb_array"],
+        "render_modes": ["rgb_array", "human"],
         "is_parallelizable": True,
         "render_fps": 5,
     }
@@ -79,6 +79,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self._act_space = spaces.Discrete(16)
         self.state_space = self.core.state_space
         self._trails: list[np.ndarray] = []
+        self._viewer: Any = None  # the meshcat FleetViewer of render_mode="human", opened by the first render()
 
     # PettingZoo requires the identical space object on every call.
     def observation_space(self, agent: AgentID) -> spaces.Space:
@@ -134,14 +135,35 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         return self.core.global_state()[0]
 
     def render(self) -> np.ndarray | None:
+        """``"rgb_array"``: an RGB frame [H, W, 3] uint8 (matplotlib). ``"human"``: opens a meshcat viewer in
+        the browser on the first call (its address is printed) and shows the current state; returns None."""
         if self.render_mode is None:
+            return None
+        if self.render_mode == "human":
+            self._render_human()
             return None
         from uamfleet.viz.figures import render_frame
 
         return render_frame(self.core.world, self.core.state, np.stack(self._trails, axis=1))
 
+    def _render_human(self) -> None:
+        if self._viewer is None:
+            from uamfleet.viz.meshcat_view import FleetViewer
+
+            world = self.core.world
+            title = f"{self.cfg.scenario} · {self.cfg.num_taxis} taxi(s) · γ_T = {world.threshold_db:g} dB (live)"
+            self._viewer = FleetViewer(world.radio, world.threshold_db, open_server=True, title=title)
+        s = self.core.state
+        self._viewer.update_live(
+            s.pos_m[0], s.pax_status[0], s.pax_origin_m[0], s.pax_dest_m[0], int(s.t[0]),
+            pax_taxi=s.pax_taxi[0], seats=self.cfg.seats,
+        )  # fmt: skip
+
     def close(self) -> None:
-        pass
+        """Close the meshcat viewer (and kill its server) if ``render()`` opened one."""
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
 
 
 def parallel_env(

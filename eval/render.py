@@ -1,0 +1,119 @@
+"""Fly one episode and write it as a 3-D page (meshcat, one offline HTML file), optionally with PNG figures.
+
+    .venv/bin/python -m eval.render --scenario berlin_p4 --policy replan --out berlin.html --png
+    .venv/bin/python -m eval.render --scenario berlin_random --policy greedy --num-taxis 4 --out fleet.html
+
+``--policy``: a planner (single taxi: cptsp, pdpcc, replan, opt, straight), ``greedy`` (a simple fleet
+dispatcher, below) or ``random``. ``--png`` also writes ``<out stem>_routes.png`` (the route over the radio map,
+stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along the path over time, with the threshold). Screenshot the
+page with ``scripts/screenshot.sh``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+import tyro
+from cycler import cycler
+
+import uamfleet
+from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
+from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.metrics import episode_metrics
+from uamfleet.rollout import RandomPolicy, Trajectory, run_episode
+from uamfleet.viz.figures import plot_routes
+from uamfleet.viz.meshcat_view import FleetViewer
+from uamfleet.viz.strip import TAXI_HEX, plot_sinr_strip
+
+POLICIES = (*PLANNERS, "greedy", "random")
+
+
+@dataclass
+class Args:
+    scenario: str = "berlin_p4"
+    """scenario name (one of uamfleet.SCENARIOS)"""
+    policy: str = "replan"
+    """a planner (cptsp, pdpcc, replan, opt, straight: one taxi), greedy (fleet dispatcher) or random"""
+    out: Path = Path("render.html")
+    """HTML file to write"""
+    png: bool = False
+    """also write <stem>_routes.png and <stem>_sinr.png next to the HTML"""
+    sinr_min_db: float | None = None
+    """SINR threshold in dB (default: the scenario's)"""
+    num_taxis: int | None = None
+    """fleet size (default: the scenario's)"""
+    seed: int = 0
+    """episode seed (random demand and starts, the random policy)"""
+    seconds_per_step: float = 0.25
+    """playback time of one env step in the page"""
+
+
+def make_policy(name: str, seed: int, num_taxis: int) -> Any:
+    if name in PLANNERS:
+        if num_taxis != 1:
+            raise ValueError(
+                f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use --policy greedy "
+                "or --policy random for a fleet, or --num-taxis 1."
+            )
+        return PlannerPolicy(name)
+    if name == "greedy":
+        return GreedyFleetPolicy()
+    if name == "random":
+        return RandomPolicy(seed=seed)
+    raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
+
+
+def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
+    """One episode of ``args.policy``; returns it with the config whose threshold the picture shows (a planner
+    may be flown under other rules, e.g. the straight line with the threshold off)."""
+    overrides: dict[str, Any] = {
+        k: v for k, v in (("sinr_min_db", args.sinr_min_db), ("num_taxis", args.num_taxis)) if v is not None
+    }
+    shown = uamfleet.make_config(args.scenario, **overrides)
+    policy = make_policy(args.policy, args.seed, shown.num_taxis)
+    flown = shown
+    if args.policy in PLANNERS:
+        flown = uamfleet.make_config(args.scenario, **{**overrides, **planner_env_overrides(args.policy)})
+    env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
+    return run_episode(env, policy, seed=args.seed), shown
+
+
+def main(args: Args) -> dict[str, Path]:
+    if args.policy not in POLICIES:
+        raise ValueError(f"unknown --policy {args.policy!r}; choose one of {POLICIES}.")
+    traj, cfg = fly(args)
+    radio, threshold = cfg.radio, cfg.sinr_min_db
+    m = episode_metrics(traj, radio, threshold_db=threshold)
+    fleet = f"{cfg.num_taxis} taxis" if cfg.num_taxis > 1 else "1 taxi"
+    title = f"{cfg.scenario} · {args.policy} · {fleet} · γ_T = {threshold:g} dB · map: {radio.label}"
+    written: dict[str, Path] = {}
+    with FleetViewer(radio, threshold, seconds_per_step=args.seconds_per_step, title=title) as viewer:
+        viewer.show_trajectory(traj)
+        written["html"] = viewer.export_html(args.out)
+    if args.png:
+        stem = args.out.with_suffix("")
+        routes = {f"taxi {a}" if cfg.num_taxis > 1 else args.policy: traj.positions_m[a] for a in range(cfg.num_taxis)}
+        exists = traj.pax_exists
+        written["routes"] = stem.with_name(stem.name + "_routes.png")
+        # Fleet routes take the taxis' colours of the 3-D page (plot_routes colours unnamed routes by the cycle).
+        with matplotlib.rc_context({"axes.prop_cycle": cycler(color=list(TAXI_HEX))}):
+            plot_routes(radio, threshold, routes, traj.origin_m[exists], traj.destination_m[exists],
+                        traj.start_pos_m[0], f"{title}\n{m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
+                        f"connectivity {m.connectivity_pct:.1f} %", written["routes"])  # fmt: skip
+        written["sinr"] = stem.with_name(stem.name + "_sinr.png")
+        plot_sinr_strip(traj, radio, threshold, written["sinr"])
+    end = "all delivered" if traj.terminated else "truncated"
+    print(
+        f"{title}: {traj.num_steps} steps ({end}), {m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
+        f"connectivity {m.connectivity_pct:.1f} %"
+    )
+    for kind, path in written.items():
+        print(f"wrote {kind}: {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    return written
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))

@@ -1,0 +1,56 @@
+"""A greedy fleet dispatcher: every taxi flies to its nearest actionable stop along feasible paths."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uamfleet.baselines.planner_policy import DistanceFields
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.types import ON_BOARD, WAITING
+
+
+class GreedyFleetPolicy:
+    """A simple fleet dispatcher (not one of the paper's baselines): nearest stop first.
+
+    Each taxi heads for its nearest stop: a drop-off of a passenger it carries, or, while it has a free seat, the
+    origin of a waiting passenger no nearer taxi has claimed this step (taxi-passenger pairs are claimed nearest
+    first). It steers along feasible paths (:class:`DistanceFields`), so taxis go round no-fly areas instead of
+    getting stuck at their edges.
+    """
+
+    def reset(self, env: VectorEnv) -> None:
+        if env.num_envs != 1:
+            raise ValueError(f"GreedyFleetPolicy drives a one-env core, got num_envs={env.num_envs}")
+        self.env = env
+        self.fields = DistanceFields(env.world)
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        s = self.env.state
+        pos = s.pos_m[0]  # [A, 2]
+        actions = np.zeros((1, len(pos)), dtype=np.int64)
+        for a, target in enumerate(self._targets()):
+            goal = pos[a] if target is None else target
+            actions[0, a] = self.fields.heading(pos[a], s.action_mask[0, a], goal)
+        return actions
+
+    def _targets(self) -> list[np.ndarray | None]:
+        s = self.env.state
+        pos, status, carrier, free = s.pos_m[0], s.pax_status[0], s.pax_taxi[0], s.free_seats[0]
+        waiting = np.flatnonzero((status == WAITING) & s.pax_exists[0])
+        d_wait = np.linalg.norm(pos[:, None] - s.pax_origin_m[0][waiting][None], axis=-1)  # [A, W]
+        claims: dict[int, tuple[float, np.ndarray]] = {}
+        taken: set[int] = set()
+        for flat in np.argsort(d_wait, axis=None):
+            a, w = np.unravel_index(flat, d_wait.shape)
+            if free[a] > 0 and a not in claims and w not in taken:
+                claims[int(a)] = (float(d_wait[a, w]), s.pax_origin_m[0, waiting[w]])
+                taken.add(int(w))
+        targets: list[np.ndarray | None] = []
+        for a in range(len(pos)):
+            best = claims.get(a)
+            for p in np.flatnonzero((status == ON_BOARD) & (carrier == a)):
+                d = float(np.linalg.norm(s.pax_dest_m[0, p] - pos[a]))
+                if best is None or d < best[0]:
+                    best = (d, s.pax_dest_m[0, p])
+            targets.append(None if best is None else best[1])
+        return targets
