@@ -102,8 +102,9 @@ class TrainArgs:
     # evaluation, logging, checkpoints
     eval_every: int = 5
     """greedy evaluation every this many iterations (0: only at the end)"""
-    eval_time_limit_steps: int = 500
-    """time limit of the greedy evaluation episodes (steps)"""
+    eval_time_limit_steps: int | None = None
+    """time limit of the greedy evaluation episodes (default: the training one; the observation's time
+    features are fractions of the time limit, so a different one shifts them)"""
     checkpoint_every: int = 5
     """iterations between checkpoints"""
     stop_at_td_m: float | None = None
@@ -138,7 +139,8 @@ class TrainArgs:
             overrides["sinr_min_db"] = self.sinr_min_db
         if self.num_taxis is not None:
             overrides["num_taxis"] = self.num_taxis
-        overrides["time_limit_steps"] = self.time_limit_steps if training else self.eval_time_limit_steps
+        limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
+        overrides["time_limit_steps"] = limit
         return overrides
 
 
