@@ -23,6 +23,7 @@ import uamfleet
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
 from uamfleet.metrics import episode_metrics
+from uamfleet.rl.trainer import load_policy
 from uamfleet.rollout import RandomPolicy, Trajectory, run_episode
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
@@ -49,6 +50,9 @@ class Args:
     """episode seed (random demand and starts, the random policy)"""
     seconds_per_step: float = 0.25
     """playback time of one env step in the page"""
+    checkpoint: Path | None = None
+    """a policy trained by train/ppo.py (runs/<name>/best.pt); flies it greedily instead of --policy, on its
+    training scenario and threshold unless --scenario / --sinr-min-db say otherwise"""
 
 
 def make_policy(name: str, seed: int, num_taxis: int) -> Any:
@@ -72,6 +76,12 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
     overrides: dict[str, Any] = {
         k: v for k, v in (("sinr_min_db", args.sinr_min_db), ("num_taxis", args.num_taxis)) if v is not None
     }
+    if args.checkpoint is not None:
+        policy, trained = load_policy(args.checkpoint)
+        overrides = {"feasibility": trained.feasibility, **trained.env_overrides(training=False), **overrides}
+        shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
+        env = uamfleet.VectorEnv(shown, num_envs=1, autoreset=False)
+        return run_episode(env, policy, seed=args.seed), shown
     shown = uamfleet.make_config(args.scenario, **overrides)
     policy = make_policy(args.policy, args.seed, shown.num_taxis)
     flown = shown
@@ -82,7 +92,9 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
 
 
 def main(args: Args) -> dict[str, Path]:
-    if args.policy not in POLICIES:
+    if args.checkpoint is not None:
+        args.policy = "msha"
+    elif args.policy not in POLICIES:
         raise ValueError(f"unknown --policy {args.policy!r}; choose one of {POLICIES}.")
     traj, cfg = fly(args)
     radio, threshold = cfg.radio, cfg.sinr_min_db
