@@ -52,7 +52,8 @@ class RewardConfig:
     ``repeat_visit`` * (visits - 1) otherwise; ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that
     was not allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
     ``shaping * (gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable stop) /
-    step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged).
+    step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance measured
+    along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
     """
 
     step: float = -2.0
@@ -63,10 +64,15 @@ class RewardConfig:
     blocked: float = -50.0
     shaping: float = 0.0
     shaping_gamma: float = 0.99
+    shaping_metric: str = "path"  # "path": distance along feasible paths; "euclidean": straight line
 
     def __post_init__(self) -> None:
+        if self.shaping_metric not in ("path", "euclidean"):
+            raise ValueError(
+                f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use 'path' or 'euclidean'."
+            )
         for f in dataclasses.fields(self):
-            if not math.isfinite(getattr(self, f.name)):
+            if f.name != "shaping_metric" and not math.isfinite(getattr(self, f.name)):
                 raise ValueError(f"RewardConfig.{f.name}={getattr(self, f.name)!r} must be finite.")
         if self.shaping < 0:
             raise ValueError(f"RewardConfig.shaping={self.shaping} must be >= 0 (0 turns shaping off).")

@@ -5,6 +5,8 @@ Each term is [E, A]; the reward of a taxi is their sum. Weights come from :class
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numba import njit
 
@@ -44,19 +46,38 @@ def _terms(
     return out
 
 
-def potential(state: FleetState, step_m: float) -> np.ndarray:
+DistanceTo = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""``distance_to(goal [2], points [K, 2]) -> [K]`` metres from each point to the goal."""
+
+
+def euclidean(goal: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points - goal, axis=-1)
+
+
+def potential(state: FleetState, step_m: float, distance_to: DistanceTo = euclidean) -> np.ndarray:
     """[E, A] shaping potential: minus the distance (in steps) from each taxi to its nearest actionable stop.
 
     Actionable stops: the destinations of its passengers on board, and, while it has a free seat, the origins of
-    released passengers waiting. A taxi with nothing to do has potential 0.
+    released passengers waiting. A taxi with nothing to do has potential 0. ``distance_to`` measures the
+    distance: straight-line, or along feasible paths (``RewardConfig.shaping_metric = "path"``), which has no
+    local optimum at the edge of a no-fly area (a straight-line potential rewards pressing against it).
     """
-    A = state.free_seats.shape[1]
-    pos = state.pos_m[:, :, None, :]  # [E, A, 1, 2]
+    E, A = state.free_seats.shape
+    P = state.pax_status.shape[1]
     mine = (state.pax_status == ON_BOARD)[:, None, :] & (state.pax_taxi[:, None, :] == np.arange(A)[None, :, None])
     waiting = (state.pax_status == WAITING)[:, None, :] & (state.free_seats[:, :, None] > 0)  # [E, A, P]
-    d_dest = np.where(mine, np.linalg.norm(state.pax_dest_m[:, None] - pos, axis=-1), np.inf)
-    d_orig = np.where(waiting, np.linalg.norm(state.pax_origin_m[:, None] - pos, axis=-1), np.inf)
-    nearest = np.minimum(d_dest.min(axis=-1, initial=np.inf), d_orig.min(axis=-1, initial=np.inf))  # [E, A]
+    nearest = np.full((E, A), np.inf)
+    for actionable, stops in ((mine, state.pax_dest_m), (waiting, state.pax_origin_m)):
+        for p in range(P):
+            envs = np.flatnonzero(actionable[:, :, p].any(axis=1))
+            if envs.size == 0:
+                continue
+            # envs that share the stop's coordinates (a fixed instance: all of them) need one distance query
+            coords, group = np.unique(stops[envs, p], axis=0, return_inverse=True)
+            for g, goal in enumerate(coords):
+                sel = envs[group.reshape(-1) == g]
+                d = distance_to(goal, state.pos_m[sel].reshape(-1, 2)).reshape(len(sel), A)  # [e, A]
+                nearest[sel] = np.minimum(nearest[sel], np.where(actionable[sel, :, p], d, np.inf))
     return np.where(np.isfinite(nearest), -nearest / step_m, 0.0)
 
 

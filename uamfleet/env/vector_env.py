@@ -54,6 +54,13 @@ class VectorEnv:
         self.episode_terms = np.zeros((self.num_envs, self.num_taxis, len(REWARD_TERMS)))
         self.needs_reset = True
         self.last_events: StepEvents | None = None
+        self._distance_to: reward.DistanceTo = reward.euclidean
+        if cfg.reward.shaping > 0 and cfg.reward.shaping_metric == "path":
+            # Feasible-path distances come from the planners' raster graph (built once per map and threshold).
+            from uamfleet.baselines.planner_policy import DistanceFields
+
+            fields = DistanceFields(self.world)
+            self._distance_to = lambda goal, points: fields.remaining_m(goal, points)
 
     # ---- reset ---------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -87,7 +94,7 @@ class VectorEnv:
         actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis)
         state, weights = self.state, self.cfg.reward
         shaping = weights.shaping > 0
-        phi_before = reward.potential(state, self.cfg.step_m) if shaping else None
+        phi_before = reward.potential(state, self.cfg.step_m, self._distance_to) if shaping else None
 
         events = dynamics.step(state, actions, self.world)
         terminated = events.all_delivered  # [E]
@@ -97,7 +104,7 @@ class VectorEnv:
 
         shaping_values = None
         if phi_before is not None:
-            phi_after = reward.potential(state, self.cfg.step_m)
+            phi_after = reward.potential(state, self.cfg.step_m, self._distance_to)
             shaping_values = reward.shaping_term(phi_before, phi_after, terminated, weights)
         terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
         self.episode_terms += terms
