@@ -125,3 +125,15 @@ def test_path_potential_goes_round_the_wall():
     assert reward.potential(path.state, 100.0, path._distance_to)[0, 0] == pytest.approx(-10.0)
     with pytest.raises(ValueError, match=r"shaping_metric='manhattan' is unknown"):
         RewardConfig(shaping_metric="manhattan")
+
+
+def test_reward_weights_can_change_between_steps_but_not_the_shaping_metric():
+    env = VectorEnv(small_config(reward=RewardConfig(shaping=2.0)))
+    env.reset(seed=0)
+    env.set_reward_weights(RewardConfig(shaping=1.0, step=-5.0))
+    _, _, _, _, info = env.step(np.array([[EAST]]))
+    assert info["reward_terms"][0, 0, 0] == -5.0
+    with pytest.raises(ValueError, match="shaping on/off and shaping_metric are fixed"):
+        env.set_reward_weights(RewardConfig(shaping=1.0, shaping_metric="euclidean"))
+    with pytest.raises(ValueError, match="shaping on/off"):
+        env.set_reward_weights(RewardConfig(shaping=0.0))

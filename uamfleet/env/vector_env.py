@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.config import REWARD_TERMS, EnvConfig
+from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
 from uamfleet.env import dynamics, generator, reward
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import World
@@ -147,6 +147,18 @@ class VectorEnv:
         for i, name in enumerate(REWARD_TERMS):
             stats[f"reward/{name}"] = self.episode_terms[..., i].copy()  # [E, A]
         return stats
+
+    def set_reward_weights(self, weights: RewardConfig) -> None:
+        """Change the reward weights between steps (e.g. a shaping curriculum); the metric of the shaping
+        potential is part of the env's geometry and cannot change."""
+        if weights.shaping_metric != self.cfg.reward.shaping_metric or (weights.shaping > 0) != (
+            self.cfg.reward.shaping > 0
+        ):
+            raise ValueError(
+                "set_reward_weights may change weights only: shaping on/off and shaping_metric are fixed at "
+                f"construction (was shaping={self.cfg.reward.shaping}, metric={self.cfg.reward.shaping_metric!r})."
+            )
+        self.cfg = self.cfg.replace(reward=weights)
 
     # ---- views ---------------------------------------------------------------------------------------
     def observe(self) -> dict[str, np.ndarray]:
