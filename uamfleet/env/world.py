@@ -1,7 +1,8 @@
-"""Static, precomputed geometry of one environment config: blocks, feasibility tables, headings.
+"""Static, precomputed geometry of one environment config: block map, flyable blocks, patches, headings.
 
-Built once per config (a few hundred ms for Berlin: the per-heading segment table) and shared by the
-generator, the dynamics, the observer and the baselines, so that every one of them applies the same rule.
+Built once per config (milliseconds; the block map is cached on the radio map) and shared by the generator,
+the dynamics, the observer and the baselines, so that every one of them applies the same rule. Segment tests
+sample the raster along each move in the compiled kernels (:mod:`uamfleet.radio._sampling`).
 """
 
 from __future__ import annotations
