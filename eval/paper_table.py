@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from uamfleet.baselines.planner_policy import (
 )
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.rl.trainer import load_policy
 from uamfleet.rollout import Trajectory, run_episode
 from uamfleet.viz.figures import plot_connectivity, plot_routes
 
@@ -53,6 +55,8 @@ class Args:
     figures: Path = Path("docs/figures")
     quick: bool = False
     """only Berlin at -3 dB (smoke test)"""
+    checkpoints: tuple[Path, ...] = ()
+    """trained policies (runs/<name>/best.pt) to add as rows at the scenario and threshold they were trained on"""
 
 
 def fly(scenario: str, threshold: float, planner: str) -> tuple[Trajectory, PlannerPolicy, uamfleet.EnvConfig]:
@@ -63,23 +67,42 @@ def fly(scenario: str, threshold: float, planner: str) -> tuple[Trajectory, Plan
     return run_episode(env, policy, seed=0), policy, cfg
 
 
-def evaluate(scenario: str, label: str, threshold: float) -> tuple[list[dict[str, object]], dict[str, np.ndarray]]:
+Learned = tuple[str, object, dict[str, object]]  # (method name, greedy policy, env overrides it was trained with)
+
+
+def evaluate(
+    scenario: str,
+    label: str,
+    threshold: float,
+    learned: Sequence[Learned] = (),
+) -> tuple[list[dict[str, object]], dict[str, np.ndarray]]:
+    """Every planner, then every learned policy trained for this (scenario, threshold), flown once."""
     rows, routes = [], {}
+    stop_dist = None
+    runs: list[tuple[str, Trajectory, uamfleet.EnvConfig, np.ndarray | None]] = []
     for planner in PLANNERS:
         traj, policy, cfg = fly(scenario, threshold, planner)
+        runs.append((planner, traj, cfg, policy.dist_m))
+        if planner == "opt":
+            stop_dist = policy.dist_m  # shortest feasible paths between this instance's stops
+    for name, learned_policy, overrides in learned:
+        cfg = uamfleet.make_config(scenario, **{**overrides, "sinr_min_db": threshold})
+        env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
+        runs.append((name, run_episode(env, learned_policy, seed=0), cfg, stop_dist))  # type: ignore[arg-type]
+    for method, traj, cfg, dist_m in runs:
         m = episode_metrics(traj, cfg.radio, threshold_db=threshold)
         picked = traj.stacked("picked_up")
         dropped = traj.stacked("dropped_off")
         steps = np.arange(1, traj.num_steps + 1)
         pick_step = np.where(picked.any(0), steps[np.argmax(picked, 0)], -1)[traj.pax_exists]
         drop_step = np.where(dropped.any(0), steps[np.argmax(dropped, 0)], -1)[traj.pax_exists]
-        td_exact = exact_stop_length(service_order(pick_step, drop_step), policy.dist_m)
+        td_exact = exact_stop_length(service_order(pick_step, drop_step), dist_m) if dist_m is not None else math.nan
         rows.append({
-            "setting": label, "threshold_db": threshold, "method": planner, "source": "ours", "pr_pct": m.pr_pct,
+            "setting": label, "threshold_db": threshold, "method": method, "source": "ours", "pr_pct": m.pr_pct,
             "td_m": m.td_m, "td_exact_m": td_exact, "att_s": m.att_s, "awt_s": m.awt_s, "elr_pct": m.elr_pct,
             "connectivity_pct": m.connectivity_pct, "min_sinr_db": m.min_sinr_db,
         })  # fmt: skip
-        routes[planner] = traj.positions_m[0]
+        routes[method] = traj.positions_m[0]
     return rows, routes
 
 
@@ -127,13 +150,24 @@ def markdown(rows: list[dict[str, object]]) -> str:
 def main(args: Args) -> list[dict[str, object]]:
     settings = ((SETTINGS[0][0], SETTINGS[0][1], (-3.0,), SETTINGS[0][3]),) if args.quick else SETTINGS
     rows: list[dict[str, object]] = []
+    learned: dict[tuple[str, float], list[Learned]] = {}
+    for path in args.checkpoints:
+        policy, trained = load_policy(path)
+        at = (
+            trained.sinr_min_db
+            if trained.sinr_min_db is not None
+            else uamfleet.make_config(trained.scenario).sinr_min_db
+        )
+        overrides = {"feasibility": trained.feasibility, "time_limit_steps": trained.time_limit_steps}
+        learned.setdefault((trained.scenario, float(at)), []).append((f"msha-{trained.variant}", policy, overrides))
     for scenario, key, thresholds, label in settings:
         connectivity: dict[str, list[float]] = {p: [] for p in PLANNERS}
         for threshold in thresholds:
-            ours, routes = evaluate(scenario, label, threshold)
+            ours, routes = evaluate(scenario, label, threshold, learned.get((scenario, threshold), []))
             rows += paper_rows(key, label, threshold) + ours
             for r in ours:
-                connectivity[str(r["method"])].append(float(r["connectivity_pct"]))  # type: ignore[arg-type]
+                if r["method"] in connectivity:
+                    connectivity[str(r["method"])].append(float(r["connectivity_pct"]))  # type: ignore[arg-type]
                 print(
                     f"{label:<45} {threshold:>5.0f} dB  {r['method']:<9} PR {r['pr_pct']:5.1f} %  "
                     f"TD {r['td_m']:7.0f} m  exact {r['td_exact_m']:7.0f} m  ATT {r['att_s']:7.2f} s  "

@@ -113,7 +113,7 @@ def plot_routes(
     cax = fig.add_axes((0.84, 0.08, 0.03, 0.84))
     fig.colorbar(im, cax=cax, label=f"SINR [dB] (grey: below γ_T = {threshold_db:g} dB)")
     for name, route in routes_m.items():
-        ax.plot(route[:, 0], route[:, 1], lw=1.8, color=ROUTE_COLOURS.get(name, None), label=name)
+        ax.plot(route[:, 0], route[:, 1], lw=1.8, color=ROUTE_COLOURS.get(name.split("-")[0]), label=name)
     ax.plot(*start_m, marker="*", ms=14, color="gold", mec="k", ls="none", label="start")
     for i, (o, d) in enumerate(zip(origins_m, destinations_m, strict=True)):
         ax.plot(*o, marker="^", ms=8, color="white", mec="k", ls="none")
