@@ -1,0 +1,27 @@
+"""The paper-table command end to end (quick mode): CSV, Markdown section, figures, and a learned policy's row."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from eval.paper_table import Args, main
+from uamfleet.rl.trainer import TrainArgs, train
+
+
+def test_quick_table_with_a_checkpoint(tmp_path: Path) -> None:
+    result = train(TrainArgs(sinr_min_db=-3.0, total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
+                             update_epochs=1, run_dir=tmp_path, run_name="tiny", progress=False, tensorboard=False,
+                             threads=1, time_limit_steps=40, d_model=16, num_heads=2))  # fmt: skip
+    md = tmp_path / "results.md"
+    md.write_text("# Results\n\nhand-written text stays\n")
+    main(Args(quick=True, out_md=md, out_csv=tmp_path / "t.csv", figures=tmp_path / "fig",
+              checkpoints=(result.run_dir / "best.pt",)))  # fmt: skip
+    rows = list(csv.DictReader((tmp_path / "t.csv").open()))
+    ours = {r["method"]: r for r in rows if r["source"] == "ours"}
+    assert set(ours) == {"cptsp", "pdpcc", "replan", "opt", "straight", "msha-full"}
+    assert float(ours["opt"]["pr_pct"]) == 100.0 and float(ours["opt"]["td_m"]) <= float(ours["cptsp"]["td_m"])
+    assert {r["method"] for r in rows if r["source"] == "paper"} >= {"CPTSP", "PDPCC", "MSHA-RL"}
+    text = md.read_text()
+    assert "hand-written text stays" in text and "<!-- paper_table:begin -->" in text and "msha-full" in text
+    assert (tmp_path / "fig" / "routes_berlin_p4_-3dB.png").stat().st_size > 10_000
