@@ -49,6 +49,8 @@ class TrainArgs:
     """episode time limit while training (steps)"""
     shaping: float = 5.0
     """weight of the potential-based shaping term (0 = the authors' reward only)"""
+    shaping_metric: Literal["path", "euclidean"] = "path"
+    """distance in the shaping potential: along feasible paths, or straight line"""
     shaping_anneal_frac: float = 0.5
     """decay the shaping weight linearly to 0 over the LAST this fraction of training (0: constant). Shaping is
     potential-based, so the optimum is unchanged: it helps find every passenger early, and annealing it leaves
@@ -163,9 +165,11 @@ class TrainResult:
     interrupted: bool = False
 
 
-def make_env_config(scenario: str | EnvConfig, overrides: dict[str, Any], shaping: float) -> EnvConfig:
+def make_env_config(
+    scenario: str | EnvConfig, overrides: dict[str, Any], shaping: float, shaping_metric: str = "path"
+) -> EnvConfig:
     cfg = uamfleet.make_config(scenario, **overrides)
-    return cfg.replace(reward=dataclasses.replace(cfg.reward, shaping=shaping))
+    return cfg.replace(reward=dataclasses.replace(cfg.reward, shaping=shaping, shaping_metric=shaping_metric))
 
 
 class GreedyPolicy:
@@ -218,8 +222,8 @@ def train(args: TrainArgs, env_config: EnvConfig | None = None) -> TrainResult: 
     run_dir.mkdir(parents=True, exist_ok=True)
 
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    cfg = make_env_config(base, args.env_overrides(training=True), args.shaping)
-    eval_cfg = make_env_config(base, args.env_overrides(training=False), args.shaping)
+    cfg = make_env_config(base, args.env_overrides(training=True), args.shaping, args.shaping_metric)
+    eval_cfg = make_env_config(base, args.env_overrides(training=False), args.shaping, args.shaping_metric)
     venv = VectorEnv(cfg, num_envs=args.num_envs)
     num_taxis = cfg.num_taxis
     num_agents = args.num_envs * num_taxis
@@ -520,7 +524,9 @@ def load_policy(
     saved["run_dir"] = Path(saved.get("run_dir", "runs"))
     args = TrainArgs(**saved)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    venv = VectorEnv(make_env_config(base, args.env_overrides(training=False), args.shaping), num_envs=1)
+    venv = VectorEnv(
+        make_env_config(base, args.env_overrides(training=False), args.shaping, args.shaping_metric), num_envs=1
+    )
     net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt["net_config"]))
     net.load_state_dict(ckpt["model"])
     net.eval()
