@@ -33,7 +33,8 @@ from uamfleet.baselines.planner_policy import (
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
-from uamfleet.rollout import Trajectory, run_episode
+from uamfleet.rollout import Trajectory
+from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_connectivity, plot_routes
 
 # (scenario, paper table key, thresholds, label)
@@ -62,9 +63,8 @@ class Args:
 def fly(scenario: str, threshold: float, planner: str) -> tuple[Trajectory, PlannerPolicy, uamfleet.EnvConfig]:
     overrides = {"sinr_min_db": threshold, **planner_env_overrides(planner)}
     cfg = uamfleet.make_config(scenario, **overrides)
-    env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
     policy = PlannerPolicy(planner)
-    return run_episode(env, policy, seed=0), policy, cfg
+    return fly_episode(cfg, policy), policy, cfg
 
 
 Learned = tuple[str, object, dict[str, object]]  # (method name, greedy policy, env overrides it was trained with)
@@ -87,8 +87,7 @@ def evaluate(
             stop_dist = policy.dist_m  # shortest feasible paths between this instance's stops
     for name, learned_policy, overrides in learned:
         cfg = uamfleet.make_config(scenario, **{**overrides, "sinr_min_db": threshold})
-        env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
-        runs.append((name, run_episode(env, learned_policy, seed=0), cfg, stop_dist))  # type: ignore[arg-type]
+        runs.append((name, fly_episode(cfg, learned_policy), cfg, stop_dist))  # type: ignore[arg-type]
     for method, traj, cfg, dist_m in runs:
         m = episode_metrics(traj, cfg.radio, threshold_db=threshold)
         picked = traj.stacked("picked_up")

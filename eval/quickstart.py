@@ -20,7 +20,7 @@ from eval.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
-from uamfleet.rollout import run_episode
+from uamfleet.rollout import fly as fly_episode
 
 
 @dataclass
@@ -37,8 +37,7 @@ class Args:
 
 def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics:
     cfg = uamfleet.make_config("berlin_p4", sinr_min_db=threshold, **overrides)
-    env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
-    return episode_metrics(run_episode(env, policy, seed=0), cfg.radio)  # type: ignore[arg-type]
+    return episode_metrics(fly_episode(cfg, policy), cfg.radio)  # type: ignore[arg-type]
 
 
 def main(args: Args) -> dict[str, EpisodeMetrics]:

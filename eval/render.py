@@ -24,7 +24,8 @@ from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
-from uamfleet.rollout import RandomPolicy, Trajectory, run_episode
+from uamfleet.rollout import RandomPolicy, Trajectory
+from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
 from uamfleet.viz.strip import TAXI_HEX, plot_sinr_strip
@@ -80,15 +81,13 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
         policy, trained = load_policy(args.checkpoint)
         overrides = {"feasibility": trained.feasibility, **trained.env_overrides(training=False), **overrides}
         shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
-        env = uamfleet.VectorEnv(shown, num_envs=1, autoreset=False)
-        return run_episode(env, policy, seed=args.seed), shown
+        return fly_episode(shown, policy, seed=args.seed), shown
     shown = uamfleet.make_config(args.scenario, **overrides)
     policy = make_policy(args.policy, args.seed, shown.num_taxis)
     flown = shown
     if args.policy in PLANNERS:
         flown = uamfleet.make_config(args.scenario, **{**overrides, **planner_env_overrides(args.policy)})
-    env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
-    return run_episode(env, policy, seed=args.seed), shown
+    return fly_episode(flown, policy, seed=args.seed), shown
 
 
 def main(args: Args) -> dict[str, Path]:

@@ -9,6 +9,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import StepEvents
 
@@ -73,6 +74,13 @@ class Trajectory:
     def stacked(self, name: str) -> np.ndarray:
         """[T, ...] one event field of env 0 over the episode (e.g. ``"moved"`` -> [T, A])."""
         return np.stack([getattr(e, name)[0] for e in self.events])
+
+
+def fly(
+    cfg: EnvConfig, policy: Policy | Callable[[dict[str, np.ndarray]], np.ndarray], seed: int | None = 0
+) -> Trajectory:
+    """One recorded episode of ``policy`` in a fresh one-env core of ``cfg``."""
+    return run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), policy, seed=seed)
 
 
 def run_episode(

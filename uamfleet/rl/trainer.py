@@ -29,7 +29,7 @@ from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
 from uamfleet.rl.ppo import ppo_loss
-from uamfleet.rollout import run_episode
+from uamfleet.rollout import fly
 
 
 @dataclass
@@ -189,8 +189,7 @@ class GreedyPolicy:
 
 
 def evaluate(policy: GreedyPolicy, cfg: EnvConfig, seed: int = 0) -> EpisodeMetrics:
-    env = VectorEnv(cfg, num_envs=1, autoreset=False)
-    return episode_metrics(run_episode(env, policy, seed=seed), cfg.radio)
+    return episode_metrics(fly(cfg, policy, seed=seed), cfg.radio)
 
 
 def _score(m: dict[str, float]) -> tuple[float, float]:
