@@ -20,17 +20,14 @@ import tyro
 from cycler import cycler
 
 import uamfleet
-from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
-from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.baselines import PLANNERS, POLICIES, make_policy, planner_env_overrides
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
-from uamfleet.rollout import RandomPolicy, Trajectory
+from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
 from uamfleet.viz.strip import TAXI_HEX, plot_sinr_strip
-
-POLICIES = (*PLANNERS, "greedy", "random")
 
 
 @dataclass
@@ -54,21 +51,6 @@ class Args:
     checkpoint: Path | None = None
     """a policy trained by train/ppo.py (runs/<name>/best.pt); flies it greedily instead of --policy, on its
     training scenario and threshold unless --scenario / --sinr-min-db say otherwise"""
-
-
-def make_policy(name: str, seed: int, num_taxis: int) -> Any:
-    if name in PLANNERS:
-        if num_taxis != 1:
-            raise ValueError(
-                f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use --policy greedy "
-                "or --policy random for a fleet, or --num-taxis 1."
-            )
-        return PlannerPolicy(name)
-    if name == "greedy":
-        return GreedyFleetPolicy()
-    if name == "random":
-        return RandomPolicy(seed=seed)
-    raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
 
 
 def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:

@@ -6,14 +6,14 @@ python -m eval.rollout --scenario berlin_p4 --policy random --episodes 3
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import tyro
 
 import uamfleet
 from uamfleet.metrics import episode_metrics
-from uamfleet.rollout import RandomPolicy, run_episode
+from uamfleet.baselines import PLANNERS, make_policy, planner_env_overrides
+from uamfleet.rollout import run_episode
 
 
 @dataclass
@@ -24,8 +24,8 @@ class Args:
     """SINR threshold in dB (default: the scenario's)"""
     num_taxis: int | None = None
     """fleet size (default: the scenario's)"""
-    policy: Literal["random"] = "random"
-    """policy to roll out"""
+    policy: str = "random"
+    """a planner (cptsp, pdpcc, replan, opt, straight: one taxi), greedy (fleet dispatcher) or random"""
     episodes: int = 3
     """number of episodes"""
     seed: int = 0
@@ -44,9 +44,12 @@ def main(args: Args) -> list[dict[str, float]]:
         )
         if v is not None
     }
-    cfg = uamfleet.make_config(args.scenario, **overrides)
-    env = uamfleet.VectorEnv(cfg, num_envs=1, autoreset=False)
-    policy = RandomPolicy(seed=args.seed)
+    cfg = uamfleet.make_config(args.scenario, **overrides)  # the rules the metrics are scored against
+    flown = cfg  # a planner may fly under its own overrides (one seat for CPTSP, SINR off for the straight line)
+    if args.policy in PLANNERS:
+        flown = uamfleet.make_config(args.scenario, **{**overrides, **planner_env_overrides(args.policy)})
+    env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
+    policy = make_policy(args.policy, args.seed, cfg.num_taxis)
     print(
         f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
         f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"
@@ -54,7 +57,7 @@ def main(args: Args) -> list[dict[str, float]]:
     rows = []
     for i in range(args.episodes):
         traj = run_episode(env, policy, seed=args.seed + i)
-        m = episode_metrics(traj, cfg.radio)
+        m = episode_metrics(traj, cfg.radio, threshold_db=cfg.sinr_min_db)
         rows.append(m.as_dict())
         end = "terminated" if traj.terminated else "truncated"
         print(
