@@ -39,6 +39,14 @@ Arguments
 ---------
 ``parallel_env(scenario="berlin_p4", render_mode=None, **overrides)``: any :class:`uamfleet.config.EnvConfig`
 field as a keyword (``sinr_min_db``, ``num_taxis``, ``starts_m``, ``requests``, ``radio``, ...).
+``render_mode="rgb_array"`` returns matplotlib frames; ``"human"`` opens a live meshcat viewer in the browser
+(closed, with its server, by ``close()``).
+
+Seeding
+-------
+``reset(seed=s)`` makes the episode (random starts and demand) a function of ``s``; ``reset()`` without a seed
+continues the generator. The batched core's env e seeded with ``s`` runs the same episodes as this env seeded
+with ``s + e``.
 """
 
 from __future__ import annotations
