@@ -12,17 +12,7 @@ from uamfleet.env.world import World
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio import RadioMap
 from uamfleet.types import HIDDEN, WAITING, FleetState
-
-TAXI_COLOURS = (
-    "tab:red",
-    "tab:blue",
-    "tab:green",
-    "tab:orange",
-    "tab:purple",
-    "tab:brown",
-    "tab:pink",
-    "tab:cyan",
-)
+from uamfleet.viz.strip import TAXI_HEX
 
 
 def render_frame(world: World, state: FleetState, trails_m: np.ndarray, env: int = 0, size_px: int = 640) -> np.ndarray:
@@ -55,7 +45,7 @@ def render_frame(world: World, state: FleetState, trails_m: np.ndarray, env: int
         ax.annotate(f"S{p + 1}", o, color="w", fontsize=8)
         ax.annotate(f"D{p + 1}", d, color="w", fontsize=8)
     for a in range(trails_m.shape[0]):
-        colour = TAXI_COLOURS[a % len(TAXI_COLOURS)]
+        colour = TAXI_HEX[a % len(TAXI_HEX)]
         ax.plot(trails_m[a, :, 0], trails_m[a, :, 1], color=colour, lw=1.5)
         ax.plot(*state.pos_m[env, a], marker="o", color=colour, mec="k")
     ax.set_xlim(0, side)
