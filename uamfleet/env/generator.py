@@ -18,28 +18,29 @@ class InfeasibleInstanceError(ValueError):
     """A start or stop lies outside the map, in a block below the threshold, or out of reach of every start."""
 
 
-def validate_instance(world: World, starts_m: np.ndarray, requests: Sequence[Request]) -> None:
+def validate_instance(world: World, starts_m: np.ndarray | None, requests: Sequence[Request]) -> None:
     """Raise :class:`InfeasibleInstanceError` naming the point, the threshold and the fix.
 
     Reachability is judged on 8-connected flyable blocks (SINR block map at the threshold): a stop is
-    reachable when its block lies in the same component as some taxi's start block.
+    reachable when its block lies in the same component as some taxi's start block. With ``starts_m=None``
+    (starts drawn per episode) only each stop's own block is checked.
     """
     thr = world.threshold_db
     fix = "move the point, or lower sinr_min_db"
-    for a, start in enumerate(np.asarray(starts_m, dtype=float)):
+    for a, start in enumerate(np.asarray(starts_m if starts_m is not None else np.empty((0, 2)), dtype=float)):
         _check_point(world, start, f"start of taxi {a}", fix)
         if not world.action_mask(start).any():
             raise InfeasibleInstanceError(
                 f"start of taxi {a} at {tuple(start.tolist())} has no allowed move at sinr_min_db={thr} dB: every "
                 f"heading leaves the map or enters a block below the threshold; {fix}."
             )
-    start_components = set(world.component_of(np.asarray(starts_m, dtype=float)).tolist())
+    start_components = None if starts_m is None else set(world.component_of(np.asarray(starts_m, float)).tolist())
     for i, req in enumerate(requests):
         for what, point in (("origin", req.origin_m), ("destination", req.destination_m)):
             label = f"{what} of passenger {i} (P{i + 1})"
             p = np.asarray(point, dtype=float)
             _check_point(world, p, label, fix)
-            if int(world.component_of(p)) not in start_components:
+            if start_components is not None and int(world.component_of(p)) not in start_components:
                 raise InfeasibleInstanceError(
                     f"{label} at {point} is unreachable from the start(s) at sinr_min_db={thr} dB: no path of "
                     f"flyable {world.blocks.block_m:g} m blocks connects them; lower sinr_min_db or move it."
@@ -177,18 +178,7 @@ class InstanceSource:
         self.fixed_requests = cfg.requests
         if self.fixed_starts is not None or self.fixed_requests is not None:
             # Validate what is fixed once; random parts are drawn from flyable sites by construction.
-            starts = self.fixed_starts if self.fixed_starts is not None else np.empty((0, 2))
-            if self.fixed_starts is not None:
-                validate_instance(world, starts, self.fixed_requests or ())
-            else:
-                for i, req in enumerate(self.fixed_requests or ()):
-                    for what, point in (("origin", req.origin_m), ("destination", req.destination_m)):
-                        _check_point(
-                            world,
-                            np.asarray(point, float),
-                            f"{what} of passenger {i} (P{i + 1})",
-                            "move the point, or lower sinr_min_db",
-                        )
+            validate_instance(world, self.fixed_starts, self.fixed_requests or ())
 
         ports = np.asarray(cfg.demand.vertiports if cfg.requests is None else (), float).reshape(-1, 2)
         for i, port in enumerate(ports):

@@ -5,6 +5,7 @@ Each term is [E, A]; the reward of a taxi is their sum. Weights come from :class
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -21,12 +22,19 @@ def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray 
     1)`` (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move;
     ``shaping`` as given (see :func:`shaping_term`).
     """
-    w = np.array([weights.step, weights.first_visit, weights.repeat_visit, weights.pickup, weights.dropoff,
-                  weights.blocked])  # fmt: skip
-    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, w)
+    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, _weight_vector(weights))
     if shaping is not None:
         terms[..., REWARD_TERMS.index("shaping")] = shaping
     return terms
+
+
+@functools.lru_cache(maxsize=64)
+def _weight_vector(weights: RewardConfig) -> np.ndarray:
+    """The kernel's weight vector, built once per (frozen, hashable) config instead of every step."""
+    w = np.array([weights.step, weights.first_visit, weights.repeat_visit, weights.pickup, weights.dropoff,
+                  weights.blocked])  # fmt: skip
+    w.setflags(write=False)  # shared between calls
+    return w
 
 
 @njit(cache=True)
