@@ -7,11 +7,19 @@ Variants (:data:`VARIANTS`):
 
 - ``"le"``: a linear encoder of each flattened source (unreleased passengers and absent taxis zeroed first).
 - ``"de"``: designed encoders: history → LSTM, passengers → transformer encoder with a key-padding mask,
-  SINR and visit patches → two separate CNNs keeping the k × k grid, other taxis → masked DeepSets; each
-  output pooled and concatenated.
+  SINR and visit patches → two separate CNNs keeping the k × k grid, other taxis → masked DeepSets. The head
+  reads the taxi token, the passenger tokens pooled by attention with the taxi token as query (a "pointer" to
+  the passenger that matters now; unreleased rows excluded), the map grid and the other taxis.
 - ``"de_msfea"``: + multi-source features: the token mean (taxi + released passengers) broadcast over the
-  grid and concatenated with both maps' features, then a per-cell FFN and a mean over the grid.
+  grid and concatenated with both maps' features, then a per-cell FFN; this fused grid replaces the maps'.
 - ``"full"``: + hybrid attention fusion over the k × k fused tokens (local-window heads + global heads).
+
+Each variant adds one module to the one before, so the ablation measures that module. The grid (maps or fused
+tokens) is read out by a linear layer over the flattened k × k cells (``readout="flatten"``, the default),
+which keeps *where* on the patch a feature is: the direction of a no-fly area decides the heading. The
+paper's ``f_output ∈ R^{1×C}`` after a linear layer admits this reading; ``readout="mean"`` (a mean over the
+cells, blind to position unless attention mixed in the position embedding) is kept for comparison: with it
+the designed variants stalled at 2 of 4 passengers on Berlin P4 where the linear encoder learned the tour.
 
 Inputs are used as given (the trainer's ObservationNormalizer standardises the continuous fields; raw SINR
 is in dB); masks are read as booleans (> 0.5), never rescaled.
@@ -36,6 +44,7 @@ from torch.distributions import Categorical
 from uamfleet.env.observer import ObservationShapeError
 
 VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
+READOUTS: tuple[str, ...] = ("flatten", "mean")
 NUM_ACTIONS = 16
 MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
 
@@ -49,6 +58,7 @@ class NetConfig:
     num_heads: int = 4  # split into num_heads // 2 local heads and the rest global
     local_window: int = 2  # side of the non-overlapping windows of the local heads; must divide the patch size k
     hidden: int = 128  # width of the 3-layer actor and critic MLPs
+    readout: str = "flatten"  # grid → head features: "flatten" (linear over the k*k cells) or "mean" (over cells)
     critic_state_dim: int | None = None  # set: the critic reads the global state [B, S] (MAPPO)
 
     def __post_init__(self) -> None:
@@ -69,6 +79,8 @@ class NetConfig:
                 f"local_window={self.local_window} makes 1 x 1 windows, where local attention is an identity; "
                 "use a window side >= 2 that divides the patch size (e.g. 2 or 5 for a 10 x 10 patch)."
             )
+        if self.readout not in READOUTS:
+            raise ValueError(f"readout={self.readout!r} is unknown; use one of {READOUTS}.")
         if self.hidden < 1:
             raise ValueError(f"hidden={self.hidden} must be >= 1 (e.g. 128).")
         if self.critic_state_dim is not None and self.critic_state_dim < 1:
@@ -185,6 +197,43 @@ class SetEncoder(nn.Module):
         return masked_mean(self.phi(rows), present)  # [B, D]
 
 
+class PointerPool(nn.Module):
+    """Attention pooling of the passenger tokens with the taxi token as the query: [B, P, D] → [B, D].
+
+    One query (the taxi) over the released rows only; a taxi with no released passenger gets zeros. Unlike a
+    plain mean, it can single out one passenger (the nearest pick-up, the drop-off on board).
+    """
+
+    def __init__(self, d_model: int) -> None:
+        super().__init__()
+        self.query = nn.Linear(d_model, d_model)
+        self.scale = d_model**-0.5
+
+    def forward(self, taxi: torch.Tensor, tokens: torch.Tensor, released: torch.Tensor) -> torch.Tensor:
+        # where, not multiply: garbage (even NaN) in a masked row must not leak through 0 * x
+        tokens = torch.where(released.unsqueeze(-1), tokens, tokens.new_zeros(()))  # [B, P, D]
+        scores = torch.einsum("bd,bpd->bp", self.query(taxi), tokens) * self.scale  # [B, P]
+        scores = scores.masked_fill(~released, torch.finfo(scores.dtype).min)  # [B, P]
+        weights = torch.where(released, torch.softmax(scores, dim=-1), scores.new_zeros(()))  # [B, P]; none → 0
+        return torch.einsum("bp,bpd->bd", weights, tokens)  # [B, D]
+
+
+class GridReadout(nn.Module):
+    """Grid tokens [B, G, C] → head features: a linear layer + ReLU over the flattened cells ([B, out]), which
+    keeps each feature's position on the patch, or the mean over cells ([B, C]) for ``readout="mean"``."""
+
+    def __init__(self, cells: int, channels: int, out_dim: int, mode: str) -> None:
+        super().__init__()
+        self.mode = mode
+        self.proj = nn.Linear(cells * channels, out_dim) if mode == "flatten" else None
+        self.out_dim = out_dim if mode == "flatten" else channels
+
+    def forward(self, grid: torch.Tensor) -> torch.Tensor:
+        if self.proj is None:
+            return grid.mean(1)  # [B, C]
+        return F.relu(self.proj(grid.flatten(1)))  # [B, out]
+
+
 # ------------------------------------------------------------------------------------ multi-source features
 
 
@@ -256,7 +305,12 @@ def global_attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor) -> torch
 class HybridAttention(nn.Module):
     """Self-attention over the k × k fused tokens with the heads split in two groups (paper §IV-B2): the
     first num_heads // 2 attend inside non-overlapping window × window blocks, the others over all k²
-    tokens; outputs concatenated, projected, added back and layer-normalised.
+    tokens; outputs concatenated, projected and added back (pre-norm residual: ``x + proj(heads(norm(x)))``).
+
+    The output projection starts near zero (orthogonal, gain 0.01), so the block starts close to the identity:
+    the "full" variant starts as "de_msfea" (plus a position embedding) and learns the attention on top. With
+    the post-norm form ``norm(x + proj(heads(x)))`` the full model stalled at 2 of 4 passengers on Berlin P4
+    for 100k agent-steps where "de_msfea" had found the optimal tour after 70k.
 
     Tokens come in and go out in row-major grid order; inside, they are put in window-major order once so
     that every window is a contiguous block (attention, projections and LayerNorm do not care about order).
@@ -279,6 +333,7 @@ class HybridAttention(nn.Module):
         self.head_dim = dim // num_heads
         self.qkv = nn.Linear(dim, 3 * dim)
         self.proj = nn.Linear(dim, dim)
+        layer_init(self.proj, std=0.01)  # near-identity block at initialisation (see the class docstring)
         self.norm = nn.LayerNorm(dim)
         order = window_order(grid, window)  # [G]
         self.register_buffer("order", order, persistent=False)
@@ -309,7 +364,7 @@ class HybridAttention(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         xw = x[:, self.order]  # [B, G, dim] window-major
-        out = self.norm(xw + self.proj(self._heads(xw)))  # [B, G, dim]
+        out = xw + self.proj(self._heads(self.norm(xw)))  # [B, G, dim]
         return out[:, self.inverse]  # [B, G, dim] row-major
 
 
@@ -347,7 +402,9 @@ class LinearTorso(nn.Module):
 
 
 class DesignedTorso(nn.Module):
-    """Variants "de", "de_msfea" and "full": the designed encoders, then pooling, MSFea or MSFea + HAF."""
+    """Variants "de", "de_msfea" and "full": the designed encoders; "de_msfea" fuses the tokens into the map
+    grid (MSFea), "full" adds hybrid attention over it (HAF). Output: [taxi token, passengers pooled by the taxi's
+    query, other taxis, grid readout]."""
 
     def __init__(self, shapes: dict[str, tuple[int, ...]], cfg: NetConfig) -> None:
         super().__init__()
@@ -361,16 +418,18 @@ class DesignedTorso(nn.Module):
         self.sinr_cnn = MapEncoder(C)
         self.visit_cnn = MapEncoder(C)  # a separate CNN: SINR and visit ratio are different physical fields
         self.others = SetEncoder(shapes["others"][1], D)
+        self.pointer = PointerPool(D)
         self.fusion: MultiSourceFusion | None = None
         self.attention: HybridAttention | None = None
         if cfg.variant == "de":
-            self.out_dim = 3 * D + 2 * C
+            self.readout = GridReadout(k * k, 2 * C, D, cfg.readout)  # the two maps' CNN features
         else:
             self.fusion = MultiSourceFusion(D, 2 * C, Dg)
-            self.out_dim = Dg + D
+            self.readout = GridReadout(k * k, Dg, D, cfg.readout)  # the fused grid
         if cfg.variant == "full":
             self.attention = HybridAttention(Dg, cfg.num_heads, k, cfg.local_window)
             self.pos_embed = nn.Parameter(torch.randn(k * k, Dg) * 0.02)  # [G, Dg] learned, one per cell
+        self.out_dim = 3 * D + self.readout.out_dim
 
     def forward(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
         released = _as_bool(obs["passenger_mask"])  # [B, P]
@@ -378,15 +437,15 @@ class DesignedTorso(nn.Module):
         pax = self.passengers(obs["passengers"], released)  # [B, P, D]
         maps = torch.cat([self.sinr_cnn(obs["sinr_patch"]), self.visit_cnn(obs["visit_patch"])], dim=-1)  # [B, G, 2C]
         others = self.others(obs["others"], _as_bool(obs["others_mask"]))  # [B, D]
-        if self.fusion is None:  # "de": pool each source on its own
-            pooled = [taxi, masked_mean(pax, released), maps.mean(1), others]  # [B, D], [B, D], [B, 2C], [B, D]
-            return torch.cat(pooled, dim=-1)  # [B, 3D + 2C]
-        tokens = torch.cat([taxi.unsqueeze(1), pax], dim=1)  # [B, 1 + P, D]
-        valid = torch.cat([torch.ones_like(released[:, :1]), released], dim=1)  # [B, 1 + P] the taxi always
-        grid = self.fusion(tokens, valid, maps)  # [B, G, Dg]
+        grid = maps  # [B, G, 2C] for "de"
+        if self.fusion is not None:
+            tokens = torch.cat([taxi.unsqueeze(1), pax], dim=1)  # [B, 1 + P, D]
+            valid = torch.cat([torch.ones_like(released[:, :1]), released], dim=1)  # [B, 1 + P] the taxi always
+            grid = self.fusion(tokens, valid, maps)  # [B, G, Dg]
         if self.attention is not None:
             grid = self.attention(grid + self.pos_embed)  # [B, G, Dg]
-        return torch.cat([grid.mean(1), others], dim=-1)  # [B, Dg + D]
+        pointed = self.pointer(taxi, pax, released)  # [B, D]
+        return torch.cat([taxi, pointed, others, self.readout(grid)], dim=-1)  # [B, 3D + readout]
 
 
 # ---------------------------------------------------------------------------------------------- the policy
