@@ -26,8 +26,9 @@ class Args:
 
 
 def main(args: Args) -> None:
-    print(f"berlin_p4, {args.num_envs} envs x {args.num_steps} steps per iteration, 4 epochs x 4 minibatches, "
-          f"device {args.device}, {args.threads} thread(s)")  # fmt: skip
+    defaults = TrainArgs()
+    print(f"berlin_p4, {args.num_envs} envs x {args.num_steps} steps per iteration, {defaults.update_epochs} epochs "
+          f"x {defaults.num_minibatches} minibatches, device {args.device}, {args.threads} thread(s)")  # fmt: skip
     print(f"{'variant':<10} {'agent-steps/s':>14}")
     for variant in args.variants:
         with tempfile.TemporaryDirectory() as tmp:

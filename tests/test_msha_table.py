@@ -1,0 +1,50 @@
+"""The MSHA results command: training-cost bookkeeping by hand, and the tables from a tiny trained run."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+from eval.msha_table import Args, experiments, first_reaching, main
+from uamfleet.rl.trainer import TrainArgs, train
+
+
+def test_first_reaching_picks_the_first_full_delivery_within_the_limit():
+    rows = [
+        {"global_step": 100.0, "wall_s": 1.0},  # no evaluation in this iteration
+        {"global_step": 200.0, "wall_s": 2.0, "eval/pr_pct": 75.0, "eval/td_m": 20000.0},
+        {"global_step": 300.0, "wall_s": 3.0, "eval/pr_pct": 100.0, "eval/td_m": 9000.0},
+        {"global_step": 400.0, "wall_s": 4.0, "eval/pr_pct": 100.0, "eval/td_m": 5200.0},
+    ]
+    assert first_reaching(rows, math.inf) == (300.0, 3.0)
+    assert first_reaching(rows, 6200.0) == (400.0, 4.0)
+    assert all(math.isnan(v) for v in first_reaching(rows, 5000.0))
+
+
+def test_experiment_grid_names_and_budgets():
+    grid = experiments((1, 2), "de_msfea", steps=1000, detroit_steps=2000)
+    names = [e.name for e in grid]
+    assert len(names) == len(set(names)) == 2 * (5 + 1 + 3)  # 5 Berlin thresholds + Detroit, 3 other variants
+    assert "berlin_p4_-3dB_de_msfea_s2" in names and "detroit_p5_-17dB_de_msfea_s1" in names
+    assert {e.variant for e in grid if e.group == "ablation"} == {"le", "de", "full"}
+    assert {e.total_timesteps for e in grid if e.scenario == "detroit_p5"} == {2000}
+
+
+def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
+    name = "berlin_p4_-3dB_le_s1"
+    train(TrainArgs(sinr_min_db=-3.0, variant="le", total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
+                    update_epochs=1, run_dir=tmp_path, run_name=name, progress=False, tensorboard=False, threads=1,
+                    time_limit_steps=40, eval_every=1))  # fmt: skip
+    md = tmp_path / "results.md"
+    md.write_text("# Results\n\nhand-written text stays\n")
+    rows = main(Args(run_dir=tmp_path, only=(name,), seeds=(1,), train=False, feasibility="endpoint_block",
+                     out_md=md, out_csv=tmp_path / "t.csv"))  # fmt: skip
+    assert [r["run"] for r in rows] == [name]
+    saved = list(csv.DictReader((tmp_path / "t.csv").open()))
+    assert saved[0]["variant"] == "le" and float(saved[0]["opt_td_m"]) == 5100.0  # OPT at -3 dB, endpoint rule
+    assert float(saved[0]["total_steps"]) == 64.0
+    text = md.read_text()
+    assert "hand-written text stays" in text and "<!-- msha_table:begin -->" in text
+    assert "| 1 | le | 1 |" in text and "clairvoyant OPT (ours) | 100 | 5,100 |" in text
+    assert "**MSHA-PPO le" not in text  # an ablation run is not a row of the main table
