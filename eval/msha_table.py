@@ -90,6 +90,10 @@ class Args:
     step at or above the threshold (connectivity 100 % by construction); endpoint_block is the authors' rule"""
     only: tuple[str, ...] = ()
     """train and tabulate only the runs whose name contains one of these strings"""
+    scenarios: tuple[str, ...] = ("berlin_p4", "detroit_p5")
+    """scenarios of the main table"""
+    ablation: bool = True
+    """also train and tabulate the other variants at Berlin -3 dB"""
     train: bool = True
     """train the runs whose best.pt is missing (False: tabulate what exists)"""
     retrain: bool = False
@@ -248,7 +252,9 @@ def main(args: Args) -> list[dict[str, object]]:
     chosen = [
         e
         for e in experiments(args.seeds, args.main_variant, args.total_timesteps, args.detroit_timesteps)
-        if not args.only or any(s in e.name for s in args.only)
+        if (not args.only or any(s in e.name for s in args.only))
+        and e.scenario in args.scenarios
+        and (args.ablation or e.group == "main")
     ]
     if args.train:
         todo = [e for e in chosen if args.retrain or not (args.run_dir / e.name / "best.pt").exists()]

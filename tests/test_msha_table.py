@@ -6,6 +6,8 @@ import csv
 import math
 from pathlib import Path
 
+import pytest
+
 from eval.msha_table import Args, experiments, first_reaching, main
 from uamfleet.rl.trainer import TrainArgs, train
 
@@ -48,3 +50,11 @@ def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
     assert "hand-written text stays" in text and "<!-- msha_table:begin -->" in text
     assert "| 1 | le | 1 |" in text and "clairvoyant OPT (ours) | 100 | 5,100 |" in text
     assert "**MSHA-PPO le" not in text  # an ablation run is not a row of the main table
+
+
+def test_filters_leave_out_the_ablation_and_other_scenarios(tmp_path: Path) -> None:
+    # No run exists here; with the filters nothing is chosen, so nothing is trained and the command says so.
+    for kwargs in ({"ablation": False, "only": ("_le_",)}, {"scenarios": ("detroit_p5",), "only": ("berlin",)}):
+        with pytest.raises(SystemExit, match="no trained runs"):
+            main(Args(run_dir=tmp_path, train=True, out_md=tmp_path / "r.md", out_csv=tmp_path / "t.csv", **kwargs))
+        assert not any(tmp_path.glob("*.log"))  # nothing was trained
