@@ -37,6 +37,10 @@ class Args:
     """network variant (docs/results.md: de_msfea learns the tour fastest on a CPU; full is ~3x slower per step)"""
     feasibility: Literal["endpoint_block", "segment_raster"] = "endpoint_block"
     """move rule of training and of every row printed (endpoint_block: the authors'; see docs/results.md)"""
+    threads: int = 1
+    """torch CPU threads. With 1 the run is deterministic (on this torch build) and is the seed-1 run of the
+    table in docs/results.md; more threads change floating-point reductions, hence the whole run, and PPO on
+    this instance is seed-sensitive (a 2-thread run of seed 1 stalled at 1 of 4 passengers)"""
     run_dir: Path = Path("runs")
     run_name: str = "quickstart"
 
@@ -50,7 +54,7 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
     train_args = TrainArgs(
         scenario="berlin_p4", sinr_min_db=args.sinr_min_db, seed=args.seed, run_dir=args.run_dir,
         run_name=args.run_name, max_wall_s=60.0 * args.minutes, total_timesteps=args.total_timesteps,
-        variant=args.variant, feasibility=args.feasibility,
+        variant=args.variant, feasibility=args.feasibility, threads=args.threads,
     )  # fmt: skip
     print(f"training MSHA-PPO ({args.variant}) on Berlin P4 at {args.sinr_min_db:g} dB for "
           f"{args.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
