@@ -72,7 +72,7 @@ def test_ppo_loss_clips_the_ratio():
 from conftest import small_config  # noqa: E402
 
 from uamfleet.config import Request  # noqa: E402
-from uamfleet.rl.trainer import TrainArgs, load_policy, train  # noqa: E402
+from uamfleet.rl.trainer import TrainArgs, load_policy, make_env_config, train  # noqa: E402
 
 
 def tiny_args(tmp_path, **overrides) -> TrainArgs:
@@ -124,3 +124,9 @@ def test_must_learn_one_passenger_optimal_route(tmp_path):
     )  # fmt: skip
     assert result.best_eval["pr_pct"] == 100.0
     assert result.best_eval["td_m"] == 300.0
+
+
+def test_shaping_discount_is_the_trainers_unless_given():
+    default = make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping=50.0))
+    assert default.reward.shaping_gamma == 0.9 and default.reward.shaping == 50.0
+    assert make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping_gamma=1.0)).reward.shaping_gamma == 1.0

@@ -53,6 +53,9 @@ class TrainArgs:
     stands out of the value noise from the first iterations"""
     shaping_metric: Literal["path", "euclidean"] = "path"
     """distance in the shaping potential: along feasible paths, or straight line"""
+    shaping_gamma: float | None = None
+    """discount inside the shaping term gamma * Phi(s') - Phi(s) (default: the trainer's gamma, which keeps it
+    potential-based; 1.0 removes the per-step bonus w (1 - gamma) |Phi| for staying away from the stop)"""
     shaping_anneal_frac: float = 0.5
     """decay the shaping weight linearly to 0 over the LAST this fraction of training (0: constant). Shaping is
     potential-based, so the optimum is unchanged: it helps find every passenger early, and annealing it leaves
@@ -181,7 +184,10 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
     (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own gamma)."""
     cfg = uamfleet.make_config(scenario, **args.env_overrides(training=training))
     reward = dataclasses.replace(
-        cfg.reward, shaping=args.shaping, shaping_metric=args.shaping_metric, shaping_gamma=args.gamma
+        cfg.reward,
+        shaping=args.shaping,
+        shaping_metric=args.shaping_metric,
+        shaping_gamma=args.gamma if args.shaping_gamma is None else args.shaping_gamma,
     )
     return cfg.replace(reward=reward)
 
