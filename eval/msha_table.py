@@ -37,7 +37,7 @@ from uamfleet.baselines.planner_policy import PlannerPolicy, planner_env_overrid
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.networks import VARIANTS
-from uamfleet.rl.trainer import load_policy
+from uamfleet.rl.trainer import load_policy, read_progress
 from uamfleet.rollout import fly
 
 REPO = Path(__file__).resolve().parents[1]
@@ -139,11 +139,6 @@ def train_all(todo: list[Experiment], args: Args) -> None:
                 print(f"{exp.name}: {status}", flush=True)
 
 
-def read_progress(path: Path) -> list[dict[str, float]]:
-    with path.open() as f:
-        return [{k: float(v) for k, v in r.items() if v not in ("", None)} for r in csv.DictReader(f)]
-
-
 def first_reaching(rows: list[dict[str, float]], td_limit: float) -> tuple[float, float]:
     """(agent-steps, wall s) of the first greedy evaluation delivering everyone within ``td_limit`` m."""
     for r in rows:
@@ -201,6 +196,12 @@ def metric_cells(pr: float, td: float, att: float, awt: float, elr: float, conn:
     return f"{fmt(pr)} | {fmt(td)} | {fmt(att, 2)} | {fmt(awt, 2)} | {fmt(elr, 1)} | {fmt(conn, 1)}"
 
 
+def run_cells(r: dict[str, object]) -> str:
+    """The metric cells of one run's row."""
+    keys = ("pr_pct", "td_m", "att_s", "awt_s", "elr_pct", "connectivity_pct")
+    return metric_cells(*(float(r[k]) for k in keys))  # type: ignore[arg-type]
+
+
 def ablation_lines(rows: list[dict[str, object]]) -> list[str]:
     """The paper's Table III layout: every variant's runs at Berlin -3 dB."""
     lines = ["", "### Ablation on Berlin P4, γ_T = −3 dB (the paper's Table III)", "",
@@ -210,8 +211,7 @@ def ablation_lines(rows: list[dict[str, object]]) -> list[str]:
     for number, variant in enumerate(("le", "de", "de_msfea", "full"), start=1):
         for r in rows:
             if r["scenario"] == "berlin_p4" and r["threshold_db"] == -3.0 and r["variant"] == variant:
-                cells = metric_cells(*(float(r[k]) for k in ("pr_pct", "td_m", "att_s", "awt_s", "elr_pct",  # type: ignore[arg-type]
-                                                            "connectivity_pct")))  # fmt: skip
+                cells = run_cells(r)
                 paper = PAPER_ABLATION_STATUS["berlin"].get(variant, "Failure")
                 lines.append(f"| {number} | {variant} | {r['seed']} | {cells} | {fmt(r['td_over_opt'], 2)} | "
                              f"{PAPER_ABLATION_PR['berlin'][variant]} | {paper} |")  # fmt: skip
@@ -230,8 +230,7 @@ def markdown(rows: list[dict[str, object]], planners: dict[tuple[str, float], di
         lines.append(f"{head} MSHA-RL (paper) | {metric_cells(100.0, td, att, awt, elr, 100.0)} | {td / opt:.2f} |")
         for r in rows:
             if r["group"] == "main" and r["scenario"] == scenario and r["threshold_db"] == threshold:
-                cells = metric_cells(*(float(r[k]) for k in ("pr_pct", "td_m", "att_s", "awt_s", "elr_pct",  # type: ignore[arg-type]
-                                                            "connectivity_pct")))  # fmt: skip
+                cells = run_cells(r)
                 lines.append(f"{head} **MSHA-PPO {r['variant']}, seed {r['seed']}** | {cells} | "
                              f"{fmt(r['td_over_opt'], 2)} |")  # fmt: skip
         for planner, label in (("replan", "REPLAN (ours)"), ("opt", "clairvoyant OPT (ours)")):

@@ -285,7 +285,7 @@ def train(args: TrainArgs, env_config: EnvConfig | None = None) -> TrainResult: 
         target_step, target_s = ckpt.get("target_step"), ckpt.get("target_s")
         torch.set_rng_state(ckpt["torch_rng"])
         np.random.set_state(ckpt["numpy_rng"])
-        rows = _read_csv(run_dir / "progress.csv")
+        rows = read_progress(run_dir / "progress.csv")
         print(f"resumed {run_dir} at iteration {start_iteration}, step {global_step} (envs restart their episodes)")
 
     writer = None
@@ -522,7 +522,8 @@ def _csv(rows: list[dict[str, float]]) -> str:
     return buffer.getvalue()
 
 
-def _read_csv(path: Path) -> list[dict[str, float]]:
+def read_progress(path: Path) -> list[dict[str, float]]:
+    """The rows of a run's ``progress.csv`` as floats (empty cells left out; no file: no rows)."""
     if not path.exists():
         return []
     with path.open() as f:
@@ -555,4 +556,4 @@ def load_policy(
     return GreedyPolicy(net, normalizer, torch.device(device)), args
 
 
-__all__ = ["GreedyPolicy", "TrainArgs", "TrainResult", "evaluate", "load_policy", "train"]
+__all__ = ["GreedyPolicy", "TrainArgs", "TrainResult", "evaluate", "load_policy", "read_progress", "train"]
