@@ -224,7 +224,6 @@ class GridReadout(nn.Module):
 
     def __init__(self, cells: int, channels: int, out_dim: int, mode: str) -> None:
         super().__init__()
-        self.mode = mode
         self.proj = nn.Linear(cells * channels, out_dim) if mode == "flatten" else None
         self.out_dim = out_dim if mode == "flatten" else channels
 
@@ -412,7 +411,6 @@ class DesignedTorso(nn.Module):
         C = max(D // 8, 4)  # channels per map CNN
         Dg = D // 2  # fused grid width: k² tokens per sample make this the costly part
         k = shapes["sinr_patch"][0]
-        self.variant = cfg.variant
         self.taxi = TaxiEncoder(shapes["history"][1], shapes["self"][0], D)
         self.passengers = PassengerEncoder(shapes["passengers"][1], D, cfg.num_heads)
         self.sinr_cnn = MapEncoder(C)

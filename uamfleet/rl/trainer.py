@@ -93,7 +93,8 @@ class TrainArgs:
     anneal_lr: bool = True
     """decay the learning rate linearly to 0"""
     gamma: float = 0.9
-    """discount factor (also the shaping term's, so the shaping stays potential-based). 0.9, not CleanRL's 0.99:
+    """discount factor (also the shaping term's unless shaping_gamma is set, so the shaping stays potential-based).
+    0.9, not CleanRL's 0.99:
     with the path-distance potential every step's progress is paid at once, so a short horizon loses little
     and cuts the variance of the advantages; on Berlin P4 it took the LE variant from TD 8,900 m (gamma 0.95) to
     5,200-5,300 m in 150k agent-steps (docs/results.md). Raise it for sparse rewards (shaping 0)"""
@@ -180,8 +181,9 @@ class TrainResult:
 def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool = True) -> EnvConfig:
     """The env config a run trains (or evaluates) on: the scenario with the run's overrides and shaping.
 
-    The shaping term uses the trainer's discount, so it stays potential-based for the return PPO maximises
-    (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own gamma)."""
+    The shaping term uses the trainer's discount unless ``args.shaping_gamma`` is set, so by default it stays
+    potential-based for the return PPO maximises (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own
+    gamma)."""
     cfg = uamfleet.make_config(scenario, **args.env_overrides(training=training))
     reward = dataclasses.replace(
         cfg.reward,
