@@ -123,7 +123,7 @@ CORNER_ONLY = """
 def test_stop_reachable_only_through_a_corner_is_named_with_the_threshold():
     # The env's block rule lets a 45° step cut the corner, so the env accepts the instance; the planners' raster
     # graph never cuts corners, so it must refuse it loudly, naming the passenger and the threshold.
-    from uamfleet.baselines.grid_graph import UnreachableStopError
+    from uamfleet.paths.grid_graph import UnreachableStopError
 
     cfg = small_config(CORNER_ONLY, starts_m=((50.0, 350.0),), requests=(Request(0, (350.0, 50.0), (250.0, 50.0)),),
                        sinr_min_db=-4.0)  # fmt: skip

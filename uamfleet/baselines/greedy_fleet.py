@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uamfleet.baselines.planner_policy import DistanceFields
+from uamfleet.paths import DistanceFields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 

@@ -2,7 +2,7 @@
 
 Node indexing: 0 is the taxi's current position; passenger ``i`` (0-based) has origin node ``1 + 2i`` and
 destination node ``2 + 2i``. ``dist_m[a, b]`` is the flight distance from node a to node b (any metric, e.g.
-:class:`~uamfleet.baselines.grid_graph.StopPaths` distances). The taxi flies at ``speed_mps`` and waits at an
+:class:`~uamfleet.paths.grid_graph.StopPaths` distances). The taxi flies at ``speed_mps`` and waits at an
 origin until the passenger's release (request) time.
 
 Objectives and ties (deterministic): ``"makespan"`` minimises the time of the last stop, then the total ride

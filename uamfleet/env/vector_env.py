@@ -21,6 +21,7 @@ from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
 from uamfleet.env import dynamics, generator, reward
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import World
+from uamfleet.paths import DistanceFields
 from uamfleet.types import DELIVERED, FleetState, StepEvents
 
 
@@ -57,8 +58,6 @@ class VectorEnv:
         self._distance_to: reward.DistanceTo = reward.euclidean
         if cfg.reward.shaping > 0 and cfg.reward.shaping_metric == "path":
             # Feasible-path distances come from the planners' raster graph (built once per map and threshold).
-            from uamfleet.baselines.planner_policy import DistanceFields
-
             fields = DistanceFields(self.world)
             self._distance_to = lambda goal, points: fields.remaining_m(goal, points)
 

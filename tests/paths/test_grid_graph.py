@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import drawn_map
 
-from uamfleet.baselines.grid_graph import (
+from uamfleet.paths.grid_graph import (
     GridGraph,
     UnreachableStopError,
     feasible_raster,
