@@ -27,7 +27,8 @@ from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
-from uamfleet.viz.strip import TAXI_HEX, plot_sinr_strip
+from uamfleet.viz.colours import TAXI_HEX
+from uamfleet.viz.strip import plot_sinr_strip
 
 
 @dataclass

@@ -12,7 +12,7 @@ from uamfleet.env.world import World
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio import RadioMap
 from uamfleet.types import HIDDEN, WAITING, FleetState
-from uamfleet.viz.strip import TAXI_HEX
+from uamfleet.viz.colours import TAXI_HEX
 
 
 def render_frame(world: World, state: FleetState, trails_m: np.ndarray, env: int = 0, size_px: int = 640) -> np.ndarray:

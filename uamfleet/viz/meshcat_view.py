@@ -38,26 +38,19 @@ with ``#cam=X,Y,Z``: what ``scripts/screenshot.sh`` uses.
 
 With ``open_server=True`` the viewer starts meshcat's web server (bound to ``host``, 127.0.0.1 by default:
 meshcat itself binds every interface) in its own process group; :meth:`FleetViewer.close` kills that group,
-and so do the context manager, garbage collection and interpreter exit. meshcat is imported only here, lazily:
-``import uamfleet`` never imports it.
+and so do the context manager, garbage collection and interpreter exit. meshcat is imported lazily, on the
+first viewer: ``import uamfleet`` never imports it.
+
+This module is the scene; its neighbours hold the rest of the viewer: :mod:`uamfleet.viz.meshcat_server` (the
+meshcat import and the server process), :mod:`uamfleet.viz.textures` (map texture, labels, legend),
+:mod:`uamfleet.viz.page` (the offline HTML page) and :mod:`uamfleet.viz.colours` (the shared palette).
 """
 
 from __future__ import annotations
 
-import base64
-import functools
-import html
-import io
-import json
 import math
 import os
-import selectors
-import signal
 import subprocess
-import sys
-import tempfile
-import time
-import warnings
 import weakref
 from pathlib import Path
 from types import SimpleNamespace, TracebackType
@@ -68,328 +61,20 @@ import numpy as np
 from uamfleet.io import write_text_atomic
 from uamfleet.radio import RadioMap
 from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD
-from uamfleet.viz.strip import TAXI_HEX, onboard_counts, stop_events
+from uamfleet.viz.colours import ANTENNA_HEX, PASSENGER_HEX, POD_HEX, SERVED_HEX, TAXI_HEX, TOWER_HEX
+from uamfleet.viz.meshcat_server import Recorder, start_server, stop_server
+from uamfleet.viz.meshcat_server import meshcat_modules as _mc
+from uamfleet.viz.page import static_html
+from uamfleet.viz.strip import onboard_counts, stop_events
+from uamfleet.viz.textures import grid_spacing_m, label_png, legend_png, map_texture
 
 if TYPE_CHECKING:
     from uamfleet.rollout import Trajectory
 
 UNIT_M = 1000.0
 """Metres per scene unit (meshcat's camera clips beyond 100 units and its lights suit scenes of a few units)."""
-MAX_TEXTURE_CELLS = 1024
-NO_FLY_RGB = np.array([0.50, 0.04, 0.07])
-NO_FLY_STRIPE_RGB = np.array([0.96, 0.62, 0.62])
-NOT_COMPUTED_RGB = np.array([0.08, 0.08, 0.08])
-PASSENGER_HEX = 0xFFFFFF
-SERVED_HEX = 0x9E9E9E
-POD_HEX = 0xFFD600
-TOWER_HEX = 0x37474F
-ANTENNA_HEX = 0xE53935
-
-# meshcat's server with its web server bound to one address (argv[1]) instead of every interface.
-_SERVER_SCRIPT = """\
-import sys
-import tornado.web
-_listen = tornado.web.Application.listen
-def _listen_on(self, port, address=sys.argv[1], **kwargs):
-    return _listen(self, port, address=address, **kwargs)
-tornado.web.Application.listen = _listen_on
-sys.argv = sys.argv[:1]
-from meshcat.servers.zmqserver import main
-main()
-"""
 
 
-# ---- meshcat, imported on first use ------------------------------------------------------------------------
-@functools.cache
-def _mc() -> SimpleNamespace:
-    """meshcat's modules plus the few object types its Python side lacks (sprites)."""
-    with warnings.catch_warnings():  # meshcat's package import pulls in its server (pyzmq deprecations)
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import meshcat
-        import meshcat.animation as animation
-        import meshcat.geometry as g
-        import meshcat.transformations as tf
-        import umsgpack
-        from meshcat.visualizer import Visualizer
-
-    class SpriteMaterial(g.GenericMaterial):
-        _type = "SpriteMaterial"
-
-    class SpriteShape(g.Box):
-        """A sprite's size (three.js sprites are unit squares scaled by the object's matrix)."""
-
-        def __init__(self, width: float, height: float) -> None:
-            super().__init__([1e-6, 1e-6, 1e-6])
-            self.size = (width, height)
-
-        def intrinsic_transform(self) -> np.ndarray:
-            return np.diag([self.size[0], self.size[1], 1.0, 1.0])
-
-    class Sprite(g.Object):
-        _type = "Sprite"
-
-        def lower(self) -> dict[str, Any]:
-            data: dict[str, Any] = super().lower()
-            data["object"]["renderOrder"] = 10  # drawn after the scene (with depthTest off: always on top)
-            return data
-
-    return SimpleNamespace(
-        meshcat=meshcat, animation=animation, g=g, tf=tf, umsgpack=umsgpack, Visualizer=Visualizer,
-        SpriteMaterial=SpriteMaterial, SpriteShape=SpriteShape, Sprite=Sprite,
-    )  # fmt: skip
-
-
-class _Recorder:
-    """Stands in for meshcat's ``ViewerWindow``: keeps the latest object, transform and properties of every
-    path and the animation (what the server keeps), so that the page can be exported with or without a
-    server, and forwards every command to the live server when there is one."""
-
-    def __init__(self) -> None:
-        self.nodes: dict[str, dict[str, bytes]] = {}  # path -> {"object" | "transform" | "property:<name>": msg}
-        self.animation: bytes | None = None
-        self.live: Any = None  # meshcat ViewerWindow connected to our server, or None
-
-    def send(self, command: Any) -> None:
-        data = command.lower()
-        packed: bytes = _mc().umsgpack.packb(data)
-        kind, path = data["type"], data["path"]
-        if kind == "set_animation":
-            self.animation = packed
-        elif kind == "delete":
-            for key in [k for k in self.nodes if k == path or k.startswith(path.rstrip("/") + "/")]:
-                del self.nodes[key]
-        else:
-            slot = {"set_object": "object", "set_transform": "transform"}.get(kind, f"property:{data.get('property')}")
-            self.nodes.setdefault(path, {})[slot] = packed
-        if self.live is not None:
-            socket = self.live.zmq_socket
-            socket.send_multipart([kind.encode(), path.encode(), packed])
-            socket.recv()
-
-    def commands(self) -> list[bytes]:
-        """The scene as a list of commands: objects, transforms and properties path by path, the animation
-        last (its tracks bind to objects that must exist by then)."""
-        out = [msg for node in self.nodes.values() for msg in node.values()]
-        return out + ([self.animation] if self.animation is not None else [])
-
-    def paths(self) -> list[str]:
-        return list(self.nodes)
-
-
-def _start_server(host: str, timeout_s: float = 30.0) -> tuple[subprocess.Popen[bytes], str, str, Any]:
-    """meshcat's ZMQ + web server in a new process group; returns (process, zmq_url, web_url, stderr file)."""
-    log = tempfile.TemporaryFile()
-    proc = subprocess.Popen(
-        [sys.executable, "-u", "-c", _SERVER_SCRIPT, host],
-        stdout=subprocess.PIPE,
-        stderr=log,
-        stdin=subprocess.DEVNULL,
-        start_new_session=True,  # its own process group: close() kills the whole group
-    )
-    assert proc.stdout is not None
-    fd = proc.stdout.fileno()
-    text, urls = "", dict[str, str]()
-    deadline = time.monotonic() + timeout_s
-    with selectors.DefaultSelector() as sel:
-        sel.register(fd, selectors.EVENT_READ)
-        # Raw reads: a buffered readline could swallow both lines while select() waits for more.
-        while not {"zmq_url", "web_url"} <= urls.keys() and time.monotonic() < deadline:
-            if sel.select(timeout=0.2):
-                chunk = os.read(fd, 4096)
-                if not chunk:  # the server exited
-                    break
-                text += chunk.decode("utf-8", "replace")
-                urls = dict(
-                    line.split("=", 1) for line in text.split("\n")[:-1] if line.startswith(("zmq_url=", "web_url="))
-                )
-    if not {"zmq_url", "web_url"} <= urls.keys():
-        log.seek(0)
-        message = log.read().decode("utf-8", "replace")[-2000:]
-        _stop_server(proc, None, log)
-        raise RuntimeError(f"the meshcat server did not start within {timeout_s:g} s: {text}{message}")
-    return proc, urls["zmq_url"], urls["web_url"], log
-
-
-def _stop_server(proc: subprocess.Popen[bytes], window: Any, log: Any) -> None:
-    """Close our socket, then SIGTERM (then SIGKILL) the server's process group and reap it."""
-    if window is not None:
-        window.zmq_socket.close(linger=0)
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        except ProcessLookupError:
-            proc.wait()
-    if proc.stdout is not None:
-        proc.stdout.close()
-    if log is not None:
-        log.close()
-
-
-# ---- pictures: the map texture, labels, the legend -----------------------------------------------------------
-def _png(rgba: np.ndarray) -> bytes:
-    from PIL import Image
-
-    buffer = io.BytesIO()
-    Image.fromarray(rgba).save(buffer, format="PNG", optimize=True)
-    return buffer.getvalue()
-
-
-def _colour_range(radio: RadioMap) -> tuple[float, float]:
-    finite = radio.sinr_db[np.isfinite(radio.sinr_db)]
-    if finite.size == 0:
-        return -10.0, 10.0
-    lo, hi = math.floor(float(finite.min())), math.ceil(float(finite.max()))
-    return (lo, hi) if hi > lo else (lo - 1.0, hi + 1.0)
-
-
-def map_texture(radio: RadioMap, threshold_db: float) -> tuple[bytes, int, tuple[float, float, float, float]]:
-    """PNG of the SINR raster as drawn on ``radio_map`` (north up), the stride it was reduced by, and the extent
-    it covers ``(x0, x1, y0, y1)`` in metres (cell edges)."""
-    import matplotlib
-
-    sinr = np.asarray(radio.sinr_db, dtype=np.float64)
-    nx, ny = sinr.shape
-    stride = max(1, math.ceil(max(nx, ny) / MAX_TEXTURE_CELLS))
-    mx, my = math.ceil(nx / stride), math.ceil(ny / stride)
-    padded = np.full((mx * stride, my * stride), np.nan)
-    padded[:nx, :ny] = sinr
-    blocks = padded.reshape(mx, stride, my, stride)
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN blocks: NaN is the answer
-        value = np.nanmean(blocks, axis=(1, 3))  # [mx, my]
-        no_fly = ~(np.nan_to_num(blocks, nan=-np.inf) >= threshold_db).all(axis=(1, 3))
-    lo, hi = _colour_range(radio)
-    rgb = matplotlib.colormaps["viridis"](np.clip((np.nan_to_num(value, nan=lo) - lo) / (hi - lo), 0, 1))[..., :3]
-    rgb[no_fly] = 0.3 * rgb[no_fly] + 0.7 * NO_FLY_RGB
-    rgb[np.isnan(value)] = NOT_COMPUTED_RGB
-    # Upsample (nearest) so that no-fly cells can carry stripes, up to ~1400 texels a side.
-    up = max(1, min(4, 1400 // max(mx, my)))
-    img = np.repeat(np.repeat(rgb, up, axis=0), up, axis=1)  # [mx*up, my*up, 3] indexed [x, y]
-    flag = np.repeat(np.repeat(no_fly & ~np.isnan(value), up, axis=0), up, axis=1)
-    if up > 1:
-        px, py = np.meshgrid(np.arange(img.shape[0]), np.arange(img.shape[1]), indexing="ij")
-        stripe = flag & ((px + py) % (3 * up) < max(1, up // 2))
-        img[stripe] = 0.45 * img[stripe] + 0.55 * NO_FLY_STRIPE_RGB
-    rows_north_up = (np.clip(img, 0, 1) * 255).round().astype(np.uint8).transpose(1, 0, 2)[::-1]
-    res, (ox, oy) = radio.resolution_m, radio.origin_m
-    x0, y0 = ox - res / 2, oy - res / 2
-    extent = (x0, x0 + mx * stride * res, y0, y0 + my * stride * res)
-    return _png(np.ascontiguousarray(rows_north_up)), stride, extent
-
-
-@functools.cache
-def _font(size_px: int) -> Any:
-    import matplotlib
-    from PIL import ImageFont
-
-    path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans-Bold.ttf"
-    return ImageFont.truetype(str(path), size_px)
-
-
-def label_png(text: str, fg: str = "#ffffff", bg: str = "#000000c8", size_px: int = 44) -> tuple[bytes, float]:
-    """A text label as an RGBA PNG (rounded box) and its width / height ratio."""
-    from PIL import Image, ImageDraw
-
-    font = _font(size_px)
-    left, top, right, bottom = font.getbbox(text)
-    pad = size_px // 3
-    w, h = right - left + 2 * pad, size_px + 2 * pad
-    img = Image.new("RGBA", (w, h), (0, 0, 0, 0))
-    draw = ImageDraw.Draw(img)
-    draw.rounded_rectangle((0, 0, w - 1, h - 1), radius=pad, fill=bg)
-    draw.text((pad - left, pad + (size_px - (bottom - top)) / 2 - top), text, font=font, fill=fg)
-    buffer = io.BytesIO()
-    img.save(buffer, format="PNG")
-    return buffer.getvalue(), w / h
-
-
-def _grid_m(radio: RadioMap) -> float:
-    return 500.0 if (radio.side_m or 0.0) <= 5000.0 else 1000.0
-
-
-def _title_lines(title: str, width: int = 34) -> list[str]:
-    """Break a title at its " · " separators (then at spaces) into lines of about ``width`` characters."""
-    import textwrap
-
-    lines: list[str] = []
-    for part in title.split(" · "):
-        if lines and len(lines[-1]) + 3 + len(part) <= width:
-            lines[-1] += " · " + part
-        else:
-            lines += textwrap.wrap(part, width) or [""]
-    return lines
-
-
-def legend_png(
-    radio: RadioMap, threshold_db: float, title: str, num_taxis: int, z_scale: float, stride: int
-) -> tuple[bytes, float]:
-    """The legend drawn with matplotlib (title, colour bar with the threshold, symbols, taxi colours) as a PNG,
-    and its width / height ratio."""
-    import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
-
-    no_fly_hex = "#" + "".join(f"{round(c * 255):02x}" for c in NO_FLY_RGB)
-    # (marker, face colour, text): "s" a square swatch, else a matplotlib marker
-    entries = [("s", no_fly_hex, "below γ_T: no-fly (striped)"), ("s", "#141414", "not computed (N.C.)")]
-    if radio.base_stations:
-        entries.append(("o", "#ffffff", "GBS: ring on map, mast below"))
-    entries += [
-        ("v", "#ffffff", "S#: pick-up"),
-        ("s", "#ffffff", "D#: drop-off"),
-        ("s", f"#{SERVED_HEX:06x}", "served"),
-    ]
-    entries.append(("o", f"#{POD_HEX:06x}", "pod: passenger on board"))
-    entries += [("s", TAXI_HEX[a % len(TAXI_HEX)], f"taxi {a}: path, start disc") for a in range(min(num_taxis, 8))]
-    grid = f"{_grid_m(radio):g} m" if _grid_m(radio) < 1000 else f"{_grid_m(radio) / 1000:g} km"
-    notes = f"heights ×{z_scale:.2g}, ground grid {grid}" + (f", raster 1/{stride}" if stride > 1 else "")
-    lines = _title_lines(title)
-    width, row, bar = 2.6, 0.2, 1.9  # inches
-    top = 0.12 + 0.19 * len(lines) + 0.15
-    height = top + bar + 0.2 + row * len(entries) + 0.3
-    fig = Figure(figsize=(width, height), dpi=160)
-    fig.patch.set_facecolor((1, 1, 1, 0.92))
-    canvas = FigureCanvasAgg(fig)
-    ax = fig.add_axes((0, 0, 1, 1))  # the whole legend in inches from the top-left corner
-    ax.set_xlim(0, width)
-    ax.set_ylim(height, 0)
-    ax.set_axis_off()
-    ax.text(0.12, 0.1, "\n".join(lines), fontsize=9, weight="bold", va="top")
-    lo, hi = _colour_range(radio)
-    cax = fig.add_axes((0.55 / width, 1 - (top + bar) / height, 0.22 / width, bar / height))
-    ramp = np.linspace(lo, hi, 256)[:, None]
-    cax.imshow(ramp, origin="lower", aspect="auto", extent=(0, 1, lo, hi), cmap=matplotlib.colormaps["viridis"])
-    if lo < threshold_db:
-        cax.add_patch(Rectangle((0, lo), 1, min(threshold_db, hi) - lo, color=no_fly_hex, alpha=0.85, lw=0))
-    cax.axhline(threshold_db, color="red", lw=2.5)
-    cax.set_xticks([])
-    cax.set_ylim(lo, hi)
-    cax.tick_params(labelsize=8)
-    cax.set_ylabel(f"SINR at {radio.altitude_m:g} m [dB]", fontsize=8.5)
-    cax.annotate(f"γ_T = {threshold_db:g} dB", (1.0, threshold_db), xytext=(6, 0), textcoords="offset points",
-                 fontsize=9, color="red", va="center", weight="bold", annotation_clip=False)  # fmt: skip
-    y = top + bar + 0.3
-    for marker, colour, text in entries:
-        if marker == "s":
-            ax.add_patch(Rectangle((0.12, y - 0.07), 0.2, 0.14, facecolor=colour, edgecolor="k", lw=0.6))
-        else:
-            ax.plot(0.22, y, marker=marker, ms=9, mfc=colour, mec="k", mew=0.8)
-            if text.startswith("GBS"):
-                ax.plot(0.22, y, marker="o", ms=4, color=f"#{TOWER_HEX:06x}")
-        ax.text(0.42, y, text, fontsize=8.5, va="center")
-        y += row
-    ax.text(0.12, y + 0.06, notes, fontsize=7.5, va="center", color="0.3")
-    buffer = io.BytesIO()
-    canvas.print_png(buffer)
-    return buffer.getvalue(), width / height
-
-
-# ---- the viewer ------------------------------------------------------------------------------------------------
 class FleetViewer:
     """A meshcat scene of one radio map, its threshold, and a fleet (a recorded trajectory or a live state).
 
@@ -428,7 +113,7 @@ class FleetViewer:
         self.num_frames = 0
         self._server: subprocess.Popen[bytes] | None = None
         self._finalizer: weakref.finalize | None = None
-        self._rec = _Recorder()
+        self._rec = Recorder()
         self._sent: dict[tuple[str, str], Any] = {}
         self._live_taxis = 0
         self._live_pax: tuple[np.ndarray, np.ndarray] | None = None
@@ -437,14 +122,14 @@ class FleetViewer:
         self.url: str | None = None
         mc = _mc()
         if open_server:
-            proc, zmq_url, web_url, log = _start_server(host)
+            proc, zmq_url, web_url, log = start_server(host)
             try:
                 window = mc.meshcat.visualizer.ViewerWindow(zmq_url=zmq_url, start_server=False, server_args=[])
             except BaseException:
-                _stop_server(proc, None, log)
+                stop_server(proc, None, log)
                 raise
             self._server, self._rec.live, self.url = proc, window, web_url
-            self._finalizer = weakref.finalize(self, _stop_server, proc, window, log)
+            self._finalizer = weakref.finalize(self, stop_server, proc, window, log)
         self.vis = mc.Visualizer(window=self._rec)
         self._build_static()
 
@@ -519,7 +204,7 @@ class FleetViewer:
         extent = 1.1 * s
         at = tf.translation_matrix([self.shift[0], self.shift[1], -0.001])
         self._mesh("ground/slab", g.Box([extent, extent, 0.002]), 0xCFD8DC, matrix=at)
-        ticks = np.arange(0.0, self.side_m + 1e-6, _grid_m(self.radio))
+        ticks = np.arange(0.0, self.side_m + 1e-6, grid_spacing_m(self.radio))
         ends = [((t, 0.0), (t, self.side_m)) for t in ticks] + [((0.0, t), (self.side_m, t)) for t in ticks]
         lines = self.xy(np.array(ends))  # [L, 2, 2]
         points = np.concatenate([lines, np.full((*lines.shape[:2], 1), 0.0005)], axis=-1).reshape(-1, 3)
@@ -772,7 +457,7 @@ class FleetViewer:
 
     def html(self) -> str:
         """The scene as one self-contained HTML page (meshcat's viewer inline, no network access)."""
-        return _static_html(self._rec.commands(), self.title, self._manifest())
+        return static_html(self._rec.commands(), self.title, self._manifest())
 
     def export_html(self, path: str | os.PathLike[str]) -> Path:
         """Write :meth:`html` atomically to ``path``; returns the path."""
@@ -833,66 +518,3 @@ def _bool_track(anim: Any, vis: Any, path: str, values: np.ndarray, last_frame: 
     for t in sorted(set(changes)):
         with anim.at_frame(vis, t) as frame:
             frame[path].set_property("visible", "boolean", bool(values[min(t, len(values) - 1)]))
-
-
-def _static_html(commands: list[bytes], title: str, manifest: dict[str, Any]) -> str:
-    js_path = Path(_mc().meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
-    meshcat_js = js_path.read_text(encoding="utf-8").replace("</script", "<\\/script")
-    encoded = ",\n".join(f'"{base64.b64encode(c).decode("ascii")}"' for c in commands)
-    manifest_json = json.dumps(manifest, ensure_ascii=False).replace("</", "<\\/")
-    return _PAGE.format(
-        title=html.escape(title),
-        meshcat_js=meshcat_js,
-        manifest=manifest_json,
-        commands=encoded,
-    )
-
-
-_PAGE = """<!DOCTYPE html>
-<html>
-<head>
-<meta charset="utf-8">
-<title>{title}</title>
-<style>
-body {{ margin: 0; overflow: hidden; background: linear-gradient(#f4f6f9, #b8c4d3); }}
-#meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
-#uamfleet-title {{ position: absolute; left: 12px; top: 10px; padding: 6px 10px; border-radius: 6px;
-  font: 14px/1.35 sans-serif; background: rgba(255, 255, 255, 0.85); max-width: 55vw; }}
-#uamfleet-title small {{ color: #555; }}
-</style>
-</head>
-<body>
-<div id="meshcat-pane"></div>
-<div id="uamfleet-title"><b>{title}</b><br><small>drag: orbit, right-drag: pan, wheel: zoom;
-Open Controls &rsaquo; Animations to replay or scrub</small></div>
-<script>
-{meshcat_js}
-</script>
-<script type="application/json" id="uamfleet-scene">{manifest}</script>
-<script>
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-var uamfleetCommands = [
-{commands}
-];
-function uamfleetBytes(b64) {{
-  var s = atob(b64), out = new Uint8Array(s.length);
-  for (var i = 0; i < s.length; i++) out[i] = s.charCodeAt(i);
-  return out;
-}}
-uamfleetCommands.forEach(function (c) {{ viewer.handle_command_bytearray(uamfleetBytes(c)); }});
-// #cam=X,Y,Z: camera position in scene units (km from the map centre, z up); it looks at the map centre.
-var uamfleetCam = /[#&]cam=(-?[0-9.]+),(-?[0-9.]+),(-?[0-9.]+)/.exec(location.hash);
-if (uamfleetCam) {{
-  var c = uamfleetCam.slice(1).map(parseFloat);
-  viewer.set_property(["Cameras", "default", "rotated", "<object>"], "position", [c[0], c[2], -c[1]]);
-}}
-// #t=SECONDS (or #t=end): show the animation paused at that time.
-var uamfleetSeek = /[#&]t=(end|[0-9.]+)/.exec(location.hash);
-if (uamfleetSeek && viewer.animator.actions.length > 0) {{
-  viewer.animator.pause();
-  viewer.animator.seek(uamfleetSeek[1] === "end" ? viewer.animator.duration : parseFloat(uamfleetSeek[1]));
-}}
-</script>
-</body>
-</html>
-"""

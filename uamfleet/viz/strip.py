@@ -13,9 +13,7 @@ import numpy as np
 
 from uamfleet.radio import RadioMap
 from uamfleet.rollout import Trajectory
-
-TAXI_HEX = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
-"""Taxi colours (matplotlib's tab10 order), shared by the matplotlib figures and the 3D viewer."""
+from uamfleet.viz.colours import TAXI_HEX
 
 
 class StopEvent(NamedTuple):
