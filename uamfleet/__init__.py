@@ -21,11 +21,22 @@ from uamfleet.config import (
     RewardConfig,
     make_config,
 )
-from uamfleet.env.parallel_env import UAMFleetParallelEnv, parallel_env
+from uamfleet.env.parallel_env import Renderer, UAMFleetParallelEnv, parallel_env
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.radio import RADIO_MAPS, RadioMap, load_radio_map
 
 __version__ = "0.1.0"
+
+
+def _viz_renderer(render_mode: str, env: UAMFleetParallelEnv) -> Renderer:
+    """uamfleet.viz's renderer, imported on the first ``render()`` (``import uamfleet`` stays light)."""
+    from uamfleet.viz.render import make_renderer
+
+    return make_renderer(render_mode, env)
+
+
+# The env draws through uamfleet.viz without importing it (layers point down; this face sits above both).
+UAMFleetParallelEnv.default_renderer = _viz_renderer
 
 
 def vector_env(

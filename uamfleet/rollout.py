@@ -24,19 +24,6 @@ class Policy(Protocol):
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray: ...
 
 
-class RandomPolicy:
-    """Uniform over the allowed headings of each taxi (uniform over all 16 when none is allowed)."""
-
-    def __init__(self, seed: int | None = None) -> None:
-        self.rng = np.random.default_rng(seed)
-
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        mask = obs["action_mask"].astype(bool)  # [E, A, 16]
-        mask = np.where(mask.any(-1, keepdims=True), mask, True)
-        scores = self.rng.random(mask.shape) * mask  # the max over allowed entries is uniform among them
-        return np.argmax(scores, axis=-1)
-
-
 @dataclass
 class Trajectory:
     """One episode of a one-env core: the instance, and every step's events, rewards and decision latency.

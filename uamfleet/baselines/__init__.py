@@ -6,7 +6,7 @@ from typing import Any
 
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
-from uamfleet.rollout import RandomPolicy
+from uamfleet.baselines.random_policy import RandomPolicy
 
 POLICIES: tuple[str, ...] = (*PLANNERS, "greedy", "random")
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
@@ -31,4 +31,12 @@ def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
 
 
-__all__ = ["PLANNERS", "POLICIES", "GreedyFleetPolicy", "PlannerPolicy", "make_policy", "planner_env_overrides"]
+__all__ = [
+    "PLANNERS",
+    "POLICIES",
+    "GreedyFleetPolicy",
+    "PlannerPolicy",
+    "RandomPolicy",
+    "make_policy",
+    "planner_env_overrides",
+]

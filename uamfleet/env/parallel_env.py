@@ -52,7 +52,8 @@ with ``s + e``.
 from __future__ import annotations
 
 import functools
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from gymnasium import spaces
@@ -64,6 +65,20 @@ from uamfleet.env.vector_env import VectorEnv
 AgentID = str
 
 
+class Renderer(Protocol):
+    """Draws a :class:`UAMFleetParallelEnv` for one ``render_mode``: an RGB frame [H, W, 3] uint8 for
+    ``"rgb_array"``, None for ``"human"`` (a window). Made by the env's renderer factory on the first
+    ``render()``; ``close()`` frees what it holds (a window, a server)."""
+
+    def render(self, env: UAMFleetParallelEnv) -> np.ndarray | None: ...
+
+    def close(self) -> None: ...
+
+
+RendererFactory = Callable[[str, "UAMFleetParallelEnv"], Renderer]
+"""``(render_mode, env) -> Renderer``."""
+
+
 class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     metadata: ClassVar[dict[str, Any]] = {
         "name": "uamfleet_v0",
@@ -71,14 +86,24 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         "is_parallelizable": True,
         "render_fps": 5,
     }
+    default_renderer: ClassVar[RendererFactory | None] = None
+    """The renderer factory used when none is passed. The env draws nothing itself (drawing lives above it, in
+    :mod:`uamfleet.viz`): ``import uamfleet`` registers :func:`uamfleet.viz.render.make_renderer` here."""
 
-    def __init__(self, cfg: EnvConfig, render_mode: str | None = None) -> None:
+    def __init__(self, cfg: EnvConfig, render_mode: str | None = None, renderer: RendererFactory | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not supported; use one of {self.metadata['render_modes']} or None."
             )
+        factory = renderer if renderer is not None else type(self).default_renderer
+        if render_mode is not None and factory is None:
+            raise ValueError(
+                f"render_mode={render_mode!r} needs a renderer: pass renderer=uamfleet.viz.render.make_renderer "
+                "(import uamfleet registers it as the default)."
+            )
         self.cfg = cfg
         self.render_mode = render_mode
+        self._make_renderer = factory
         self.core = VectorEnv(cfg, num_envs=1, autoreset=False)
         self.possible_agents = [f"uam_{i}" for i in range(cfg.num_taxis)]
         self.agents: list[AgentID] = []
@@ -86,8 +111,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self._obs_space = self.core.single_observation_space
         self._act_space = spaces.Discrete(16)
         self.state_space = self.core.state_space
-        self._trails: list[np.ndarray] = []
-        self._viewer: Any = None  # the meshcat FleetViewer of render_mode="human", opened by the first render()
+        self._trails: list[np.ndarray] = []  # [A, 2] positions of every step so far, kept only when rendering
+        self._viewer: Renderer | None = None  # made by the first render() (for "human": the meshcat viewer)
 
     # PettingZoo requires the identical space object on every call.
     def observation_space(self, agent: AgentID) -> spaces.Space:
@@ -101,7 +126,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     ) -> tuple[dict[AgentID, dict[str, np.ndarray]], dict[AgentID, dict[str, Any]]]:
         obs, _ = self.core.reset(seed=seed)
         self.agents = list(self.possible_agents)
-        self._trails = [self.core.state.pos_m[0].copy()]
+        if self.render_mode is not None:
+            self._trails = [self.core.state.pos_m[0].copy()]
         return self._split(obs), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[AgentID, int]) -> tuple[dict, dict, dict, dict, dict]:
@@ -115,7 +141,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             )
         batch = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
         obs, rewards, terminated, truncated, info = self.core.step(batch)
-        self._trails.append(self.core.state.pos_m[0].copy())
+        if self.render_mode is not None:
+            self._trails.append(self.core.state.pos_m[0].copy())
         agents = self.agents
         terms = info["reward_terms"][0]  # [A, T]
         infos: dict[AgentID, dict[str, Any]] = {}
@@ -142,33 +169,23 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     def state(self) -> np.ndarray:
         return self.core.global_state()[0]
 
+    @property
+    def trails_m(self) -> np.ndarray:
+        """[A, T + 1, 2] the positions each taxi has been at this episode (kept when ``render_mode`` is set)."""
+        return np.stack(self._trails, axis=1)
+
     def render(self) -> np.ndarray | None:
         """``"rgb_array"``: an RGB frame [H, W, 3] uint8 (matplotlib). ``"human"``: opens a meshcat viewer in
         the browser on the first call (its address is printed) and shows the current state; returns None."""
         if self.render_mode is None:
             return None
-        if self.render_mode == "human":
-            self._render_human()
-            return None
-        from uamfleet.viz.figures import render_frame
-
-        return render_frame(self.core.world, self.core.state, np.stack(self._trails, axis=1))
-
-    def _render_human(self) -> None:
         if self._viewer is None:
-            from uamfleet.viz.meshcat_view import FleetViewer
-
-            world = self.core.world
-            title = f"{self.cfg.scenario} · {self.cfg.num_taxis} taxi(s) · γ_T = {world.threshold_db:g} dB (live)"
-            self._viewer = FleetViewer(world.radio, world.threshold_db, open_server=True, title=title)
-        s = self.core.state
-        self._viewer.update_live(
-            s.pos_m[0], s.pax_status[0], s.pax_origin_m[0], s.pax_dest_m[0], int(s.t[0]),
-            pax_taxi=s.pax_taxi[0], seats=self.cfg.seats,
-        )  # fmt: skip
+            assert self._make_renderer is not None  # checked in __init__
+            self._viewer = self._make_renderer(self.render_mode, self)
+        return self._viewer.render(self)
 
     def close(self) -> None:
-        """Close the meshcat viewer (and kill its server) if ``render()`` opened one."""
+        """Close what ``render()`` opened (the meshcat viewer and its server for ``"human"``)."""
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None

@@ -1,0 +1,196 @@
+"""Imports point one way: radio -> paths -> env -> {baselines, rl} -> rollout/metrics -> viz -> CLIs.
+
+Every module of ``uamfleet/``, ``eval/``, ``train/`` and ``benchmarks/`` is parsed (``ast``, so imports inside
+functions count too) and each import of a project module becomes an edge. An edge may point down or sideways
+inside one layer, never up; the graph may hold no circle. Run it alone with::
+
+    .venv/bin/python -m pytest -q tests/test_layers.py
+
+Allowed on purpose (and only these):
+
+- imports under ``if TYPE_CHECKING:`` are annotations, never executed, and are not edges;
+- ``uamfleet/__init__.py`` is the public face (``uamfleet.parallel_env``, ``uamfleet.vector_env``, ...): it is
+  the top of the package and may import any layer; nothing in the package may import it;
+- a ``from pkg import name`` also runs ``pkg/__init__.py``: that package is an edge too, unless the importer
+  lives inside it (a package's own modules run their ``__init__`` anyway).
+"""
+
+from __future__ import annotations
+
+import ast
+import itertools
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCES = ("uamfleet", "eval", "train", "benchmarks")
+
+# Layer of each module by longest matching prefix; a module may import its own layer or lower ones.
+# config, types and io are the base every layer may use (config reads radio maps, so it sits just above radio).
+LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
+    (0, ("uamfleet.types", "uamfleet.io")),
+    (1, ("uamfleet.radio",)),
+    (2, ("uamfleet.config",)),
+    (3, ("uamfleet.paths",)),
+    (4, ("uamfleet.env",)),
+    (5, ("uamfleet.baselines", "uamfleet.rl")),
+    (6, ("uamfleet.rollout", "uamfleet.metrics")),
+    # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
+    (7, ("uamfleet.rl.trainer",)),
+    (8, ("uamfleet.viz",)),
+    (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
+    (10, ("eval", "train", "benchmarks")),
+)
+# Packages of one layer that must not import each other (siblings, not a stack).
+SIBLINGS = ("uamfleet.baselines", "uamfleet.rl")
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def all_modules() -> dict[str, Path]:
+    files = [p for src in SOURCES for p in (ROOT / src).rglob("*.py") if ".venv" not in p.parts]
+    return {module_name(p): p for p in sorted(files)}
+
+
+def is_package(name: str, modules: dict[str, Path]) -> bool:
+    return modules[name].name == "__init__.py"
+
+
+def type_checking_only(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def imported_names(tree: ast.AST, importer: str, importer_is_package: bool) -> list[tuple[str, int]]:
+    """(absolute dotted name, line) of every import outside ``if TYPE_CHECKING:`` blocks; ``from a import b``
+    gives ``a.b`` (a module or a name in ``a``, resolved by the caller)."""
+    out: list[tuple[str, int]] = []
+
+    def visit(node: ast.AST) -> None:
+        if isinstance(node, ast.If) and type_checking_only(node):
+            for child in node.orelse:
+                visit(child)
+            return
+        if isinstance(node, ast.Import):
+            out.extend((alias.name, node.lineno) for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                package = importer.split(".") if importer_is_package else importer.split(".")[:-1]
+                package = package[: len(package) - (node.level - 1)]
+                base = ".".join([*package, base] if base else package)
+            out.extend((f"{base}.{alias.name}", node.lineno) for alias in node.names)
+        for child in ast.iter_child_nodes(node):
+            visit(child)
+
+    visit(tree)
+    return out
+
+
+def edges(modules: dict[str, Path]) -> dict[str, dict[str, int]]:
+    """importer -> {imported project module: line}."""
+    graph: dict[str, dict[str, int]] = {}
+    for name, path in modules.items():
+        targets: dict[str, int] = {}
+        for dotted, line in imported_names(ast.parse(path.read_text(), str(path)), name, is_package(name, modules)):
+            parts = dotted.split(".")
+            # the longest prefix that is a project module (``from m import f`` -> m; ``from pkg import mod`` -> mod)
+            prefixes = (".".join(parts[:i]) for i in range(len(parts), 0, -1))
+            found = next((p for p in prefixes if p in modules), None)
+            if found is None or found == name:
+                continue
+            chain = found.split(".")
+            for i in range(1, len(chain) + 1):  # the packages whose __init__ the import runs
+                target = ".".join(chain[:i])
+                if target == name:
+                    continue
+                if target == found or (is_package(target, modules) and not name.startswith(target + ".")):
+                    if target == "uamfleet" and found != "uamfleet":
+                        continue  # every uamfleet.x import runs the face's __init__; only an explicit one counts
+                    targets.setdefault(target, line)
+        graph[name] = targets
+    return graph
+
+
+def layer(name: str) -> tuple[int, str]:
+    best = max(
+        ((rank, prefix) for rank, prefixes in LAYERS for prefix in prefixes
+         if name == prefix or name.startswith(prefix + ".")),
+        key=lambda rp: len(rp[1]),
+        default=None,
+    )  # fmt: skip
+    if best is None:
+        raise AssertionError(f"module {name} is in no layer: add its prefix to LAYERS in tests/test_layers.py")
+    return best
+
+
+MODULES = all_modules()
+GRAPH = edges(MODULES)
+
+
+def test_every_module_has_a_layer_and_the_walk_sees_the_known_edges() -> None:
+    for name in MODULES:
+        layer(name)
+    # the walk must find imports inside functions and through packages, or the other tests prove nothing
+    assert "uamfleet.env.vector_env" in GRAPH["uamfleet.rollout"]
+    assert "uamfleet.paths" in GRAPH["uamfleet.env.vector_env"]
+    assert "uamfleet.radio" in GRAPH["uamfleet.config"]
+    assert len(MODULES) > 40 and sum(map(len, GRAPH.values())) > 100
+
+
+def test_no_import_points_up() -> None:
+    upward = []
+    for importer, targets in GRAPH.items():
+        rank, prefix = layer(importer)
+        for target, line in targets.items():
+            target_rank, target_prefix = layer(target)
+            sibling = target_rank == rank and target_prefix != prefix and {prefix, target_prefix} <= set(SIBLINGS)
+            if target_rank > rank or sibling:
+                upward.append(f"{MODULES[importer].relative_to(ROOT)}:{line}: {importer} (layer {prefix}) imports "
+                              f"{target} (layer {target_prefix})")  # fmt: skip
+    assert not upward, "imports that point up or across sibling layers:\n" + "\n".join(upward)
+
+
+def find_cycle(graph: dict[str, dict[str, int]]) -> list[str] | None:
+    state: dict[str, int] = {}  # 1 = on the stack, 2 = done
+    stack: list[str] = []
+
+    def dfs(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, {})):
+            if state.get(nxt) == 1:
+                return [*stack[stack.index(nxt) :], nxt]
+            if nxt not in state and (cycle := dfs(nxt)) is not None:
+                return cycle
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (cycle := dfs(node)) is not None:
+            return cycle
+    return None
+
+
+def test_no_import_circle() -> None:
+    cycle = find_cycle(GRAPH)
+    assert cycle is None, "import circle: " + ", ".join(
+        f"{a} imports {b} ({MODULES[a].relative_to(ROOT)}:{GRAPH[a][b]})" for a, b in itertools.pairwise(cycle)
+    )
+
+
+@pytest.mark.parametrize(
+    ("graph", "expected"),
+    [({"a": {"b": 1}, "b": {"c": 1}, "c": {"a": 1}}, ["a", "b", "c", "a"]), ({"a": {"b": 1}, "b": {}}, None)],
+)
+def test_the_cycle_finder_finds_a_drawn_circle(graph: dict[str, dict[str, int]], expected: list[str] | None) -> None:
+    assert find_cycle(graph) == expected
