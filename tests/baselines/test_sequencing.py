@@ -7,13 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from uamfleet.baselines.sequencing import (
-    Plan,
-    brute_force_pdp,
-    count_feasible_sequences,
-    solve_in_order,
-    solve_pdp,
-)
+from pdp_oracle import brute_force_pdp, count_feasible_sequences
+
+from uamfleet.baselines.sequencing import Plan, solve_in_order, solve_pdp
 
 
 def _line(xs: list[float]) -> np.ndarray:

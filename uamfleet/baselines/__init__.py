@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
-from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
 from uamfleet.baselines.random_policy import RandomPolicy
 
 POLICIES: tuple[str, ...] = (*PLANNERS, "greedy", "random")
@@ -15,8 +15,8 @@ POLICIES: tuple[str, ...] = (*PLANNERS, "greedy", "random")
 def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
     """A policy by name: a single-taxi planner (:data:`PLANNERS`), the greedy fleet dispatcher, or random.
 
-    Fly a planner with :func:`planner_env_overrides` applied to its config (one seat for CPTSP, SINR ignored for
-    the straight line)."""
+    Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
+    straight line) and score it against the ``scored`` one."""
     if name in PLANNERS:
         if num_taxis != 1:
             raise ValueError(
@@ -38,5 +38,6 @@ __all__ = [
     "PlannerPolicy",
     "RandomPolicy",
     "make_policy",
+    "planner_configs",
     "planner_env_overrides",
 ]

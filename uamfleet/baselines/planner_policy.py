@@ -26,11 +26,12 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from uamfleet.baselines.sequencing import Plan, solve_pdp
+from uamfleet.config import EnvConfig, make_config
 from uamfleet.paths import DistanceFields, StopPaths
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import HIDDEN, ON_BOARD, WAITING
@@ -47,6 +48,22 @@ def planner_env_overrides(planner: str) -> dict[str, Any]:
         raise ValueError(f"unknown planner {planner!r}; choose one of {PLANNERS}.")
     overrides: dict[str, dict[str, Any]] = {"cptsp": {"seats": 1}, "straight": {"sinr_min_db": NO_SINR_DB}}
     return overrides.get(planner, {})
+
+
+class FlightConfigs(NamedTuple):
+    flown: EnvConfig  # the rules the policy flies under
+    scored: EnvConfig  # the rules its metrics are read against (the scenario's own threshold and seats)
+
+
+def planner_configs(scenario: str | EnvConfig, policy: str, **overrides: Any) -> FlightConfigs:
+    """The configs a policy flies under and is scored against, on ``scenario`` with config ``overrides``.
+
+    A planner of :data:`PLANNERS` flies with its :func:`planner_env_overrides` (one seat for CPTSP, SINR
+    ignored for the straight line) and is scored against the scenario's own rules (``scored.sinr_min_db`` is
+    the threshold its connectivity is measured against); any other policy flies under the scored config."""
+    scored = make_config(scenario, **overrides)
+    own = planner_env_overrides(policy) if policy in PLANNERS else {}
+    return FlightConfigs(make_config(scenario, **{**overrides, **own}) if own else scored, scored)
 
 
 def _sub_plan(

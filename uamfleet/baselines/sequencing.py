@@ -13,15 +13,15 @@ that mathematically equal totals summed in different orders tie instead of being
 :func:`solve_pdp` is a label-setting dynamic programme over (status of each passenger in {waiting, on board,
 delivered}, last node). A state keeps every label (time, ride, distance, sequence) that no other label
 dominates; since the taxi may wait, arriving earlier is never worse, which makes the pruning exact for the
-lexicographic objectives above. :func:`brute_force_pdp` enumerates every sequence and is its independent
-check. Measured on random instances: N = 6 in ~0.01-0.03 s, N = 8 in ~0.15-0.4 s; the limit is
+lexicographic objectives above. ``tests/baselines/pdp_oracle.py`` enumerates every sequence and is its
+independent check. Measured on random instances: N = 6 in ~0.01-0.03 s, N = 8 in ~0.15-0.4 s; the limit is
 :data:`MAX_PASSENGERS` = 8 (the state space grows as 3^N·(2N+1)).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,7 +133,7 @@ def _stop(node: int) -> tuple[int, str]:
     return ((node - 1) // 2, PICKUP if node % 2 == 1 else DROPOFF)
 
 
-# -- one shared schedule arithmetic: the DP, the enumerator and solve_in_order add in the same order ---------
+# -- one shared schedule arithmetic: the DP, solve_in_order and the test oracle add in the same order -------
 def _advance(pb: _Problem, t: float, ride: float, dist: float, last: int, node: int) -> tuple[float, float, float]:
     t = t + pb.travel_s[last][node]
     passenger = (node - 1) // 2
@@ -256,64 +256,6 @@ def solve_pdp(
             f"{MAX_PASSENGERS}; use an insertion heuristic for larger instances"
         )
     return _plan(pb, _dp(pb))
-
-
-# -- enumeration ----------------------------------------------------------------------------------------------
-def _sequences(pb: _Problem) -> Iterator[tuple[int, ...]]:
-    """Every precedence- and capacity-feasible node sequence serving all active passengers (depth first)."""
-    waiting = [i for i in pb.active if i not in pb.on_board]
-    total = 2 * len(waiting) + len(pb.on_board)
-
-    def extend(seq: list[int], waiting: list[int], riding: list[int]) -> Iterator[tuple[int, ...]]:
-        if len(seq) == total:
-            yield tuple(seq)
-            return
-        if len(riding) < pb.capacity:
-            for i in waiting:
-                seq.append(_node(i, PICKUP))
-                yield from extend(seq, [w for w in waiting if w != i], [*riding, i])
-                seq.pop()
-        for i in riding:
-            seq.append(_node(i, DROPOFF))
-            yield from extend(seq, waiting, [r for r in riding if r != i])
-            seq.pop()
-
-    yield from extend([], waiting, sorted(pb.on_board))
-
-
-def brute_force_pdp(
-    dist_m: np.ndarray,
-    speed_mps: float,
-    release_s: Sequence[float],
-    *,
-    capacity: int = 2,
-    on_board: Sequence[bool] | None = None,
-    done: Sequence[bool] | None = None,
-    start_s: float = 0.0,
-    objective: str = "makespan",
-) -> Plan:
-    """Same contract as :func:`solve_pdp` by enumerating every feasible sequence (a check; fine up to N = 5)."""
-    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective)
-    best_key: tuple[object, ...] | None = None
-    best: tuple[int, ...] = ()
-    for seq in _sequences(pb):
-        t, ride, dist, last = pb.start_s, 0.0, 0.0, 0
-        for node in seq:
-            t, ride, dist = _advance(pb, t, ride, dist, last, node)
-            last = node
-        key = _key(pb, t, ride, dist, seq)
-        if best_key is None or key < best_key:
-            best_key, best = key, seq
-    return _plan(pb, best)
-
-
-def count_feasible_sequences(n: int, capacity: int) -> int:
-    """Number of precedence- and capacity-feasible sequences for n waiting passengers (N!·3^(N−1) for 2 seats)."""
-    if int(n) != n or n < 0:
-        raise ValueError(f"n must be an integer >= 0 passengers, got {n!r}")
-    size = 1 + 2 * int(n)
-    pb = _problem(np.zeros((size, size)), 1.0, [0.0] * int(n), capacity, None, None, 0.0, "makespan")
-    return sum(1 for _ in _sequences(pb))
 
 
 def solve_in_order(
