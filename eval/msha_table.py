@@ -33,7 +33,7 @@ import tyro
 
 import uamfleet
 from eval.paper_numbers import PAPER_TABLE_II
-from uamfleet.baselines.planner_policy import PlannerPolicy, planner_env_overrides
+from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.networks import VARIANTS
@@ -148,9 +148,8 @@ def first_reaching(rows: list[dict[str, float]], td_limit: float) -> tuple[float
 
 
 def planner_metrics(scenario: str, threshold: float, planner: str, feasibility: str) -> EpisodeMetrics:
-    cfg = uamfleet.make_config(scenario, sinr_min_db=threshold, feasibility=feasibility,
-                               **planner_env_overrides(planner))  # fmt: skip
-    return episode_metrics(fly(cfg, PlannerPolicy(planner)), cfg.radio, threshold_db=threshold)
+    flown, scored = planner_configs(scenario, planner, sinr_min_db=threshold, feasibility=feasibility)
+    return episode_metrics(fly(flown, PlannerPolicy(planner)), scored.radio, threshold_db=scored.sinr_min_db)
 
 
 def run_row(exp: Experiment, args: Args, opt_td: float) -> dict[str, object] | None:

@@ -27,7 +27,7 @@ from uamfleet.baselines.planner_policy import (
     PLANNERS,
     PlannerPolicy,
     exact_stop_length,
-    planner_env_overrides,
+    planner_configs,
     service_order,
 )
 from uamfleet.io import replace_section, write_text_atomic
@@ -43,7 +43,6 @@ SETTINGS: tuple[tuple[str, str, tuple[float, ...], str], ...] = (
     ("detroit_p5", "detroit", (-17.0,), "Detroit P5 (ESTIMATED block map)"),
     ("detroit3gpp_p5", "detroit", (-21.0, -20.0, -19.0, -18.0, -17.0), "Detroit P5 on the SYNTHETIC TR 36.777 map"),
 )
-PAPER_NAMES = {"cptsp": "CPTSP", "pdpcc": "PDPCC"}
 COLUMNS = ("setting", "threshold_db", "method", "source", "pr_pct", "td_m", "td_exact_m", "att_s", "awt_s",
            "elr_pct", "connectivity_pct", "min_sinr_db")  # fmt: skip
 
@@ -61,10 +60,10 @@ class Args:
 
 
 def fly(scenario: str, threshold: float, planner: str) -> tuple[Trajectory, PlannerPolicy, uamfleet.EnvConfig]:
-    overrides = {"sinr_min_db": threshold, **planner_env_overrides(planner)}
-    cfg = uamfleet.make_config(scenario, **overrides)
+    """One episode of ``planner``, with the planner and the config it is scored against."""
+    flown, scored = planner_configs(scenario, planner, sinr_min_db=threshold)
     policy = PlannerPolicy(planner)
-    return fly_episode(cfg, policy), policy, cfg
+    return fly_episode(flown, policy), policy, scored
 
 
 Learned = tuple[str, object, dict[str, object]]  # (method name, greedy policy, env overrides it was trained with)

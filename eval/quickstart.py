@@ -17,9 +17,8 @@ from typing import Literal
 
 import tyro
 
-import uamfleet
 from eval.paper_numbers import PAPER_TABLE_II
-from uamfleet.baselines.planner_policy import PlannerPolicy
+from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
@@ -46,8 +45,10 @@ class Args:
 
 
 def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics:
-    cfg = uamfleet.make_config("berlin_p4", sinr_min_db=threshold, **overrides)
-    return episode_metrics(fly_episode(cfg, policy), cfg.radio)  # type: ignore[arg-type]
+    """Metrics of one Berlin P4 episode of ``policy`` (a planner flies under its own rules, as everywhere)."""
+    flown, scored = planner_configs("berlin_p4", getattr(policy, "planner", ""), sinr_min_db=threshold, **overrides)
+    traj = fly_episode(flown, policy)  # type: ignore[arg-type]
+    return episode_metrics(traj, scored.radio, threshold_db=scored.sinr_min_db)
 
 
 def main(args: Args) -> dict[str, EpisodeMetrics]:

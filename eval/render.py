@@ -20,7 +20,7 @@ import tyro
 from cycler import cycler
 
 import uamfleet
-from uamfleet.baselines import PLANNERS, POLICIES, make_policy, planner_env_overrides
+from uamfleet.baselines import POLICIES, make_policy, planner_configs
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
 from uamfleet.rollout import Trajectory
@@ -65,11 +65,8 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
         overrides = {"feasibility": trained.feasibility, **trained.env_overrides(training=False), **overrides}
         shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
         return fly_episode(shown, policy, seed=args.seed), shown
-    shown = uamfleet.make_config(args.scenario, **overrides)
+    flown, shown = planner_configs(args.scenario, args.policy, **overrides)
     policy = make_policy(args.policy, args.seed, shown.num_taxis)
-    flown = shown
-    if args.policy in PLANNERS:
-        flown = uamfleet.make_config(args.scenario, **{**overrides, **planner_env_overrides(args.policy)})
     return fly_episode(flown, policy, seed=args.seed), shown
 
 

@@ -11,8 +11,8 @@ import numpy as np
 import tyro
 
 import uamfleet
+from uamfleet.baselines import make_policy, planner_configs
 from uamfleet.metrics import episode_metrics
-from uamfleet.baselines import PLANNERS, make_policy, planner_env_overrides
 from uamfleet.rollout import run_episode
 
 
@@ -44,10 +44,7 @@ def main(args: Args) -> list[dict[str, float]]:
         )
         if v is not None
     }
-    cfg = uamfleet.make_config(args.scenario, **overrides)  # the rules the metrics are scored against
-    flown = cfg  # a planner may fly under its own overrides (one seat for CPTSP, SINR off for the straight line)
-    if args.policy in PLANNERS:
-        flown = uamfleet.make_config(args.scenario, **{**overrides, **planner_env_overrides(args.policy)})
+    flown, cfg = planner_configs(args.scenario, args.policy, **overrides)  # cfg: the rules it is scored against
     env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
     policy = make_policy(args.policy, args.seed, cfg.num_taxis)
     print(

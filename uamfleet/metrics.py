@@ -51,18 +51,23 @@ class EpisodeMetrics:
         return {k: float(v) for k, v in asdict(self).items()}
 
 
-def path_samples(path_m: np.ndarray, sample_m: float) -> np.ndarray:
-    """[K, 2] points along a polyline [T + 1, 2], spaced at most ``sample_m`` apart, each vertex once."""
+def polyline_samples(path_m: np.ndarray, sample_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along a polyline [T + 1, 2], spaced at most ``sample_m`` apart, each vertex once: ([K, 2] points,
+    [K] where each lies in segments flown: segment index + fraction, T at the last vertex)."""
     if len(path_m) == 1:
-        return path_m.copy()
+        return path_m.copy(), np.zeros(1)
     starts, ends = path_m[:-1], path_m[1:]
     lengths = np.linalg.norm(ends - starts, axis=-1)
-    counts = np.maximum(np.ceil(lengths / sample_m - 1e-9), 1).astype(int)  # samples per segment, start included
+    counts = np.maximum(np.ceil(lengths / sample_m - 1e-9), 1).astype(np.int64)  # samples per segment, start incl.
     seg = np.repeat(np.arange(len(starts)), counts)
-    offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    t = (offsets / counts[seg])[:, None]
-    points = starts[seg] + t * (ends[seg] - starts[seg])
-    return np.concatenate([points, path_m[-1:]])
+    frac = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)) / counts[seg]
+    points = starts[seg] + frac[:, None] * (ends[seg] - starts[seg])
+    return np.concatenate([points, path_m[-1:]]), np.concatenate([seg + frac, [len(starts)]])
+
+
+def path_samples(path_m: np.ndarray, sample_m: float) -> np.ndarray:
+    """[K, 2] points along a polyline [T + 1, 2], spaced at most ``sample_m`` apart, each vertex once."""
+    return polyline_samples(path_m, sample_m)[0]
 
 
 def connectivity(

@@ -156,10 +156,6 @@ class GridGraph:
             f"feasible={self._feasible_nodes.size}, edges={self.adjacency.nnz})"
         )
 
-    @property
-    def num_nodes(self) -> int:
-        return self.shape[0] * self.shape[1]
-
     def _build(self) -> sp.csr_matrix:
         nx, ny = self.shape
         pad = 2  # the longest move reaches 2 cells; padding with False keeps every shifted view in bounds

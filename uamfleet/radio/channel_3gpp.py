@@ -77,12 +77,6 @@ def _pathloss_from_log_db(log10_d3d: np.ndarray, h: float, fc: float) -> tuple[n
     return los, nlos
 
 
-def free_space_pathloss_db(d3d_m: Any, carrier_ghz: float) -> np.ndarray:
-    """Free-space path loss, d in m and f_c in GHz (20 log10(4 pi d f / c))."""
-    d = np.asarray(d3d_m, dtype=np.float64)
-    return 20.0 * np.log10(d) + 20.0 * math.log10(_check_carrier(carrier_ghz)) + 32.45
-
-
 def pathloss_los_db(d3d_m: Any, h_ut_m: float, carrier_ghz: float) -> np.ndarray:
     """UMi-AV LoS path loss (TR 36.777 Table B-2): max(free space, 30.9 + ...)."""
     log_d = np.log10(np.asarray(d3d_m, dtype=np.float64))

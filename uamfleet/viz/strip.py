@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from uamfleet.metrics import polyline_samples
 from uamfleet.radio import RadioMap
 from uamfleet.rollout import Trajectory
 from uamfleet.viz.colours import TAXI_HEX
@@ -71,17 +72,8 @@ def sinr_along_path(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(time [K] in s, SINR [K] in dB) at points spaced at most ``sample_m`` (and one raster cell) along a
     polyline [T + 1, 2] flown one segment per ``slot_s``; NaN where the raster has no value."""
-    sample_m = min(sample_m, radio.resolution_m)
-    if len(positions_m) == 1:
-        return np.zeros(1), radio.sinr_at(positions_m)
-    starts, ends = positions_m[:-1], positions_m[1:]
-    lengths = np.linalg.norm(ends - starts, axis=-1)
-    counts = np.maximum(np.ceil(lengths / sample_m - 1e-9), 1).astype(np.int64)  # samples per segment
-    seg = np.repeat(np.arange(len(starts)), counts)
-    frac = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)) / counts[seg]
-    points = np.concatenate([starts[seg] + frac[:, None] * (ends[seg] - starts[seg]), positions_m[-1:]])
-    times = np.concatenate([(seg + frac) * slot_s, [len(starts) * slot_s]])
-    return times, radio.sinr_at(points)
+    points, along = polyline_samples(positions_m, min(sample_m, radio.resolution_m))
+    return along * slot_s, radio.sinr_at(points)
 
 
 def plot_sinr_strip(traj: Trajectory, radio: RadioMap, threshold_db: float, path: str | Path) -> None:
