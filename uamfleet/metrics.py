@@ -1,4 +1,5 @@
-"""Episode metrics from a :class:`~uamfleet.rollout.Trajectory` (the paper's definitions, SPEC §5).
+"""Episode metrics from a :class:`~uamfleet.rollout.Trajectory` (the paper's definitions; the list
+below is also section "Metrics" of ``docs/rules.md``).
 
 Everything is computed from the recorded events and the instance; nothing re-simulates the episode. Times are
 in seconds (steps × ``slot_s``), distances in metres.

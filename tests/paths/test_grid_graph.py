@@ -126,7 +126,7 @@ def test_open_grid_lattice_distance(connectivity: int, target: tuple[int, int], 
 
 @pytest.mark.parametrize(("connectivity", "bound"), [(16, 1.0275), (8, 1.0825)])
 def test_open_grid_detour_bound(connectivity: int, bound: float) -> None:
-    """SPEC §7: the 16-connected lattice is <= 2.75 % longer than straight lines, the 8-connected <= 8.25 %."""
+    """The 16-connected lattice is <= 2.75 % longer than straight lines, the 8-connected <= 8.25 %."""
     graph = GridGraph(_open(60), RES, connectivity=connectivity)
     rng = np.random.default_rng(1)
     cells = rng.integers(0, 60, size=(60, 2))

@@ -1,6 +1,6 @@
 """Classic planners as policies: a stop plan, flown through the same environment as every other policy.
 
-Planners (SPEC §7; the paper's baseline code was never published, these follow its text):
+Planners (the paper's baseline code was never published; these follow its text):
 
 - ``cptsp``: capacity 1 (flown with ``seats=1``), best order of the requests known at the start, late
   requests appended in release order.

@@ -1,4 +1,4 @@
-"""Exact sequencing of one taxi's pick-ups and drop-offs (SPEC §7: CPTSP, PDPCC, REPLAN, clairvoyant OPT).
+"""Exact sequencing of one taxi's pick-ups and drop-offs: the core of the CPTSP, PDPCC, REPLAN and OPT planners.
 
 Node indexing: 0 is the taxi's current position; passenger ``i`` (0-based) has origin node ``1 + 2i`` and
 destination node ``2 + 2i``. ``dist_m[a, b]`` is the flight distance from node a to node b (any metric, e.g.

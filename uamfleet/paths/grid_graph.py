@@ -1,8 +1,8 @@
-"""Shortest SINR-feasible paths on a raster (SPEC §7): feasible cells -> lattice graph -> Dijkstra.
+"""Shortest SINR-feasible paths on a raster: feasible cells -> lattice graph -> Dijkstra.
 
 Nodes are raster cells (flat index ``ix * ny + iy``), edges join the centres of feasible cells. The
 8-connected lattice has the 8 neighbours; the 16-connected one adds the 8 knight moves (±1, ±2), (±2, ±1),
-which brings the worst-case detour over any-angle paths from 8.2 % down to 2.7 % (SPEC §7).
+which brings the worst-case detour over any-angle paths from 8.2 % down to 2.7 %.
 
 **Edge rule** (one rule for every move): an edge exists when every cell whose *closed* square the straight
 segment between the two centres meets is feasible. Concretely:
