@@ -108,6 +108,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self.possible_agents = [f"uam_{i}" for i in range(cfg.num_taxis)]
         self.agents: list[AgentID] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
+        self._live = frozenset(self.possible_agents)
+        self._at = [(agent, (0, i)) for i, agent in enumerate(self.possible_agents)]  # (agent, its [E, A] index)
         self._obs_space = self.core.single_observation_space
         self._act_space = spaces.Discrete(16)
         self.state_space = self.core.state_space
@@ -131,31 +133,32 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         return self._split(obs), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[AgentID, int]) -> tuple[dict, dict, dict, dict, dict]:
-        if not self.agents:
+        agents = self.agents
+        if not agents:
             raise RuntimeError("step() called with no live agents: call reset() first.")
-        missing = [a for a in self.agents if a not in actions]
-        unknown = [a for a in actions if a not in self._index]
-        if missing or unknown:
+        if actions.keys() != self._live:  # agents live and die together: live = all possible agents
+            missing = [a for a in agents if a not in actions]
+            unknown = [a for a in actions if a not in self._index]
             raise ValueError(
-                f"actions must have one entry per live agent {self.agents}; missing {missing}, unknown {unknown}."
+                f"actions must have one entry per live agent {agents}; missing {missing}, unknown {unknown}."
             )
-        batch = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
+        batch = np.array([[int(actions[a]) for a in agents]], dtype=np.int64)
         obs, rewards, terminated, truncated, info = self.core.step(batch)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
-        agents = self.agents
-        terms = info["reward_terms"][0]  # [A, T]
-        infos: dict[AgentID, dict[str, Any]] = {}
-        for agent in agents:
-            i = self._index[agent]
-            infos[agent] = {"reward_terms": dict(zip(REWARD_TERMS, terms[i].tolist(), strict=True))}
-            if "episode" in info:
-                ep = info["episode"]
-                infos[agent]["episode"] = {
-                    key: (float(v[0, i]) if v.ndim == 2 else float(v[0])) for key, v in ep.items()
-                }
+        # One conversion per array, then plain Python per agent (agent i is taxi i; agents == possible_agents).
+        terms = info["reward_terms"][0].tolist()  # [A][T]
+        infos: dict[AgentID, dict[str, Any]] = {
+            agent: {"reward_terms": dict(zip(REWARD_TERMS, row, strict=True))}
+            for agent, row in zip(agents, terms, strict=True)
+        }
+        if "episode" in info:
+            for key, v in info["episode"].items():
+                per_agent = v[0].tolist() if v.ndim == 2 else [v[0].item()] * len(agents)
+                for agent, value in zip(agents, per_agent, strict=True):
+                    infos[agent].setdefault("episode", {})[key] = float(value)
         out_obs = self._split(obs)
-        out_rew = {a: float(rewards[0, self._index[a]]) for a in agents}
+        out_rew = dict(zip(agents, rewards[0].tolist(), strict=True))
         out_term = dict.fromkeys(agents, bool(terminated[0]))
         out_trunc = dict.fromkeys(agents, bool(truncated[0]))
         if terminated[0] or truncated[0]:
@@ -164,7 +167,11 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
 
     def _split(self, obs: dict[str, np.ndarray]) -> dict[AgentID, dict[str, np.ndarray]]:
         # Views, not copies: the core returns fresh arrays every step and never writes into them again.
-        return {agent: {k: v[0, self._index[agent]] for k, v in obs.items()} for agent in self.agents}
+        if len(self._at) == 1:  # one taxi: one index per array
+            ((agent, at),) = self._at
+            return {agent: {k: v[at] for k, v in obs.items()}}
+        rows = zip(*[v[0] for v in obs.values()], strict=True)  # iterating [A, ...] makes the A views in C
+        return {agent: dict(zip(obs.keys(), row, strict=True)) for (agent, _), row in zip(self._at, rows, strict=True)}
 
     def state(self) -> np.ndarray:
         return self.core.global_state()[0]
