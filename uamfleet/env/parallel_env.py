@@ -167,11 +167,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
 
     def _split(self, obs: dict[str, np.ndarray]) -> dict[AgentID, dict[str, np.ndarray]]:
         # Views, not copies: the core returns fresh arrays every step and never writes into them again.
-        if len(self._at) == 1:  # one taxi: one index per array
-            ((agent, at),) = self._at
-            return {agent: {k: v[at] for k, v in obs.items()}}
-        rows = zip(*[v[0] for v in obs.values()], strict=True)  # iterating [A, ...] makes the A views in C
-        return {agent: dict(zip(obs.keys(), row, strict=True)) for (agent, _), row in zip(self._at, rows, strict=True)}
+        return {agent: {k: v[at] for k, v in obs.items()} for agent, at in self._at}
 
     def state(self) -> np.ndarray:
         return self.core.global_state()[0]
