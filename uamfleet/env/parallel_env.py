@@ -40,7 +40,9 @@ Arguments
 ``parallel_env(scenario="berlin_p4", render_mode=None, **overrides)``: any :class:`uamfleet.config.EnvConfig`
 field as a keyword (``sinr_min_db``, ``num_taxis``, ``starts_m``, ``requests``, ``radio``, ...).
 ``render_mode="rgb_array"`` returns matplotlib frames; ``"human"`` opens a live meshcat viewer in the browser
-(closed, with its server, by ``close()``).
+(closed, with its server, by ``close()``). The env draws nothing itself: ``render()`` asks a :class:`Renderer`
+made by ``renderer(render_mode, env)`` (``UAMFleetParallelEnv(cfg, render_mode, renderer=...)``), by default
+:func:`uamfleet.viz.render.make_renderer`, which ``import uamfleet`` registers.
 
 Seeding
 -------
