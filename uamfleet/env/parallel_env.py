@@ -59,6 +59,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
+from uamfleet.env.dynamics import check_action
 from uamfleet.env.vector_env import VectorEnv
 
 AgentID = str
@@ -113,7 +114,10 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             raise ValueError(
                 f"actions must have one entry per live agent {self.agents}; missing {missing}, unknown {unknown}."
             )
-        batch = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
+        batch = np.array(
+            [[check_action(actions[a], f"env 0, taxi {i} ({a})") for i, a in enumerate(self.possible_agents)]],
+            dtype=np.int64,
+        )
         obs, rewards, terminated, truncated, info = self.core.step(batch)
         self._trails.append(self.core.state.pos_m[0].copy())
         agents = self.agents
