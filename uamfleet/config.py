@@ -72,16 +72,24 @@ def check_number(name: str, value: Any, *, minimum: float | None = None, positiv
     return float(value)
 
 
+MAX_COUNT = 2**31 - 1
+"""Upper bound of every count (steps, seats, visits): it must fit the simulator's integer arrays."""
+
+
 def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None, fix: str = "") -> int:
-    """``value`` as an int in ``[minimum, maximum]``; :class:`ConfigError` naming ``name`` otherwise. A float
-    with an integral value (``500.0``) is accepted; ``1.5``, NaN, strings and bools are not (never truncated)."""
+    """``value`` as an int in ``[minimum, maximum]`` (default maximum :data:`MAX_COUNT`); :class:`ConfigError`
+    naming ``name`` otherwise. A float with an integral value (``500.0``) is accepted; ``1.5``, NaN, strings and
+    bools are not (never truncated)."""
     bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
+    maximum = MAX_COUNT if maximum is None else maximum
     if not _is_number(value):
         raise _not_a_number(name, value, f"an integer {bound}", integer=True)
     if not math.isfinite(value) or int(value) != value:
         raise ConfigError(f"{name}={value!r} must be a whole number {bound}{fix}; it is never rounded.")
-    if value < minimum or (maximum is not None and value > maximum):
+    if value < minimum:
         raise ConfigError(f"{name}={value!r} must be an integer {bound}{fix}.")
+    if value > maximum:
+        raise ConfigError(f"{name}={value!r} is too large: at most {maximum}{fix}.")
     return int(value)
 
 
@@ -287,6 +295,11 @@ class EnvConfig:
             put("max_block_visits", check_integer("max_block_visits (or None: never)", self.max_block_visits, 1))
         if self.max_passengers is not None:
             put("max_passengers", check_integer("max_passengers (or None)", self.max_passengers, 1, MAX_PASSENGERS))
+        if self.block_size_m > self.side_m:
+            raise ConfigError(
+                f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are larger than the whole "
+                f"{self.side_m:g} m map; use block_m <= {self.side_m:g}."
+            )
         if self.block_size_m < self.radio.resolution_m:
             raise ConfigError(
                 f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are finer than the radio map's "

@@ -103,6 +103,7 @@ def sample_requests(world: World, rng: np.random.Generator, sites: np.ndarray) -
     for step in release:
         o = int(rng.integers(len(points)))
         far = np.linalg.norm(points - points[o], axis=-1) >= demand.min_trip_m
+        far[o] = False  # with min_trip_m = 0 the origin itself is "far enough": a ride that goes nowhere
         candidates = np.nonzero(far)[0] if far.any() else np.nonzero(np.arange(len(points)) != o)[0]
         d = int(rng.choice(candidates))
         requests.append(Request(step, tuple(points[o]), tuple(points[d])))
