@@ -260,8 +260,20 @@ def test_single_row_grid(tmp_path: Path) -> None:
         read_winprop(write(tmp_path, GOOD_ROWS[::2], header=header))
 
 
-def test_line_numbers_count_newlines_only(tmp_path: Path) -> None:
-    # \x1c is a line break to str.splitlines but not to an editor: the named line must be the editor's.
-    rows = replace_row(2, "1010.00000\x1c2000.00000 abc")
-    with pytest.raises(WinPropFormatError, match=rf"line {FIRST_DATA_LINE + 2}: .*must be numbers"):
-        read_winprop(write(tmp_path, ["1000.00000 2000.00000\x1c0.0000", *rows[1:]]))
+@pytest.mark.parametrize("char", ["\x00", "\x1c", "\x0c", "\x7f"])
+def test_control_characters_name_their_line(tmp_path: Path, char: str) -> None:
+    # NumPy would drop a trailing NUL from "6.718\x00" and str.split() takes \x1c for a space: neither is data.
+    rows = replace_row(2, f"1010.00000 2000.00000 10.0000{char}")
+    with pytest.raises(WinPropFormatError, match=rf"line {FIRST_DATA_LINE + 2}: control character") as info:
+        read_winprop(write(tmp_path, rows))
+    assert info.value.lineno == FIRST_DATA_LINE + 2
+
+
+def test_crlf_line_ends_and_the_error_attributes(tmp_path: Path) -> None:
+    path = tmp_path / "map.txt"
+    path.write_bytes(write(tmp_path, GOOD_ROWS).read_bytes().replace(b"\n", b"\r\n"))
+    np.testing.assert_array_equal(read_winprop(path).sinr_db, read_winprop(write(tmp_path, GOOD_ROWS)).sinr_db)
+    path.write_bytes(write(tmp_path, replace_row(4, "1020.00000 2000.00000 x")).read_bytes().replace(b"\n", b"\r\n"))
+    with pytest.raises(WinPropFormatError) as info:
+        read_winprop(path)
+    assert (info.value.lineno, info.value.line) == (FIRST_DATA_LINE + 4, "1020.00000 2000.00000 x")

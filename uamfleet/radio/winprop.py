@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,6 +29,7 @@ import numpy as np
 from uamfleet.radio.radio_map import BaseStation, RadioMap
 
 NOT_COMPUTED = "N.C."
+_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")  # anything but tab, newline and carriage return
 _GRID_KEYS = {"HEIGHT": 1, "RESOLUTION": 1, "LOWER_LEFT": 2, "UPPER_RIGHT": 2}  # key -> how many numbers
 # Coordinates are printed with 5 decimals; anything further than this fraction of a cell from a grid node is
 # a malformed file, not round-off.
@@ -35,11 +37,20 @@ _GRID_TOLERANCE = 1e-3
 
 
 class WinPropFormatError(ValueError):
-    """A WinProp ASCII file does not have the expected layout; the message names the line."""
+    """A WinProp ASCII file does not have the expected layout; the message names the line.
+
+    ``lineno`` is the (first) 1-based line the message names, counted on newlines; ``line`` is that line's
+    text (stripped) where the message quotes it, else None.
+    """
+
+    def __init__(self, message: str, lineno: int, line: str | None = None) -> None:
+        super().__init__(message)
+        self.lineno = lineno
+        self.line = line
 
 
 def _fail(path: Path, lineno: int, line: str, problem: str) -> WinPropFormatError:
-    return WinPropFormatError(f"{path}: line {lineno}: {problem}: {line.strip()!r}")
+    return WinPropFormatError(f"{path}: line {lineno}: {problem}: {line.strip()!r}", lineno, line.strip())
 
 
 def _parse_floats(path: Path, lineno: int, line: str, tokens: Sequence[str], what: str) -> list[float]:
@@ -96,9 +107,9 @@ class _Header:
                 )
             fields[tokens[2]] = (lineno, line, rest)
 
-    def extent(self, path: Path, res: float) -> tuple[float, float, int, int, str] | None:
+    def extent(self, path: Path, res: float) -> tuple[float, float, int, int, int, int] | None:
         """First cell centre (E, N) and grid size (nx, ny) of LOWER_LEFT..UPPER_RIGHT (cell corners), with the
-        lines' label for messages; None when the header gives neither."""
+        first and last of their two lines; None when the header gives neither."""
         given = [k for k in ("LOWER_LEFT", "UPPER_RIGHT") if k in self.values]
         if not given:
             return None
@@ -117,15 +128,20 @@ class _Header:
                 f"UPPER_RIGHT - LOWER_LEFT (line {ll_line}) = {e_hi - e_lo:g} x {n_hi - n_lo:g} m is not a positive "
                 f"whole number of {res:g} m RESOLUTION cells",
             )  # fmt: skip
-        label = f"lines {min(ll_line, ur_line)}-{max(ll_line, ur_line)} (LOWER_LEFT/UPPER_RIGHT)"
-        return e_lo + res / 2, n_lo + res / 2, round(cells[0]), round(cells[1]), label
+        first, last = min(ll_line, ur_line), max(ll_line, ur_line)
+        return e_lo + res / 2, n_lo + res / 2, round(cells[0]), round(cells[1]), first, last
 
     def base_stations(self, path: Path, e0: float, n0: float) -> tuple[BaseStation, ...]:
         stations = []
         for number in sorted(self.antennas):
             fields = self.antennas[number]
             if "LOCATION" not in fields:
-                raise WinPropFormatError(f"{path}: ANTENNA {number} has no LOCATION line; add 'LOCATION E N h'")
+                first = min(entry[0] for entry in fields.values())
+                raise WinPropFormatError(
+                    f"{path}: line {first}: ANTENNA {number} has no LOCATION line; add "
+                    f"'ANTENNA {number} LOCATION E N h' to its lines",
+                    first,
+                )
             lineno, line, rest = fields["LOCATION"]
             loc = rest.split()
             if len(loc) != 3:
@@ -148,17 +164,19 @@ class _Header:
 def _split_sections(path: Path, lines: list[str]) -> tuple[int, int]:
     """Indices of the BEGIN_DATA and END_DATA lines."""
     if not any(line.strip() for line in lines):
-        raise WinPropFormatError(f"{path}: line 1: the file is empty; expected a WinProp ASCII result file")
+        raise WinPropFormatError(f"{path}: line 1: the file is empty; expected a WinProp ASCII result file", 1)
     begin = next((i for i, line in enumerate(lines) if line.strip() == "BEGIN_DATA"), None)
     if begin is None:
         raise WinPropFormatError(
             f"{path}: line {len(lines)}: reached the end of the file without a BEGIN_DATA line; "
-            "is this a WinProp ASCII result file?"
+            "is this a WinProp ASCII result file?",
+            len(lines),
         )
     end = next((i for i in range(begin + 1, len(lines)) if lines[i].strip() == "END_DATA"), None)
     if end is None:
         raise WinPropFormatError(
-            f"{path}: line {len(lines)}: no END_DATA after BEGIN_DATA (line {begin + 1}); the file looks truncated"
+            f"{path}: line {len(lines)}: no END_DATA after BEGIN_DATA (line {begin + 1}); the file looks truncated",
+            len(lines),
         )
     for i in range(end + 1, len(lines)):
         if lines[i].strip():
@@ -170,7 +188,7 @@ def _parse_data(path: Path, lines: list[str], begin: int, end: int) -> tuple[np.
     """Rows ``[E, N, value]`` (value NaN for N.C.) and the 1-based line number of each row."""
     linenos = [i + 1 for i in range(begin + 1, end) if lines[i].strip()]
     if not linenos:
-        raise WinPropFormatError(f"{path}: line {begin + 1}: no data lines between BEGIN_DATA and END_DATA")
+        raise WinPropFormatError(f"{path}: line {begin + 1}: no data lines between BEGIN_DATA and END_DATA", begin + 1)
     rows = [lines[k - 1].split() for k in linenos]
     bad = next((k for k, row in zip(linenos, rows, strict=True) if len(row) != 3), None)
     if bad is not None:
@@ -210,9 +228,13 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
         header.read(path, i + 1, lines[i])
     res, height = header.number("RESOLUTION"), header.number("HEIGHT")
     if res is None:
-        raise WinPropFormatError(f"{path}: line {begin + 1}: no RESOLUTION line before BEGIN_DATA; add 'RESOLUTION r'")
+        raise WinPropFormatError(
+            f"{path}: line {begin + 1}: no RESOLUTION line before BEGIN_DATA; add 'RESOLUTION r'", begin + 1
+        )
     if height is None:
-        raise WinPropFormatError(f"{path}: line {begin + 1}: no HEIGHT line before BEGIN_DATA; add 'HEIGHT h'")
+        raise WinPropFormatError(
+            f"{path}: line {begin + 1}: no HEIGHT line before BEGIN_DATA; add 'HEIGHT h'", begin + 1
+        )
 
     data, linenos = _parse_data(path, lines, begin, end)
     e0, n0 = float(data[:, 0].min()), float(data[:, 1].min())
@@ -237,8 +259,17 @@ def _read_lines(path: Path) -> list[str]:
         lineno = raw.count(b"\n", 0, exc.start) + 1
         raise WinPropFormatError(
             f"{path}: line {lineno}: byte 0x{raw[exc.start]:02x} is not ASCII, so this is not an ASCII text file; "
-            "expected a WinProp ASCII result"
+            "expected a WinProp ASCII result",
+            lineno,
         ) from None
+    control = _CONTROL.search(text)
+    if control is not None:
+        lineno = text.count("\n", 0, control.start()) + 1
+        raise WinPropFormatError(
+            f"{path}: line {lineno}: control character {control.group()!r} in the text; a WinProp ASCII file holds "
+            "printable characters, tabs and newlines only",
+            lineno,
+        )
     lines = [line.rstrip("\r") for line in text.split("\n")]
     return lines[:-1] if len(lines) > 1 and not lines[-1] else lines  # no line after the final newline
 
@@ -250,7 +281,7 @@ def _place_on_grid(
     linenos: list[int],
     res: float,
     first: tuple[float, float],
-    extent: tuple[float, float, int, int, str] | None,
+    extent: tuple[float, float, int, int, int, int] | None,
 ) -> np.ndarray:
     """[nx, ny] SINR raster with each row of ``data`` at its coordinates; every grid point exactly once.
 
@@ -282,12 +313,14 @@ def _place_on_grid(
         raise WinPropFormatError(
             f"{path}: lines {linenos[0]}-{linenos[-1]}: incomplete grid: {ix.size} points for a "
             f"{_count(nx)} x {_count(ny)} grid ({_count(nx * ny)} needed); first missing point "
-            f"E={e0 + mx * res:.5f} N={n0 + my * res:.5f}"
+            f"E={e0 + mx * res:.5f} N={n0 + my * res:.5f}",
+            linenos[0],
         )
     if nx < 2 or ny < 2:
         raise WinPropFormatError(
             f"{path}: lines {linenos[0]}-{linenos[-1]}: a {nx:.0f} x {ny:.0f} grid; a radio map needs at least "
-            "2 points along E and along N"
+            "2 points along E and along N",
+            linenos[0],
         )
     sinr = np.empty((int(nx), int(ny)))
     sinr[ix.astype(np.intp), iy.astype(np.intp)] = data[:, 2]
@@ -304,12 +337,13 @@ def _check_extent(
     linenos: list[int],
     res: float,
     data_grid: tuple[float, float, float, float],
-    extent: tuple[float, float, int, int, str],
+    extent: tuple[float, float, int, int, int, int],
     index: tuple[np.ndarray, np.ndarray],
 ) -> None:
     """The data's grid must be the one LOWER_LEFT..UPPER_RIGHT describes (cell corners around the centres)."""
     e0, n0, nx, ny = data_grid
-    he, hn, hnx, hny, label = extent
+    he, hn, hnx, hny, first_line, last_line = extent
+    label = f"lines {first_line}-{last_line} (LOWER_LEFT/UPPER_RIGHT)"
     # Data cell indices on the header's grid: a point outside it is named by its line.
     hx, hy = index[0] + round((e0 - he) / res), index[1] + round((n0 - hn) / res)
     outside = (hx < 0) | (hx >= hnx) | (hy < 0) | (hy >= hny)
@@ -326,5 +360,6 @@ def _check_extent(
             f"{path}: {label}: the header's extent is {hnx * res:g} x {hny * res:g} m, a {hnx} x {hny} grid of "
             f"{res:g} m cells with centres from E={he:.5f} N={hn:.5f}, but the data (lines {linenos[0]}-"
             f"{linenos[-1]}) span a {nx:.0f} x {ny:.0f} grid from E={e0:.5f} N={n0:.5f}; fix LOWER_LEFT/UPPER_RIGHT "
-            "or the data"
+            "or the data",
+            first_line,
         )
