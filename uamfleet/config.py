@@ -30,6 +30,8 @@ MAX_PATCH_SIZE = 64
 MAX_HISTORY_LEN = 256
 MAX_TAXIS = 1024
 MAX_PASSENGERS = 1024
+MAX_COUNT = 2**31 - 1
+"""Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
 
 
 class ConfigError(ValueError):
@@ -70,10 +72,6 @@ def check_number(name: str, value: Any, *, minimum: float | None = None, positiv
     if minimum is not None and value < minimum:
         raise ConfigError(f"{name}={value!r} must be >= {minimum:g}.")
     return float(value)
-
-
-MAX_COUNT = 2**31 - 1
-"""Upper bound of every count (steps, seats, visits): it must fit the simulator's integer arrays."""
 
 
 def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None, fix: str = "") -> int:
