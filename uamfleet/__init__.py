@@ -15,6 +15,7 @@ from typing import Any
 from uamfleet.config import (
     REWARD_TERMS,
     SCENARIOS,
+    ConfigError,
     DemandConfig,
     EnvConfig,
     Request,
@@ -50,6 +51,7 @@ __all__ = [
     "RADIO_MAPS",
     "REWARD_TERMS",
     "SCENARIOS",
+    "ConfigError",
     "DemandConfig",
     "EnvConfig",
     "RadioMap",

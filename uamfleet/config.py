@@ -24,6 +24,87 @@ NUM_HEADINGS = 16
 FeasibilityRule = Literal["endpoint_block", "segment_raster"]
 FEASIBILITY_RULES: tuple[str, ...] = ("endpoint_block", "segment_raster")
 
+# Upper bounds of the sizes that set the memory of every observation (documented on EnvConfig): a 3,000 x 3,000
+# patch would be 72 MB per taxi and step, so a typo there fails at once instead of exhausting memory later.
+MAX_PATCH_SIZE = 64
+MAX_HISTORY_LEN = 256
+MAX_TAXIS = 1024
+MAX_PASSENGERS = 1024
+MAX_COUNT = 2**31 - 1
+"""Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
+
+
+class ConfigError(ValueError):
+    """A config value of the wrong type or out of range; the message names the field, the value and the fix.
+
+    A ``ValueError`` (also for values of the wrong type, e.g. ``sinr_min_db='-3'``), so one ``except
+    ValueError`` catches every bad input of the package: this, :class:`~uamfleet.env.generator.
+    InfeasibleInstanceError`, :class:`~uamfleet.env.dynamics.InvalidActionError` and
+    :class:`~uamfleet.radio.WinPropFormatError`.
+    """
+
+
+def _is_number(value: Any) -> bool:
+    # bool is an int to Python, but True is no step count or distance; strings are not parsed on the user's behalf.
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _not_a_number(name: str, value: Any, kind: str, integer: bool = False) -> ConfigError:
+    hint = ""
+    if isinstance(value, str):
+        try:
+            number = float(value)
+            hint = f", e.g. {name.split(' ')[0]}={int(number) if integer and number.is_integer() else number!r}"
+        except ValueError:
+            pass
+    return ConfigError(f"{name}={value!r} is a {type(value).__name__}, not a number; pass {kind}{hint}.")
+
+
+def check_number(name: str, value: Any, *, minimum: float | None = None, positive: bool = False) -> float:
+    """``value`` as a finite float; :class:`ConfigError` naming ``name`` if it is not a finite real number
+    (NaN, inf, a string, a bool) or is below ``minimum`` / not positive."""
+    if not _is_number(value):
+        raise _not_a_number(name, value, "an int or float")
+    if not math.isfinite(value):
+        raise ConfigError(f"{name}={value!r} must be a finite number.")
+    if positive and not value > 0:
+        raise ConfigError(f"{name}={value!r} must be a positive number.")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}={value!r} must be >= {minimum:g}.")
+    return float(value)
+
+
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None, fix: str = "") -> int:
+    """``value`` as an int in ``[minimum, maximum]`` (default maximum :data:`MAX_COUNT`); :class:`ConfigError`
+    naming ``name`` otherwise. A float with an integral value (``500.0``) is accepted; ``1.5``, NaN, strings and
+    bools are not (never truncated)."""
+    bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
+    maximum = MAX_COUNT if maximum is None else maximum
+    if not _is_number(value):
+        raise _not_a_number(name, value, f"an integer {bound}", integer=True)
+    if not math.isfinite(value) or int(value) != value:
+        raise ConfigError(f"{name}={value!r} must be a whole number {bound}{fix}; it is never rounded.")
+    if value < minimum:
+        raise ConfigError(f"{name}={value!r} must be an integer {bound}{fix}.")
+    if value > maximum:
+        raise ConfigError(f"{name}={value!r} is too large: at most {maximum}{fix}.")
+    return int(value)
+
+
+def check_point(name: str, value: Any) -> tuple[float, float]:
+    """``value`` as a finite ``(x, y)`` pair of floats in metres; :class:`ConfigError` naming ``name`` otherwise
+    (three coordinates, a string, NaN, ...)."""
+    try:
+        n = len(value)
+    except TypeError:
+        n = -1
+    if isinstance(value, str) or n != 2 or not all(_is_number(v) and math.isfinite(v) for v in value):
+        raise ConfigError(
+            f"{name}={value!r} must be a finite (x, y) pair of numbers in metres (world frame); "
+            "the altitude is EnvConfig.altitude_m, not a third coordinate."
+        )
+    return (float(value[0]), float(value[1]))
+
 
 @dataclass(frozen=True)
 class Request:
@@ -34,14 +115,15 @@ class Request:
     destination_m: tuple[float, float]
 
     def __post_init__(self) -> None:
-        if int(self.release_step) != self.release_step or self.release_step < 0:
-            raise ValueError(f"Request release_step={self.release_step!r} must be an integer >= 0 (steps since reset).")
+        release = check_integer("Request release_step", self.release_step, 0, fix=" (steps since reset)")
+        object.__setattr__(self, "release_step", release)
         for name in ("origin_m", "destination_m"):
-            value = getattr(self, name)
-            if len(value) != 2 or not all(math.isfinite(float(v)) for v in value):
-                raise ValueError(f"Request {name}={value!r} must be a finite (x, y) pair in metres.")
-            object.__setattr__(self, name, (float(value[0]), float(value[1])))
-        object.__setattr__(self, "release_step", int(self.release_step))
+            object.__setattr__(self, name, check_point(f"Request {name}", getattr(self, name)))
+        if self.origin_m == self.destination_m:
+            raise ConfigError(
+                f"Request origin_m == destination_m == {self.origin_m}: a ride needs two different places; "
+                "drop the request or move one end."
+            )
 
 
 @dataclass(frozen=True)
@@ -68,14 +150,14 @@ class RewardConfig:
 
     def __post_init__(self) -> None:
         if self.shaping_metric not in ("path", "euclidean"):
-            raise ValueError(
+            raise ConfigError(
                 f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use 'path' or 'euclidean'."
             )
         for f in dataclasses.fields(self):
-            if f.name != "shaping_metric" and not math.isfinite(getattr(self, f.name)):
-                raise ValueError(f"RewardConfig.{f.name}={getattr(self, f.name)!r} must be finite.")
+            if f.name != "shaping_metric":
+                object.__setattr__(self, f.name, check_number(f"RewardConfig.{f.name}", getattr(self, f.name)))
         if self.shaping < 0:
-            raise ValueError(f"RewardConfig.shaping={self.shaping} must be >= 0 (0 turns shaping off).")
+            raise ConfigError(f"RewardConfig.shaping={self.shaping} must be >= 0 (0 turns shaping off).")
 
 
 REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
@@ -99,18 +181,26 @@ class DemandConfig:
     vertiports: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
-        if self.max_requests < 1:
-            raise ValueError(f"DemandConfig.max_requests={self.max_requests} must be >= 1.")
-        if not 0 <= self.num_initial <= self.max_requests:
-            raise ValueError(
-                f"DemandConfig.num_initial={self.num_initial} must be in [0, max_requests={self.max_requests}]."
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("max_requests", check_integer("DemandConfig.max_requests", self.max_requests, 1, MAX_PASSENGERS))
+        put("num_initial", check_integer("DemandConfig.num_initial", self.num_initial, 0, self.max_requests))
+        put("rate_per_step", check_number("DemandConfig.rate_per_step", self.rate_per_step, minimum=0))
+        put("horizon_steps", check_integer("DemandConfig.horizon_steps", self.horizon_steps, 0))
+        put("min_trip_m", check_number("DemandConfig.min_trip_m", self.min_trip_m, minimum=0))
+        ports = tuple(
+            check_point(f"DemandConfig.vertiports[{i}]", p)
+            for i, p in enumerate(_sequence("DemandConfig.vertiports", self.vertiports))
+        )
+        if len(ports) == 1:
+            raise ConfigError("DemandConfig.vertiports needs at least 2 sites (origin != destination), got 1.")
+        if len(set(ports)) != len(ports):
+            raise ConfigError(
+                f"DemandConfig.vertiports={ports} lists a site twice: a ride between them would not move; "
+                "give each site once."
             )
-        if self.rate_per_step < 0 or self.horizon_steps < 0:
-            raise ValueError(
-                f"DemandConfig rate_per_step={self.rate_per_step}, horizon_steps={self.horizon_steps} must be >= 0."
-            )
-        if len(self.vertiports) == 1:
-            raise ValueError("DemandConfig.vertiports needs at least 2 sites (origin != destination), got 1.")
+        put("vertiports", ports)
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +209,16 @@ class EnvConfig:
 
     Geometry is in the map's world frame (metres, origin at the map's first data point, x east, y north); the
     taxis operate in the square ``[0, side_m]^2``.
+
+    Every field is checked on construction and a bad one raises :class:`ConfigError` (a ``ValueError``) naming
+    the field, the value and the fix; nothing is rounded, clamped or parsed from a string. Counts are integers
+    (``500.0`` is accepted as 500, ``1.5`` is not); distances and thresholds are finite numbers. Sizes that set
+    the memory of every observation have upper bounds: ``patch_size`` <= :data:`MAX_PATCH_SIZE` (64),
+    ``history_len`` <= :data:`MAX_HISTORY_LEN` (256), ``num_taxis`` <= :data:`MAX_TAXIS` (1024),
+    ``max_passengers`` and ``DemandConfig.max_requests`` <= :data:`MAX_PASSENGERS` (1024). SINR blocks
+    (``block_m``, default ``step_m``) must not be finer than the radio raster. A fixed request must be released
+    before ``time_limit_steps``. Checks that need the radio map at the threshold (stops in bad blocks, stops
+    out of reach) raise :class:`uamfleet.env.generator.InfeasibleInstanceError` when the env is built.
     """
 
     radio: RadioMap
@@ -144,53 +244,87 @@ class EnvConfig:
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
-    def __post_init__(self) -> None:  # noqa: C901 - a flat list of independent checks
+    def __post_init__(self) -> None:
         if not isinstance(self.radio, RadioMap):
             raise TypeError(f"radio={self.radio!r} must be a RadioMap; use uamfleet.load_radio_map(name_or_path).")
-        if not math.isfinite(self.sinr_min_db):
-            raise ValueError(f"sinr_min_db={self.sinr_min_db} must be a finite threshold in dB.")
-        if int(self.num_taxis) != self.num_taxis or self.num_taxis < 1:
-            raise ValueError(f"num_taxis={self.num_taxis!r} must be an integer >= 1.")
-        if int(self.seats) != self.seats or self.seats < 1:
-            raise ValueError(f"seats={self.seats!r} must be an integer >= 1 (the paper's taxis have 2).")
-        for name in ("step_m", "slot_s", "altitude_m"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}={value!r} must be a positive number.")
-        for name in ("pickup_radius_m", "block_m"):
-            value = getattr(self, name)
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}={value!r} must be positive, or None for the default (step_m).")
-        if self.nc_rule not in ("global_min", "nanmean"):
-            raise ValueError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
-        if self.feasibility not in FEASIBILITY_RULES:
-            raise ValueError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        if self.time_limit_steps < 1:
-            raise ValueError(f"time_limit_steps={self.time_limit_steps} must be >= 1.")
-        if self.history_len < 1 or self.patch_size < 1:
-            raise ValueError(f"history_len={self.history_len}, patch_size={self.patch_size} must both be >= 1.")
-        if self.min_separation_m < 0:
-            raise ValueError(f"min_separation_m={self.min_separation_m} must be >= 0.")
-        if self.max_block_visits is not None and self.max_block_visits < 1:
-            raise ValueError(f"max_block_visits={self.max_block_visits} must be >= 1 or None.")
+        for name, cls in (("demand", DemandConfig), ("reward", RewardConfig)):
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(f"{name}={getattr(self, name)!r} must be a {cls.__name__}, e.g. {cls.__name__}().")
+        self._check_numbers()
+        self._check_choices()
         if self.starts_m is not None:
-            starts = tuple((float(x), float(y)) for x, y in self.starts_m)
+            starts = tuple(check_point(f"starts_m[{a}]", p) for a, p in enumerate(_sequence("starts_m", self.starts_m)))
             if len(starts) != self.num_taxis:
-                raise ValueError(
+                raise ConfigError(
                     f"starts_m has {len(starts)} positions but num_taxis={self.num_taxis}; give one start per "
                     "taxi or starts_m=None for random feasible starts."
                 )
             object.__setattr__(self, "starts_m", starts)
         if self.requests is not None:
-            reqs = as_requests(self.requests)
-            if not reqs:
-                raise ValueError("requests=() is empty; give at least one Request or None for random demand.")
-            object.__setattr__(self, "requests", reqs)
+            self._check_requests()
         if self.max_passengers is not None and self.max_passengers < self.num_requests_max:
-            raise ValueError(
+            raise ConfigError(
                 f"max_passengers={self.max_passengers} is smaller than the {self.num_requests_max} requests "
                 "this config can generate; raise it or leave it None."
             )
+
+    def _check_numbers(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("sinr_min_db", check_number("sinr_min_db", self.sinr_min_db))
+        put("num_taxis", check_integer("num_taxis", self.num_taxis, 1, MAX_TAXIS))
+        put("seats", check_integer("seats", self.seats, 1, fix=" (the paper's taxis have 2)"))
+        for name in ("step_m", "slot_s", "altitude_m"):
+            put(name, check_number(name, getattr(self, name), positive=True))
+        for name in ("pickup_radius_m", "block_m"):
+            if getattr(self, name) is not None:
+                put(name, check_number(f"{name} (None: step_m)", getattr(self, name), positive=True))
+        put("time_limit_steps", check_integer("time_limit_steps", self.time_limit_steps, 1))
+        put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
+        put(
+            "patch_size",
+            check_integer(
+                "patch_size", self.patch_size, 1, MAX_PATCH_SIZE, fix=" (blocks per side of the SINR and visit patches)"
+            ),
+        )
+        put("min_separation_m", check_number("min_separation_m", self.min_separation_m, minimum=0))
+        if self.max_block_visits is not None:
+            put("max_block_visits", check_integer("max_block_visits (or None: never)", self.max_block_visits, 1))
+        if self.max_passengers is not None:
+            put("max_passengers", check_integer("max_passengers (or None)", self.max_passengers, 1, MAX_PASSENGERS))
+        if self.block_size_m > self.side_m:
+            raise ConfigError(
+                f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are larger than the whole "
+                f"{self.side_m:g} m map; use block_m <= {self.side_m:g}."
+            )
+        if self.block_size_m < self.radio.resolution_m:
+            raise ConfigError(
+                f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are finer than the radio map's "
+                f"{self.radio.resolution_m:g} m raster, so some would hold no SINR value; use block_m >= "
+                f"{self.radio.resolution_m:g}."
+            )
+
+    def _check_choices(self) -> None:
+        if self.nc_rule not in ("global_min", "nanmean"):
+            raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
+        if self.feasibility not in FEASIBILITY_RULES:
+            raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
+        if not isinstance(self.scenario, str):
+            raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
+
+    def _check_requests(self) -> None:
+        reqs = as_requests(_sequence("requests", self.requests))
+        if not reqs:
+            raise ConfigError("requests=() is empty; give at least one Request or None for random demand.")
+        for i, req in enumerate(reqs):
+            if req.release_step >= self.time_limit_steps:
+                raise ConfigError(
+                    f"request {i} (P{i + 1}) has release_step={req.release_step}, not before "
+                    f"time_limit_steps={self.time_limit_steps}: it could never be seen or served; raise "
+                    "time_limit_steps or release it earlier."
+                )
+        object.__setattr__(self, "requests", reqs)
 
     # ---- derived values -------------------------------------------------------------------------------
     @property
@@ -326,7 +460,8 @@ def _with_overrides(base: dict[str, Any], overrides: dict[str, Any]) -> EnvConfi
         merged["num_taxis"] = len(merged["starts_m"])
     elif overrides.get("num_taxis") is not None and "starts_m" not in overrides and base.get("starts_m"):
         # A fleet on a fixed paper instance: all taxis share the paper's start unless starts are given.
-        merged["starts_m"] = tuple(base["starts_m"][0] for _ in range(int(overrides["num_taxis"])))
+        num_taxis = check_integer("num_taxis", overrides["num_taxis"], 1, MAX_TAXIS)
+        merged["starts_m"] = tuple(base["starts_m"][0] for _ in range(num_taxis))
     return EnvConfig(**merged)
 
 
@@ -349,7 +484,7 @@ def make_config(scenario: str | EnvConfig = "berlin_p4", **overrides: Any) -> En
     if isinstance(scenario, EnvConfig):
         return _with_overrides(_fields(scenario), overrides)
     if scenario not in PRESETS:
-        raise ValueError(
+        raise ConfigError(
             f"Unknown scenario {scenario!r}; choose one of {SCENARIOS} or pass an EnvConfig "
             "(e.g. make_config('berlin_random', radio=my_map))."
         )
@@ -363,14 +498,20 @@ def _fields(cfg: EnvConfig) -> dict[str, Any]:
 def as_requests(items: Sequence[Any]) -> tuple[Request, ...]:
     """Requests from :class:`Request` objects or ``(release_step, (ox, oy), (dx, dy))`` tuples."""
     out = []
-    for item in items:
+    for item in _sequence("requests", items):
         if isinstance(item, Request):
             out.append(item)
-        elif len(item) == 3:
-            out.append(Request(item[0], tuple(item[1]), tuple(item[2])))
+        elif isinstance(item, (tuple, list)) and len(item) == 3:
+            out.append(Request(item[0], item[1], item[2]))
         else:
-            raise ValueError(f"Request {item!r} must be a Request or (release_step, origin_xy, destination_xy).")
+            raise ConfigError(f"Request {item!r} must be a Request or (release_step, origin_xy, destination_xy).")
     return tuple(out)
+
+
+def _sequence(name: str, value: Any) -> Any:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ConfigError(f"{name}={value!r} must be a sequence (tuple or list), not {type(value).__name__}.")
+    return value
 
 
 def heading_vectors() -> np.ndarray:

@@ -171,8 +171,109 @@ def test_antenna_without_location(tmp_path: Path) -> None:
         read_winprop(write(tmp_path, GOOD_ROWS, header=header))
 
 
+def test_binary_byte_names_its_line(tmp_path: Path) -> None:
+    path = write(tmp_path, GOOD_ROWS)
+    raw = bytearray(path.read_bytes())
+    raw[raw.index(b"1010.00000 2010.00000")] = 0xB1  # a flipped high bit on data line 22
+    path.write_bytes(bytes(raw))
+    with pytest.raises(WinPropFormatError, match=r"line 22: byte 0xb1 is not ASCII"):
+        read_winprop(path)
+
+
 def test_binary_file(tmp_path: Path) -> None:
     path = tmp_path / "map.bin"
     path.write_bytes(b"\xff\xfe\x00BEGIN_DATA")
     with pytest.raises(WinPropFormatError, match="not an ASCII text file"):
         read_winprop(path)
+
+
+# ---- the header's extent (LOWER_LEFT / UPPER_RIGHT: corners of the cells around the data's centres) ------
+
+GRID_3X3 = [f"{1000 + 10 * i:.5f} {2000 + 10 * j:.5f} {10 * i + j:.4f}" for i in range(3) for j in range(3)]
+
+
+def header_with(lower_left: str, upper_right: str) -> str:
+    return HEADER.replace("LOWER_LEFT\t995.00000000 1995.00000000", lower_left).replace(
+        "UPPER_RIGHT\t1025.00000000 2015.00000000", upper_right
+    )
+
+
+def test_extent_that_matches_the_data(tmp_path: Path) -> None:
+    radio = read_winprop(write(tmp_path, GRID_3X3, header=header_with("LOWER_LEFT 995 1995", "UPPER_RIGHT 1025 2025")))
+    np.testing.assert_array_equal(radio.sinr_db, [[0, 1, 2], [10, 11, 12], [20, 21, 22]])
+
+
+@pytest.mark.parametrize(
+    ("lower_left", "upper_right", "rows", "match"),
+    [
+        # A 60 x 60 m extent (a 6 x 6 grid) around 3 x 3 data: the header and the data disagree.
+        (
+            "LOWER_LEFT 995 1995",
+            "UPPER_RIGHT 1055 2055",
+            GRID_3X3,
+            r"lines 12-13 \(LOWER_LEFT/UPPER_RIGHT\): the header's extent is 60 x 60 m, a 6 x 6 grid of 10 m cells "
+            r"with centres from E=1000.00000 N=2000.00000, but the data \(lines 19-27\) span a 3 x 3 grid",
+        ),
+        # The same size, shifted by one cell: every centre is off by 10 m.
+        ("LOWER_LEFT 1005 1995", "UPPER_RIGHT 1035 2025", GRID_3X3, r"line 19: point lies outside the header's extent"),
+        ("LOWER_LEFT 995 1995", "UPPER_RIGHT 1025 2020", GRID_3X3, r"line 13: .*30 x 25 m is not a positive whole"),
+        ("LOWER_LEFT 1025 2025", "UPPER_RIGHT 995 1995", GRID_3X3, r"line 13: .*-30 x -30 m is not a positive whole"),
+        ("LOWER_LEFT 995 1995", "UPPER_RIGHT 1025", GRID_3X3, r"line 13: UPPER_RIGHT needs exactly E N"),
+        ("LOWER_LEFT 995 1995", "UPPER_RIGHT 1025 inf", GRID_3X3, r"line 13: UPPER_RIGHT must be finite numbers"),
+        ("LOWER_LEFT 995 1995", "", GRID_3X3, r"line 12: LOWER_LEFT without UPPER_RIGHT"),
+    ],
+)
+def test_extent_that_disagrees_names_the_lines(
+    tmp_path: Path, lower_left: str, upper_right: str, rows: list[str], match: str
+) -> None:
+    with pytest.raises(WinPropFormatError, match=match):
+        read_winprop(write(tmp_path, rows, header=header_with(lower_left, upper_right)))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "match"),
+    [
+        ("HEIGHT\t100.000", "HEIGHT\tnan", r"line 14: HEIGHT must be finite numbers"),
+        ("RESOLUTION\t10.00000000", "RESOLUTION\tinf", r"line 16: RESOLUTION must be finite numbers"),
+        ("TIME_STEP\t0.000", "RESOLUTION 10", r"line 16: RESOLUTION given twice \(also on line 15\)"),
+        ("ANTENNA 1\tPOWER", "ANTENNA 1\tFREQUENCY", r"line 10: ANTENNA 1 FREQUENCY given twice \(also on line 9\)"),
+        ("1000.000 2000.000 20.000", "1000.000 nan 20.000", r"line 8: LOCATION must be finite numbers"),
+    ],
+)
+def test_header_numbers_are_finite_and_given_once(tmp_path: Path, old: str, new: str, match: str) -> None:
+    assert old in HEADER
+    with pytest.raises(WinPropFormatError, match=match):
+        read_winprop(write(tmp_path, GOOD_ROWS, header=HEADER.replace(old, new, 1)))
+
+
+def test_far_away_point_is_reported_without_a_huge_grid(tmp_path: Path) -> None:
+    # A corrupted coordinate 1e300 m away: named as an incomplete grid, not an overflow or a huge allocation.
+    rows = replace_row(5, "1020.00000 1e300 -21.25")
+    header = "HEIGHT 50\nRESOLUTION 10\nBEGIN_DATA"
+    with pytest.raises(WinPropFormatError, match=r"incomplete grid: 6 points for a 3 x 1e\+299 grid"):
+        read_winprop(write(tmp_path, rows, header=header))
+
+
+def test_single_row_grid(tmp_path: Path) -> None:
+    header = "HEIGHT 50\nRESOLUTION 10\nBEGIN_DATA"  # no extent: the data alone decide the grid
+    with pytest.raises(WinPropFormatError, match=r"lines 4-6: a 3 x 1 grid; a radio map needs at least 2 points"):
+        read_winprop(write(tmp_path, GOOD_ROWS[::2], header=header))
+
+
+@pytest.mark.parametrize("char", ["\x00", "\x1c", "\x0c", "\x7f"])
+def test_control_characters_name_their_line(tmp_path: Path, char: str) -> None:
+    # NumPy would drop a trailing NUL from "6.718\x00" and str.split() takes \x1c for a space: neither is data.
+    rows = replace_row(2, f"1010.00000 2000.00000 10.0000{char}")
+    with pytest.raises(WinPropFormatError, match=rf"line {FIRST_DATA_LINE + 2}: control character") as info:
+        read_winprop(write(tmp_path, rows))
+    assert info.value.lineno == FIRST_DATA_LINE + 2
+
+
+def test_crlf_line_ends_and_the_error_attributes(tmp_path: Path) -> None:
+    path = tmp_path / "map.txt"
+    path.write_bytes(write(tmp_path, GOOD_ROWS).read_bytes().replace(b"\n", b"\r\n"))
+    np.testing.assert_array_equal(read_winprop(path).sinr_db, read_winprop(write(tmp_path, GOOD_ROWS)).sinr_db)
+    path.write_bytes(write(tmp_path, replace_row(4, "1020.00000 2000.00000 x")).read_bytes().replace(b"\n", b"\r\n"))
+    with pytest.raises(WinPropFormatError) as info:
+        read_winprop(path)
+    assert (info.value.lineno, info.value.line) == (FIRST_DATA_LINE + 4, "1020.00000 2000.00000 x")

@@ -16,6 +16,8 @@ The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their d
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from uamfleet.config import NUM_HEADINGS
@@ -25,28 +27,74 @@ from uamfleet.types import FleetState, StepEvents
 
 
 class InvalidActionError(ValueError):
-    """An action outside 0..15 or of the wrong shape."""
+    """An action that is not an integer heading 0..15, or actions of the wrong shape."""
+
+
+_HEADINGS_HINT = f"an integer heading 0..{NUM_HEADINGS - 1} (16 headings, 22.5° apart counter-clockwise from east)"
+
+
+def check_action(value: object, label: str) -> int:
+    """One taxi's action as an int; :class:`InvalidActionError` naming ``label`` and the value otherwise.
+
+    The rule of :func:`check_actions` for one scalar: a Python or NumPy integer (or a float with a whole value,
+    or a 0-d array of either) in 0..15. Rejected, never truncated: 3.5, NaN, strings ('3'), bools and arrays
+    with elements (``np.array([3])``: one taxi's action is a scalar).
+    """
+    if isinstance(value, np.ndarray) and value.ndim > 0:
+        raise InvalidActionError(
+            f"the action of {label} is an array of shape {value.shape} ({value!r}); give one scalar: {_HEADINGS_HINT}."
+        )
+    scalar = value[()] if isinstance(value, np.ndarray) else value
+    if isinstance(scalar, bool | np.bool_) or not isinstance(scalar, int | float | np.integer | np.floating):
+        raise InvalidActionError(f"the action of {label} is {value!r} ({type(value).__name__}); give {_HEADINGS_HINT}.")
+    number = scalar.item() if isinstance(scalar, np.generic) else scalar
+    if isinstance(number, float) and not (math.isfinite(number) and number.is_integer()):
+        raise InvalidActionError(
+            f"action {number!r} of {label} is not a whole number; give {_HEADINGS_HINT}, never rounded."
+        )
+    if not 0 <= number < NUM_HEADINGS:
+        raise InvalidActionError(
+            f"action {number!r} of {label} is outside 0..{NUM_HEADINGS - 1} (16 headings, 22.5° apart "
+            "counter-clockwise from east)."
+        )
+    return int(number)
 
 
 def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndarray:
-    """Validated int64 actions [E, A]; raises :class:`InvalidActionError` naming the bad value."""
-    arr = np.asarray(actions)
+    """Validated int64 actions [E, A]; raises :class:`InvalidActionError` naming the bad value.
+
+    Integer arrays are taken as they are; float arrays only where every value is a whole number (a batch of
+    headings that went through a float tensor), bool, string and object arrays never. NaN, 3.5 and
+    out-of-range values are named with their env and taxi.
+    """
+    try:
+        arr = np.asarray(actions)
+    except (ValueError, TypeError) as exc:  # ragged nested lists
+        raise InvalidActionError(
+            f"actions {actions!r} are not an array of shape (num_envs, num_taxis) = ({num_envs}, {num_taxis}): {exc}"
+        ) from None
     if arr.dtype == np.int64 and arr.shape == (num_envs, num_taxis) and 0 <= arr.min() and arr.max() < NUM_HEADINGS:
         return arr  # the common case, checked with two reductions
     if arr.shape != (num_envs, num_taxis):
         raise InvalidActionError(
-            f"actions have shape {arr.shape}, expected (num_envs, num_taxis) = ({num_envs}, {num_taxis})."
+            f"actions have shape {arr.shape}, expected (num_envs, num_taxis) = ({num_envs}, {num_taxis}): "
+            f"one heading per env and taxi."
         )
-    if arr.dtype.kind not in "iu":
-        if arr.dtype.kind == "f" and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):
-            arr = arr.astype(np.int64)
-        else:
-            raise InvalidActionError(f"actions must be integer headings 0..{NUM_HEADINGS - 1}, got dtype {arr.dtype}.")
+    if arr.dtype.kind == "f":
+        bad = ~np.isfinite(arr) | (arr != np.round(arr))
+        if bad.any():
+            e, a = np.argwhere(bad)[0]
+            raise InvalidActionError(
+                f"action {arr[e, a].item()!r} of env {e}, taxi {a} is not a whole number; give {_HEADINGS_HINT}, never "
+                "rounded."
+            )
+    elif arr.dtype.kind not in "iu":
+        raise InvalidActionError(f"actions must be integer headings 0..{NUM_HEADINGS - 1}, got dtype {arr.dtype}.")
     bad = (arr < 0) | (arr >= NUM_HEADINGS)
     if bad.any():
         e, a = np.argwhere(bad)[0]
         raise InvalidActionError(
-            f"action {int(arr[e, a])} of env {e}, taxi {a} is outside 0..{NUM_HEADINGS - 1} "
+            f"action {arr[e, a].item()!r} of env {e}, taxi {a} is outside 0..{NUM_HEADINGS - 1} "
             "(16 headings, 22.5° apart counter-clockwise from east)."
         )
     return arr.astype(np.int64, copy=False)

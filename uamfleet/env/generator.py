@@ -103,6 +103,7 @@ def sample_requests(world: World, rng: np.random.Generator, sites: np.ndarray) -
     for step in release:
         o = int(rng.integers(len(points)))
         far = np.linalg.norm(points - points[o], axis=-1) >= demand.min_trip_m
+        far[o] = False  # with min_trip_m = 0 the origin itself is "far enough": a ride that goes nowhere
         candidates = np.nonzero(far)[0] if far.any() else np.nonzero(np.arange(len(points)) != o)[0]
         d = int(rng.choice(candidates))
         requests.append(Request(step, tuple(points[o]), tuple(points[d])))
@@ -180,6 +181,18 @@ class InstanceSource:
             # Validate what is fixed once; random parts are drawn from flyable sites by construction.
             validate_instance(world, self.fixed_starts, self.fixed_requests or ())
 
+        needs_sites = {"random starts": self.fixed_starts is None, "random stops": not self.fixed_requests}
+        needs_sites["random stops"] &= not cfg.demand.vertiports
+        if any(needs_sites.values()):
+            # Random parts are drawn from these sites: too few of them would fail inside NumPy at the first reset.
+            need = 2 if needs_sites["random stops"] else 1
+            if len(self.sites) < need:
+                what = " and ".join(k for k, v in needs_sites.items() if v)
+                raise InfeasibleInstanceError(
+                    f"{what} need {need} flyable block(s) with an allowed move on {world.radio.label} at "
+                    f"sinr_min_db={world.threshold_db} dB, found {len(self.sites)}; lower sinr_min_db, or give "
+                    "starts_m / requests / DemandConfig.vertiports."
+                )
         ports = np.asarray(cfg.demand.vertiports if cfg.requests is None else (), float).reshape(-1, 2)
         for i, port in enumerate(ports):
             _check_point(world, port, f"vertiport {i}", "move the vertiport, or lower sinr_min_db")

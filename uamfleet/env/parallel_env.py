@@ -61,7 +61,8 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
+from uamfleet.config import NUM_HEADINGS, REWARD_TERMS, EnvConfig, make_config
+from uamfleet.env.dynamics import check_action
 from uamfleet.env.vector_env import VectorEnv
 
 AgentID = str
@@ -144,7 +145,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             raise ValueError(
                 f"actions must have one entry per live agent {agents}; missing {missing}, unknown {unknown}."
             )
-        batch = np.array([[int(actions[a]) for a in agents]], dtype=np.int64)
+        batch = np.array([[_action(actions[a], i, a) for i, a in enumerate(agents)]], dtype=np.int64)
         obs, rewards, terminated, truncated, info = self.core.step(batch)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
@@ -209,3 +210,10 @@ def env(**kwargs: Any) -> Any:
     from pettingzoo.utils.conversions import parallel_to_aec
 
     return parallel_to_aec(parallel_env(**kwargs))
+
+
+def _action(value: Any, taxi: int, agent: str) -> int:
+    """One agent's action; a plain int in range takes the fast path, anything else the one rule (check_action)."""
+    if type(value) is int and 0 <= value < NUM_HEADINGS:
+        return value
+    return check_action(value, f"env 0, taxi {taxi} ({agent})")
