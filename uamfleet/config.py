@@ -17,9 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from uamfleet.radio import RadioMap, load_radio_map
-
-NUM_HEADINGS = 16
-"""Flight directions: heading k points 22.5° * k counter-clockwise from east (paper §IV-A, k = 0..15)."""
+from uamfleet.types import NUM_HEADINGS  # defined there; imported here too by modules that build configs
 
 FeasibilityRule = Literal["endpoint_block", "segment_raster"]
 FEASIBILITY_RULES: tuple[str, ...] = ("endpoint_block", "segment_raster")
@@ -374,6 +372,6 @@ def as_requests(items: Sequence[Any]) -> tuple[Request, ...]:
 
 
 def heading_vectors() -> np.ndarray:
-    """[16, 2] unit vectors of the flight headings (k * 22.5° counter-clockwise from east)."""
+    """[NUM_HEADINGS, 2] unit vectors of the flight headings (k * 22.5° counter-clockwise from east)."""
     angles = 2.0 * np.pi * np.arange(NUM_HEADINGS) / NUM_HEADINGS
     return np.stack([np.cos(angles), np.sin(angles)], axis=-1)

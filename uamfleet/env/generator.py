@@ -11,7 +11,7 @@ import numpy as np
 
 from uamfleet.config import Request
 from uamfleet.env.world import World
-from uamfleet.types import HIDDEN, WAITING, FleetState
+from uamfleet.types import HIDDEN, NUM_HEADINGS, WAITING, FleetState
 
 
 class InfeasibleInstanceError(ValueError):
@@ -124,7 +124,7 @@ def allocate_state(world: World, num_envs: int) -> FleetState:
         history_seats=np.zeros((E, A, H), np.int64),
         visits=np.zeros((E, A, nbx + k, nby + k), np.int32),
         distance_m=np.zeros((E, A)),
-        action_mask=np.zeros((E, A, 16), bool),
+        action_mask=np.zeros((E, A, NUM_HEADINGS), bool),
         pax_exists=np.zeros((E, P), bool),
         pax_release=np.zeros((E, P), np.int64),
         pax_origin_m=np.zeros((E, P, 2)),

@@ -84,7 +84,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self.agents: list[AgentID] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
         self._obs_space = self.core.single_observation_space
-        self._act_space = spaces.Discrete(16)
+        self._act_space = self.core.single_action_space
         self.state_space = self.core.state_space
         self._trails: list[np.ndarray] = []
         self._viewer: Any = None  # the meshcat FleetViewer of render_mode="human", opened by the first render()
