@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -42,29 +42,49 @@ class Request:
         object.__setattr__(self, "release_step", int(self.release_step))
 
 
+REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
+"""Names of the reward terms: term ``name`` is weighted by ``RewardConfig.<name>``, is column
+``REWARD_TERMS.index(name)`` of ``info["reward_terms"]`` and is logged as ``reward/<name>`` (docs/rules.md
+"Rewards")."""
+
+
 @dataclass(frozen=True)
 class RewardConfig:
-    """Weights of the named reward terms (defaults: the authors' code, SPEC §4).
+    """Weights of the named reward terms (:data:`REWARD_TERMS`; defaults: the authors' code, docs/rules.md
+    "Rewards"). Each term's weight is the field of the term's name.
 
-    Per taxi and step: ``step`` every step; ``first_visit`` on entering a block it never visited;
-    ``repeat_visit`` * (visits - 1) otherwise; ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that
-    was not allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
-    ``shaping * (gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable stop) /
-    step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance measured
-    along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
+    Per taxi and step: ``step`` every step; ``explore`` on entering a block it never visited, else
+    ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
+    allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
+    ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable
+    stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance
+    measured along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
+
+    ``first_visit`` and ``repeat_visit`` are the earlier names of ``explore`` and ``explore_repeat``, still
+    accepted as keywords.
     """
 
     step: float = -2.0
-    first_visit: float = 1.0
-    repeat_visit: float = -0.1
+    explore: float = 1.0
+    explore_repeat: float = -0.1
     pickup: float = 200.0
     dropoff: float = 300.0
     blocked: float = -50.0
     shaping: float = 0.0
     shaping_gamma: float = 0.99
     shaping_metric: str = "path"  # "path": distance along feasible paths; "euclidean": straight line
+    first_visit: InitVar[float | None] = None  # earlier name of `explore`
+    repeat_visit: InitVar[float | None] = None  # earlier name of `explore_repeat`
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, first_visit: float | None, repeat_visit: float | None) -> None:
+        for old, new, value in (
+            ("first_visit", "explore", first_visit),
+            ("repeat_visit", "explore_repeat", repeat_visit),
+        ):
+            if value is not None:
+                if getattr(self, new) != _REWARD_DEFAULTS[new] and getattr(self, new) != value:
+                    raise ValueError(f"RewardConfig got both {new}= and its earlier name {old}=; pass {new} only.")
+                object.__setattr__(self, new, float(value))
         if self.shaping_metric not in ("path", "euclidean"):
             raise ValueError(
                 f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use 'path' or 'euclidean'."
@@ -76,8 +96,8 @@ class RewardConfig:
             raise ValueError(f"RewardConfig.shaping={self.shaping} must be >= 0 (0 turns shaping off).")
 
 
-REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
-"""Names of the reward terms as they appear in ``info["reward_terms"]`` (``explore`` = first + repeat visits)."""
+_REWARD_DEFAULTS = {f.name: f.default for f in dataclasses.fields(RewardConfig)}
+assert set(REWARD_TERMS) <= set(_REWARD_DEFAULTS), "every reward term needs a RewardConfig weight of its name"
 
 
 @dataclass(frozen=True)
