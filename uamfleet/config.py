@@ -183,8 +183,11 @@ class EnvConfig:
             raise ValueError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ValueError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        if self.time_limit_steps < 1:
-            raise ValueError(f"time_limit_steps={self.time_limit_steps} must be >= 1.")
+        if not 1 <= self.time_limit_steps < 2**24:
+            raise ValueError(
+                f"time_limit_steps={self.time_limit_steps} must be in [1, 2**24): step counts must be exact in float32 "
+                "(the observation's visit ratios)."
+            )
         if self.history_len < 1 or self.patch_size < 1:
             raise ValueError(f"history_len={self.history_len}, patch_size={self.patch_size} must both be >= 1.")
         if self.min_separation_m < 0:

@@ -202,14 +202,9 @@ def observe(
     """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays."""
     num_envs, num_taxis, hist_len = s.history_m.shape[0], s.history_m.shape[1], s.history_m.shape[2]
     num_pax = s.pax_status.shape[1]
-    k = o_sinr.shape[2]
-    src = w.sinr_patch_source
-    nbx = src.shape[0] - k
-    nby = src.shape[1] - k
     side_m, seats, time_limit = w.side_m, w.seats, w.time_limit_steps
     for e in range(num_envs):
         t = s.t[e]
-        steps = max(t, 1)
         for a in range(num_taxis):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
             o_self[e, a, 0] = x / side_m
@@ -245,16 +240,6 @@ def observe(
                 row[PAX_ON_BOARD_OTHER] = 1.0 if status == ON_BOARD and not mine else 0.0
                 row[PAX_DELIVERED] = 1.0 if status == DELIVERED else 0.0
                 row[PAX_AGE] = min(max((t - s.pax_release[e, p]) / time_limit, 0.0), 1.0)
-            # k x k patches: padded rows bx .. bx + k - 1 are blocks bx - patch_lo .. bx + k - patch_lo - 1
-            bx = _block_of(x, w.block_m, nbx)
-            by = _block_of(y, w.block_m, nby)
-            visits, p_sinr, p_visit = s.visits[e, a], o_sinr[e, a], o_visit[e, a]
-            for i in range(k):
-                src_row, visit_row, sinr_out, visit_out = src[bx + i], visits[bx + i], p_sinr[i], p_visit[i]
-                for j in range(k):
-                    sinr_out[j] = src_row[by + j]
-                for j in range(k):
-                    visit_out[j] = min(visit_row[by + j] / steps, 1.0)
             n = 0
             for b in range(num_taxis):
                 if b == a:
@@ -271,6 +256,41 @@ def observe(
                 o_others_mask[e, a, m] = 0
             for h in range(NUM_HEADINGS):
                 o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
+    _patches(s, w, o_sinr, o_visit)
+
+
+@njit(cache=True)
+def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndarray) -> None:
+    """The k x k SINR and visit-ratio patches around each taxi's block ([E, A, k, k] each).
+
+    Patch rows bx .. bx + k - 1 of the padded arrays are blocks bx - patch_lo .. bx + k - patch_lo - 1. Written
+    with unsigned flat indices: numba then checks no negative index, and the copy runs 2x faster than with
+    [e, a, i, j] indexing. ``visits / steps`` is computed in float32: both are integers below 2**24
+    (``EnvConfig.time_limit_steps`` is), so it equals the float64 quotient rounded to float32 (double rounding
+    is innocuous for division when 53 >= 2 * 24 + 2; Figueroa 1995).
+    """
+    num_envs, num_taxis = s.pos_m.shape[0], s.pos_m.shape[1]
+    k = np.uint64(o_sinr.shape[2])
+    src = w.sinr_patch_source
+    nbx, nby = src.shape[0] - o_sinr.shape[2], src.shape[1] - o_sinr.shape[2]
+    src_ny = np.uint64(src.shape[1])
+    cells = np.uint64(s.visits.shape[2] * s.visits.shape[3])  # padded blocks per taxi
+    src_flat, visits_flat = src.ravel(), s.visits.ravel()
+    sinr_flat, visit_flat = o_sinr.ravel(), o_visit.ravel()
+    one = np.float32(1.0)
+    for e in range(num_envs):
+        steps = np.float32(max(s.t[e], 1))
+        for a in range(num_taxis):
+            n = np.uint64(e * num_taxis + a)
+            bx = np.uint64(_block_of(s.pos_m[e, a, 0], w.block_m, nbx))
+            by = np.uint64(_block_of(s.pos_m[e, a, 1], w.block_m, nby))
+            for i in range(k):
+                cell = (bx + i) * src_ny + by  # first cell of patch row i in the padded [nbx + k, nby + k] grid
+                out = (n * k + i) * k
+                for j in range(k):
+                    sinr_flat[out + j] = src_flat[cell + j]
+                for j in range(k):
+                    visit_flat[out + j] = min(np.float32(visits_flat[n * cells + cell + j]) / steps, one)
 
 
 @njit(cache=True)
