@@ -240,15 +240,16 @@ class EnvConfig:
         return dataclasses.replace(self, **changes)
 
 
-# ---- the paper's scenarios (SPEC §3) ----------------------------------------------------------------------
+# ---- the paper's scenarios (as the authors coded them) ----------------------------------------------------
 
 
 def _berlin_p4(**overrides: Any) -> EnvConfig:
     """Berlin P4 (paper §V, the authors' code): 3 requests at step 0, a 4th at step 5, 100 m steps of 3 s.
 
-    Geometry and thresholds are the paper's; mechanics are corrected (SPEC §4): a blocked move costs one step
-    in place (never the original's bounce), requests are pickable only after they are observed, and timeouts
-    are truncations, not terminations. The paper's figure shows P4 at step 17; the authors' code uses step 5.
+    Geometry and thresholds are the paper's; mechanics are corrected (docs/rules.md, "Differences from the
+    paper's code"): a blocked move costs one step in place (never the original's bounce), requests are pickable
+    only after they are observed, and timeouts are truncations, not terminations. The paper's figure shows P4
+    at step 17; the authors' code uses step 5.
     """
     base: dict[str, Any] = dict(
         radio=load_radio_map("berlin"),
@@ -269,7 +270,7 @@ def _berlin_p4(**overrides: Any) -> EnvConfig:
 
 
 def _detroit_p5(**overrides: Any) -> EnvConfig:
-    """Detroit P5 on the ESTIMATED Detroit block map (SPEC §2-3): 5 requests, 320 m steps (≈ 9.7 s).
+    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.7 s).
 
     The authors never published the Detroit radio map; the packaged one is digitised from their figure and is
     faithful only at γ_T = −17 dB (blocks below −17 dB are only known to be below it).

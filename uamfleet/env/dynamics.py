@@ -11,7 +11,8 @@ Order within a step (all taxis move simultaneously, one slot of ``slot_s`` secon
 5. requests whose release step has come become visible (``WAITING``);
 6. the action mask of the new positions is stored for the next observation.
 
-The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point.
+The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point. The rules
+in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up").
 """
 
 from __future__ import annotations

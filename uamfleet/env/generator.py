@@ -1,6 +1,7 @@
 """Scenario / demand -> initial state: fixed instances, random Poisson demand, random feasible starts.
 
-Randomness comes only from the ``np.random.Generator`` passed in (one per env).
+Randomness comes only from the ``np.random.Generator`` passed in (one per env). The rules: docs/rules.md
+("Feasibility rules", "Release and pick-up").
 """
 
 from __future__ import annotations

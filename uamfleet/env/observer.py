@@ -2,7 +2,8 @@
 
 Positions are relative to the observing taxi and divided by the map side, so they lie in [-1, 1]; SINR is in
 dB relative to the threshold (>= 0 means flyable), clipped to [-30, 30]; visit ratios are the taxi's visits
-of a block divided by the steps flown so far (the paper's "uncertainty map").
+of a block divided by the steps flown so far (the paper's "uncertainty map"). Every field, with shape, dtype and
+unit: ``docs/rules.md`` ("Observation", "State"); feature names and indices: :mod:`uamfleet.types`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """Named reward terms computed from step events (never from physics).
 
-Each term is [E, A]; the reward of a taxi is their sum. Weights come from :class:`RewardConfig`.
+Each term is [E, A]; the reward of a taxi is their sum. Term ``name`` is weighted by ``RewardConfig.<name>``
+(docs/rules.md, "Rewards").
 """
 
 from __future__ import annotations
