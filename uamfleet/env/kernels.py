@@ -199,7 +199,8 @@ def observe(
     o_others_mask: np.ndarray,  # [E, A, max(A-1, 1)] int8
     o_mask: np.ndarray,  # [E, A, NUM_HEADINGS] int8
 ) -> None:
-    """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays."""
+    """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays (C-contiguous:
+    the patches are written through flat views of them)."""
     num_envs, num_taxis, hist_len = s.history_m.shape[0], s.history_m.shape[1], s.history_m.shape[2]
     num_pax = s.pax_status.shape[1]
     side_m, seats, time_limit = w.side_m, w.seats, w.time_limit_steps

@@ -28,7 +28,15 @@ from uamfleet.types import (
     FleetState,
 )
 
-__all__ = ["HISTORY_FEATURES", "OTHER_FEATURES", "PASSENGER_FEATURES", "SELF_FEATURES", "Observer", "check_observation"]
+__all__ = [
+    "HISTORY_FEATURES",
+    "OTHER_FEATURES",
+    "PASSENGER_FEATURES",
+    "SELF_FEATURES",
+    "ObservationShapeError",
+    "Observer",
+    "check_observation",
+]
 
 
 class Observer:

@@ -52,8 +52,7 @@ class World:
         self.side_m = cfg.side_m
         self.step_m = cfg.step_m
         self.threshold_db = cfg.sinr_min_db
-        self.headings = heading_vectors()  # [16, 2]
-        self.moves_m = cfg.step_m * self.headings  # [16, 2]
+        self.moves_m = cfg.step_m * heading_vectors()  # [NUM_HEADINGS, 2]
         self.blocks: BlockMap = self.radio.block_map(cfg.block_size_m, nc_rule=cfg.nc_rule)
         with np.errstate(invalid="ignore"):
             self.block_ok = np.asarray(self.blocks.sinr_db >= self.threshold_db)  # [nbx, nby] bool, NaN -> False
