@@ -11,15 +11,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 
 from uamfleet.radio import RadioMap, load_radio_map
-
-NUM_HEADINGS = 16
-"""Flight directions: heading k points 22.5° * k counter-clockwise from east (paper §IV-A, k = 0..15)."""
+from uamfleet.types import NUM_HEADINGS  # defined there; imported here too by modules that build configs
 
 FeasibilityRule = Literal["endpoint_block", "segment_raster"]
 FEASIBILITY_RULES: tuple[str, ...] = ("endpoint_block", "segment_raster")
@@ -126,29 +124,49 @@ class Request:
             )
 
 
+REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
+"""Names of the reward terms: term ``name`` is weighted by ``RewardConfig.<name>``, is column
+``REWARD_TERMS.index(name)`` of ``info["reward_terms"]`` and is logged as ``reward/<name>`` (docs/rules.md
+"Rewards")."""
+
+
 @dataclass(frozen=True)
 class RewardConfig:
-    """Weights of the named reward terms (defaults: the authors' code, SPEC §4).
+    """Weights of the named reward terms (:data:`REWARD_TERMS`; defaults: the authors' code, docs/rules.md
+    "Rewards"). Each term's weight is the field of the term's name.
 
-    Per taxi and step: ``step`` every step; ``first_visit`` on entering a block it never visited;
-    ``repeat_visit`` * (visits - 1) otherwise; ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that
-    was not allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
-    ``shaping * (gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable stop) /
-    step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance measured
-    along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
+    Per taxi and step: ``step`` every step; ``explore`` on entering a block it never visited, else
+    ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
+    allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
+    ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable
+    stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance
+    measured along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
+
+    ``first_visit`` and ``repeat_visit`` are the earlier names of ``explore`` and ``explore_repeat``, still
+    accepted as keywords.
     """
 
     step: float = -2.0
-    first_visit: float = 1.0
-    repeat_visit: float = -0.1
+    explore: float = 1.0
+    explore_repeat: float = -0.1
     pickup: float = 200.0
     dropoff: float = 300.0
     blocked: float = -50.0
     shaping: float = 0.0
     shaping_gamma: float = 0.99
     shaping_metric: str = "path"  # "path": distance along feasible paths; "euclidean": straight line
+    first_visit: InitVar[float | None] = None  # earlier name of `explore`
+    repeat_visit: InitVar[float | None] = None  # earlier name of `explore_repeat`
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, first_visit: float | None, repeat_visit: float | None) -> None:
+        for old, new, value in (
+            ("first_visit", "explore", first_visit),
+            ("repeat_visit", "explore_repeat", repeat_visit),
+        ):
+            if value is not None:
+                if getattr(self, new) != _REWARD_DEFAULTS[new] and getattr(self, new) != value:
+                    raise ValueError(f"RewardConfig got both {new}= and its earlier name {old}=; pass {new} only.")
+                object.__setattr__(self, new, float(value))
         if self.shaping_metric not in ("path", "euclidean"):
             raise ConfigError(
                 f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use 'path' or 'euclidean'."
@@ -160,8 +178,8 @@ class RewardConfig:
             raise ConfigError(f"RewardConfig.shaping={self.shaping} must be >= 0 (0 turns shaping off).")
 
 
-REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
-"""Names of the reward terms as they appear in ``info["reward_terms"]`` (``explore`` = first + repeat visits)."""
+_REWARD_DEFAULTS = {f.name: f.default for f in dataclasses.fields(RewardConfig)}
+assert set(REWARD_TERMS) <= set(_REWARD_DEFAULTS), "every reward term needs a RewardConfig weight of its name"
 
 
 @dataclass(frozen=True)
@@ -280,7 +298,8 @@ class EnvConfig:
         for name in ("pickup_radius_m", "block_m"):
             if getattr(self, name) is not None:
                 put(name, check_number(f"{name} (None: step_m)", getattr(self, name), positive=True))
-        put("time_limit_steps", check_integer("time_limit_steps", self.time_limit_steps, 1))
+        fix = " (step counts must stay exact in float32 for the observation's visit ratios)"
+        put("time_limit_steps", check_integer("time_limit_steps", self.time_limit_steps, 1, 2**24 - 1, fix=fix))
         put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
         put(
             "patch_size",
@@ -353,15 +372,16 @@ class EnvConfig:
         return dataclasses.replace(self, **changes)
 
 
-# ---- the paper's scenarios (SPEC §3) ----------------------------------------------------------------------
+# ---- the paper's scenarios (as the authors coded them) ----------------------------------------------------
 
 
 def _berlin_p4(**overrides: Any) -> EnvConfig:
     """Berlin P4 (paper §V, the authors' code): 3 requests at step 0, a 4th at step 5, 100 m steps of 3 s.
 
-    Geometry and thresholds are the paper's; mechanics are corrected (SPEC §4): a blocked move costs one step
-    in place (never the original's bounce), requests are pickable only after they are observed, and timeouts
-    are truncations, not terminations. The paper's figure shows P4 at step 17; the authors' code uses step 5.
+    Geometry and thresholds are the paper's; mechanics are corrected (docs/rules.md, "Differences from the
+    paper's code"): a blocked move costs one step in place (never the original's bounce), requests are pickable
+    only after they are observed, and timeouts are truncations, not terminations. The paper's figure shows P4
+    at step 17; the authors' code uses step 5.
     """
     base: dict[str, Any] = dict(
         radio=load_radio_map("berlin"),
@@ -382,7 +402,7 @@ def _berlin_p4(**overrides: Any) -> EnvConfig:
 
 
 def _detroit_p5(**overrides: Any) -> EnvConfig:
-    """Detroit P5 on the ESTIMATED Detroit block map (SPEC §2-3): 5 requests, 320 m steps (≈ 9.7 s).
+    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.7 s).
 
     The authors never published the Detroit radio map; the packaged one is digitised from their figure and is
     faithful only at γ_T = −17 dB (blocks below −17 dB are only known to be below it).
@@ -515,6 +535,6 @@ def _sequence(name: str, value: Any) -> Any:
 
 
 def heading_vectors() -> np.ndarray:
-    """[16, 2] unit vectors of the flight headings (k * 22.5° counter-clockwise from east)."""
+    """[NUM_HEADINGS, 2] unit vectors of the flight headings (k * 22.5° counter-clockwise from east)."""
     angles = 2.0 * np.pi * np.arange(NUM_HEADINGS) / NUM_HEADINGS
     return np.stack([np.cos(angles), np.sin(angles)], axis=-1)

@@ -1,23 +1,73 @@
-"""Typed containers of the batched simulator: state, per-step events. Shapes: E envs, A taxis, P passengers."""
+"""Typed containers of the batched simulator and the layouts they share: state, per-step events, headings,
+passenger status codes and observation feature indices (each defined here once). Shapes: E envs, A taxis,
+P passengers, H history steps, k patch size. The rules behind them: ``docs/rules.md``.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-# Passenger status codes (pax_status).
+NUM_HEADINGS = 16
+"""Flight directions, also the size of the action space: heading k points 22.5° * k counter-clockwise from east
+(paper §IV-A, k = 0..15)."""
+
+# Passenger status codes (pax_status); docs/rules.md "Release and pick-up".
 HIDDEN = 0  # request not released yet (or a padding row): invisible, cannot be picked up
 WAITING = 1  # released, waiting at its origin
 ON_BOARD = 2  # in taxi pax_taxi
 DELIVERED = 3
 
+# ---- observation layout (docs/rules.md "Observation"): feature names, and their indices derived from them ----
+SELF_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "time")  # x, y / side; seats / capacity; t / limit
+HISTORY_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+OTHER_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+PASSENGER_FEATURES: tuple[str, ...] = (
+    "origin_dx",  # (origin - taxi) / side
+    "origin_dy",
+    "dest_dx",  # (destination - taxi) / side
+    "dest_dy",
+    "dist_to_origin",  # |origin - taxi| / side
+    "dist_to_dest",  # |destination - taxi| / side
+    "trip_length",  # |destination - origin| / side
+    "waiting",  # released, not yet picked up
+    "on_board_self",  # on board this taxi
+    "on_board_other",  # on board another taxi
+    "delivered",
+    "age",  # (t - release step) / time limit
+)
+PAX_ORIGIN_DX = PASSENGER_FEATURES.index("origin_dx")
+PAX_ORIGIN_DY = PASSENGER_FEATURES.index("origin_dy")
+PAX_DEST_DX = PASSENGER_FEATURES.index("dest_dx")
+PAX_DEST_DY = PASSENGER_FEATURES.index("dest_dy")
+PAX_DIST_TO_ORIGIN = PASSENGER_FEATURES.index("dist_to_origin")
+PAX_DIST_TO_DEST = PASSENGER_FEATURES.index("dist_to_dest")
+PAX_TRIP_LENGTH = PASSENGER_FEATURES.index("trip_length")
+PAX_WAITING = PASSENGER_FEATURES.index("waiting")
+PAX_ON_BOARD_SELF = PASSENGER_FEATURES.index("on_board_self")
+PAX_ON_BOARD_OTHER = PASSENGER_FEATURES.index("on_board_other")
+PAX_DELIVERED = PASSENGER_FEATURES.index("delivered")
+PAX_AGE = PASSENGER_FEATURES.index("age")
+NUM_PASSENGER_FEATURES = len(PASSENGER_FEATURES)
+STATE_TAXI_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "index")  # rows of state(), per taxi
+STATE_PASSENGER_FEATURES: tuple[str, ...] = (
+    "origin_x",
+    "origin_y",
+    "dest_x",
+    "dest_y",
+    "waiting",
+    "on_board",
+    "delivered",
+    "carrier",
+    "age",
+)
 
-@dataclass
-class FleetState:
+
+class FleetState(NamedTuple):
     """The whole simulator state. Arrays are updated in place by :func:`uamfleet.env.dynamics.step`
-    (copying the visit counts every step would cost more than the step itself)."""
+    (copying the visit counts every step would cost more than the step itself). A NamedTuple of arrays, so
+    the compiled kernels (:mod:`uamfleet.env.kernels`) take it whole."""
 
     t: np.ndarray  # [E] int64, steps since reset
     pos_m: np.ndarray  # [E, A, 2] float64, taxi positions (world frame)
@@ -26,7 +76,7 @@ class FleetState:
     history_seats: np.ndarray  # [E, A, H] int64, free seats at those steps
     visits: np.ndarray  # [E, A, nbx + k, nby + k] int32, per-taxi block visit counts, padded by the patch size k
     distance_m: np.ndarray  # [E, A] float64, distance flown this episode
-    action_mask: np.ndarray  # [E, A, 16] bool, moves allowed from the current positions
+    action_mask: np.ndarray  # [E, A, NUM_HEADINGS] bool, moves allowed from the current positions
     pax_exists: np.ndarray  # [E, P] bool, False for padding rows
     pax_release: np.ndarray  # [E, P] int64, release step
     pax_origin_m: np.ndarray  # [E, P, 2] float64
@@ -45,11 +95,11 @@ class FleetState:
         return int(self.pos_m.shape[1])
 
     def copy(self) -> FleetState:
-        return FleetState(**{k: v.copy() for k, v in vars(self).items()})
+        return FleetState(*(v.copy() for v in self))
 
     def take(self, envs: np.ndarray) -> FleetState:
         """A copy holding only the envs ``envs`` (an index array), in that order."""
-        return FleetState(**{k: v[envs] for k, v in vars(self).items()})
+        return FleetState(*(v[envs] for v in self))
 
 
 class StepEvents(NamedTuple):

@@ -162,8 +162,11 @@ def test_vertiport_in_a_bad_block():
 @pytest.mark.parametrize(
     ("overrides", "pattern"),
     [
-        (dict(time_limit_steps=float("nan")), r"time_limit_steps=nan must be a whole number >= 1"),
-        (dict(time_limit_steps=1.5), r"time_limit_steps=1.5 must be a whole number >= 1; it is never rounded"),
+        (dict(time_limit_steps=float("nan")), r"time_limit_steps=nan must be a whole number in \[1, 16777215\]"),
+        (
+            dict(time_limit_steps=1.5),
+            r"time_limit_steps=1.5 must be a whole number in \[1, 16777215\].*; it is never rounded",
+        ),
         (dict(time_limit_steps=True), r"time_limit_steps=True is a bool, not a number"),
         (dict(min_separation_m=float("nan")), r"min_separation_m=nan must be a finite number"),
         (dict(min_separation_m=-1.0), r"min_separation_m=-1.0 must be >= 0"),

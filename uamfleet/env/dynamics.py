@@ -11,7 +11,8 @@ Order within a step (all taxis move simultaneously, one slot of ``slot_s`` secon
 5. requests whose release step has come become visible (``WAITING``);
 6. the action mask of the new positions is stored for the next observation.
 
-The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point.
+The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point. The rules
+in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up").
 """
 
 from __future__ import annotations
@@ -20,14 +21,13 @@ import math
 
 import numpy as np
 
-from uamfleet.config import NUM_HEADINGS
 from uamfleet.env import kernels
 from uamfleet.env.world import World
-from uamfleet.types import FleetState, StepEvents
+from uamfleet.types import NUM_HEADINGS, FleetState, StepEvents
 
 
 class InvalidActionError(ValueError):
-    """An action that is not an integer heading 0..15, or actions of the wrong shape."""
+    """An action that is not an integer heading 0..NUM_HEADINGS - 1, or actions of the wrong shape."""
 
 
 _HEADINGS_HINT = f"an integer heading 0..{NUM_HEADINGS - 1} (16 headings, 22.5° apart counter-clockwise from east)"
@@ -95,38 +95,11 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndar
         e, a = np.argwhere(bad)[0]
         raise InvalidActionError(
             f"action {arr[e, a].item()!r} of env {e}, taxi {a} is outside 0..{NUM_HEADINGS - 1} "
-            "(16 headings, 22.5° apart counter-clockwise from east)."
+            f"({NUM_HEADINGS} headings, {360 / NUM_HEADINGS:g}° apart counter-clockwise from east)."
         )
     return arr.astype(np.int64, copy=False)
 
 
 def step(state: FleetState, actions: np.ndarray, world: World) -> StepEvents:
     """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated."""
-    cfg = world.cfg
-    (prev_pos, moved, block_visits, picked, dropped, released, pickups, dropoffs, separation, seg_min,
-     all_delivered) = kernels.step(
-        state.t, state.pos_m, state.free_seats, state.history_m, state.history_seats, state.visits,
-        state.distance_m, state.action_mask, state.pax_exists, state.pax_release, state.pax_origin_m,
-        state.pax_dest_m, state.pax_status, state.pax_taxi, state.pax_pickup_step, state.pax_dropoff_step,
-        actions, world.moves_m, cfg.step_m, cfg.radius_m, world.side_m, cfg.min_separation_m, world.rule,
-        world.block_ok, world.blocks.block_m, world.patch_lo, world.radio.sinr_db, world.raster_origin,
-        world.radio.resolution_m, world.threshold_db,
-    )  # fmt: skip
-    return StepEvents(
-        prev_pos_m=prev_pos,
-        pos_m=state.pos_m.copy(),
-        actions=actions,
-        moved=moved,
-        blocked=~moved,
-        first_visit=block_visits == 1,
-        block_visits=block_visits,
-        picked_up=picked,
-        dropped_off=dropped,
-        released=released,
-        pickups=pickups,
-        dropoffs=dropoffs,
-        separation_violation=separation,
-        segment_min_sinr_db=seg_min,
-        all_delivered=all_delivered,
-        t=state.t.copy(),
-    )
+    return kernels.step(state, world.arrays, actions)

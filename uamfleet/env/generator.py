@@ -1,6 +1,7 @@
 """Scenario / demand -> initial state: fixed instances, random Poisson demand, random feasible starts.
 
-Randomness comes only from the ``np.random.Generator`` passed in (one per env).
+Randomness comes only from the ``np.random.Generator`` passed in (one per env). The rules: docs/rules.md
+("Feasibility rules", "Release and pick-up").
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import numpy as np
 
 from uamfleet.config import Request
 from uamfleet.env.world import World
-from uamfleet.types import HIDDEN, WAITING, FleetState
+from uamfleet.types import HIDDEN, NUM_HEADINGS, WAITING, FleetState
 
 
 class InfeasibleInstanceError(ValueError):
@@ -86,8 +87,33 @@ def sample_starts(world: World, rng: np.random.Generator, sites: np.ndarray) -> 
     return sites[idx]
 
 
-def sample_requests(world: World, rng: np.random.Generator, sites: np.ndarray) -> list[Request]:
-    """Poisson arrivals: ``num_initial`` at step 0, then rate ``rate_per_step`` until ``horizon_steps``."""
+class TripEnds:
+    """Where a trip from each of ``points`` may end: the points at least ``min_trip_m`` away (all others when
+    none is that far). Each origin's list is computed on first use and kept (an episode reset draws a dozen
+    trips; recomputing the distances to every site each time was most of an autoreset's cost)."""
+
+    def __init__(self, points: np.ndarray, min_trip_m: float) -> None:
+        self.points = points
+        self.min_trip_m = min_trip_m
+        self._ends: dict[int, np.ndarray] = {}
+
+    def __call__(self, o: int) -> np.ndarray:
+        ends = self._ends.get(o)
+        if ends is None:
+            points = self.points
+            far = np.linalg.norm(points - points[o], axis=-1) >= self.min_trip_m
+            far[o] = False  # with min_trip_m = 0 the origin itself is "far enough": a ride that goes nowhere
+            ends = np.nonzero(far)[0] if far.any() else np.nonzero(np.arange(len(points)) != o)[0]
+            self._ends[o] = ends
+        return ends
+
+
+def sample_requests(
+    world: World, rng: np.random.Generator, sites: np.ndarray, trip_ends: TripEnds | None = None
+) -> list[Request]:
+    """Poisson arrivals: ``num_initial`` at step 0, then rate ``rate_per_step`` until ``horizon_steps``.
+
+    ``trip_ends`` (for the same points: the vertiports if any, else ``sites``) only saves time."""
     demand = world.cfg.demand
     release = [0] * demand.num_initial
     t = 0.0
@@ -99,13 +125,13 @@ def sample_requests(world: World, rng: np.random.Generator, sites: np.ndarray) -
     if not release:  # an episode needs at least one request
         release = [0]
     points = np.asarray(demand.vertiports, dtype=float) if demand.vertiports else sites
+    if trip_ends is None:
+        trip_ends = TripEnds(points, demand.min_trip_m)
     requests = []
     for step in release:
         o = int(rng.integers(len(points)))
-        far = np.linalg.norm(points - points[o], axis=-1) >= demand.min_trip_m
-        far[o] = False  # with min_trip_m = 0 the origin itself is "far enough": a ride that goes nowhere
-        candidates = np.nonzero(far)[0] if far.any() else np.nonzero(np.arange(len(points)) != o)[0]
-        d = int(rng.choice(candidates))
+        ends = trip_ends(o)
+        d = int(ends[rng.integers(len(ends))])  # what rng.choice(ends) draws, without its argument handling
         requests.append(Request(step, tuple(points[o]), tuple(points[d])))
     return requests
 
@@ -125,7 +151,7 @@ def allocate_state(world: World, num_envs: int) -> FleetState:
         history_seats=np.zeros((E, A, H), np.int64),
         visits=np.zeros((E, A, nbx + k, nby + k), np.int32),
         distance_m=np.zeros((E, A)),
-        action_mask=np.zeros((E, A, 16), bool),
+        action_mask=np.zeros((E, A, NUM_HEADINGS), bool),
         pax_exists=np.zeros((E, P), bool),
         pax_release=np.zeros((E, P), np.int64),
         pax_origin_m=np.zeros((E, P, 2)),
@@ -175,6 +201,7 @@ class InstanceSource:
         cfg = world.cfg
         self.world = world
         self._sites: np.ndarray | None = None
+        self._trip_ends: TripEnds | None = None
         self.fixed_starts = None if cfg.starts_m is None else np.asarray(cfg.starts_m, dtype=float)
         self.fixed_requests = cfg.requests
         if self.fixed_starts is not None or self.fixed_requests is not None:
@@ -216,5 +243,9 @@ class InstanceSource:
         if self.fixed_requests is not None:
             requests = list(self.fixed_requests)
         else:
-            requests = sample_requests(self.world, rng, self.sites)
+            if self._trip_ends is None:
+                demand = self.world.cfg.demand
+                points = np.asarray(demand.vertiports, dtype=float) if demand.vertiports else self.sites
+                self._trip_ends = TripEnds(points, demand.min_trip_m)
+            requests = sample_requests(self.world, rng, self.sites, self._trip_ends)
         return starts, requests

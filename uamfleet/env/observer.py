@@ -2,7 +2,8 @@
 
 Positions are relative to the observing taxi and divided by the map side, so they lie in [-1, 1]; SINR is in
 dB relative to the threshold (>= 0 means flyable), clipped to [-30, 30]; visit ratios are the taxi's visits
-of a block divided by the steps flown so far (the paper's "uncertainty map").
+of a block divided by the steps flown so far (the paper's "uncertainty map"). Every field, with shape, dtype and
+unit: ``docs/rules.md`` ("Observation", "State"); feature names and indices: :mod:`uamfleet.types`.
 """
 
 from __future__ import annotations
@@ -10,28 +11,32 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.config import NUM_HEADINGS
 from uamfleet.env import kernels
 from uamfleet.env.world import PATCH_CLIP_DB, PATCH_PAD_DB, World
-from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, WAITING, FleetState
-
-PASSENGER_FEATURES: tuple[str, ...] = (
-    "origin_dx",  # (origin - taxi) / side
-    "origin_dy",
-    "dest_dx",  # (destination - taxi) / side
-    "dest_dy",
-    "dist_to_origin",  # |origin - taxi| / side
-    "dist_to_dest",  # |destination - taxi| / side
-    "trip_length",  # |destination - origin| / side
-    "waiting",  # released, not yet picked up
-    "on_board_self",  # on board this taxi
-    "on_board_other",  # on board another taxi
-    "delivered",
-    "age",  # (t - release step) / time limit
+from uamfleet.types import (
+    DELIVERED,
+    HIDDEN,
+    HISTORY_FEATURES,
+    NUM_HEADINGS,
+    ON_BOARD,
+    OTHER_FEATURES,
+    PASSENGER_FEATURES,
+    SELF_FEATURES,
+    STATE_PASSENGER_FEATURES,
+    STATE_TAXI_FEATURES,
+    WAITING,
+    FleetState,
 )
-SELF_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "time")  # x, y / side; seats / capacity; t / limit
-HISTORY_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
-OTHER_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+
+__all__ = [
+    "HISTORY_FEATURES",
+    "OTHER_FEATURES",
+    "PASSENGER_FEATURES",
+    "SELF_FEATURES",
+    "ObservationShapeError",
+    "Observer",
+    "check_observation",
+]
 
 
 class Observer:
@@ -43,15 +48,9 @@ class Observer:
         self.cfg = cfg
         self.num_taxis = cfg.num_taxis
         self.num_others = max(cfg.num_taxis - 1, 1)  # keep one masked row for a single taxi (no 0-size spaces)
-        k = cfg.patch_size
-        self.patch_offsets = np.arange(k)  # [k]
-        # Index of the other taxis as seen by taxi a: all b != a, in increasing order.
-        A = cfg.num_taxis
-        self.other_index = np.array([[b for b in range(A) if b != a] for a in range(A)], dtype=np.int64).reshape(
-            A, A - 1
-        )
         self.observation_space = self._observation_space()
-        self.state_size = A * 4 + cfg.num_passengers * 9 + 1
+        taxi_size, pax_size = len(STATE_TAXI_FEATURES), len(STATE_PASSENGER_FEATURES)
+        self.state_size = cfg.num_taxis * taxi_size + cfg.num_passengers * pax_size + 1  # + time
         self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
 
     def _observation_space(self) -> spaces.Dict:
@@ -74,7 +73,7 @@ class Observer:
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
-        cfg, world = self.cfg, self.world
+        cfg = self.cfg
         E, A = state.num_envs, state.num_taxis
         P, H, k, n_others = cfg.num_passengers, cfg.history_len, cfg.patch_size, self.num_others
         f32 = np.float32
@@ -90,12 +89,8 @@ class Observer:
             "action_mask": np.empty((E, A, NUM_HEADINGS), np.int8),
         }
         kernels.observe(
-            state.t, state.pos_m, state.free_seats, state.history_m, state.history_seats, state.visits,
-            state.action_mask, state.pax_exists, state.pax_release, state.pax_origin_m, state.pax_dest_m,
-            state.pax_status, state.pax_taxi, world.sinr_patch_source, world.blocks.block_m, world.side_m,
-            float(cfg.seats), float(cfg.time_limit_steps), obs["self"], obs["history"], obs["passengers"],
-            obs["passenger_mask"], obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"],
-            obs["action_mask"],
+            state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
+            obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
         return obs
 
@@ -104,10 +99,9 @@ class Observer:
         released passengers (origin, destination, status one-hot, carrier); unreleased rows are zero."""
         side, cfg = self.world.side_m, self.cfg
         E, A = state.num_envs, state.num_taxis
-        P = state.pax_status.shape[1]
         taxis = np.concatenate(
             [state.pos_m / side, (state.free_seats / cfg.seats)[..., None], np.zeros((E, A, 1))], axis=-1
-        )  # [E, A, 4]; last column: taxi index / A tells the taxis apart
+        )  # [E, A, STATE_TAXI_FEATURES]; last column: taxi index / A tells the taxis apart
         taxis[..., 3] = np.arange(A) / A
         status = state.pax_status
         visible = ((status != HIDDEN) & state.pax_exists)[..., None]
@@ -123,9 +117,9 @@ class Observer:
                 axis=-1,
             )
             * visible
-        )  # [E, P, 9]
+        )  # [E, P, STATE_PASSENGER_FEATURES]
         time = np.minimum(state.t / cfg.time_limit_steps, 1.0)[:, None]
-        return np.concatenate([taxis.reshape(E, A * 4), pax.reshape(E, P * 9), time], axis=-1).astype(np.float32)
+        return np.concatenate([taxis.reshape(E, -1), pax.reshape(E, -1), time], axis=-1).astype(np.float32)
 
 
 class ObservationShapeError(ValueError):

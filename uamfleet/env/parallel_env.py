@@ -15,17 +15,17 @@ step in place and the ``blocked`` penalty (never a teleport, never a clamp).
 
 Observation space
 -----------------
-A ``Dict`` per taxi (see :mod:`uamfleet.env.observer` for the feature lists): ``self`` (position, free seats,
-time), ``history`` (the last ``history_len`` positions relative to the taxi and free seats), ``passengers``
-(P rows of the paper's passenger fields, relative to the taxi) with ``passenger_mask`` (1 = released),
-``sinr_patch`` and ``visit_patch`` (k × k blocks around the taxi: SINR minus threshold in dB, visit ratio),
-``others`` (other taxis relative to this one) with ``others_mask``, and ``action_mask``. ``state()`` returns
-the global state for centralised critics (``state_space``).
+A ``Dict`` per taxi, tabulated in :class:`UAMFleetParallelEnv` (``self``, ``history``, ``passengers`` with
+``passenger_mask``, ``sinr_patch``, ``visit_patch``, ``others`` with ``others_mask``, ``action_mask``);
+``state()`` returns the global state for centralised critics (``state_space``), tabulated there too. The rules
+behind every field: ``docs/rules.md``.
 
 Rewards
 -------
-Per taxi, the sum of named terms (:data:`uamfleet.config.REWARD_TERMS`) weighted by :class:`RewardConfig`:
-step cost, exploration / repeat visits, pick-up, drop-off, blocked move, optional potential-based shaping.
+Per taxi, the sum of named terms (:data:`uamfleet.config.REWARD_TERMS`), each weighted by the
+:class:`RewardConfig` field of its name: ``step``, ``explore`` (first visit of a block, ``explore_repeat`` per
+repeat visit), ``pickup``, ``dropoff``, ``blocked``, optional potential-based ``shaping`` (docs/rules.md,
+"Rewards").
 ``infos[agent]["reward_terms"]`` holds this step's terms; at an episode's end ``infos[agent]["episode"]``
 holds the per-term episode sums, return, length, delivered count and distance.
 
@@ -83,6 +83,40 @@ RendererFactory = Callable[[str, "UAMFleetParallelEnv"], Renderer]
 
 
 class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
+    """PettingZoo ParallelEnv of one env of the batched core (see the module docstring for the sections).
+
+    Observation of each agent (``observation_space(agent)``), P = passenger slots, k = ``patch_size``,
+    H = ``history_len``, A = ``num_taxis``; positions relative to the taxi and divided by the map side:
+
+    ==================  ================  =======  ====  =====================================================
+    field               shape             dtype    unit  meaning
+    ==================  ================  =======  ====  =====================================================
+    ``self``            (4,)              float32  --    x, y (/ side), free seats (/ seats), t / time limit
+    ``history``         (H, 3)            float32  --    last H positions - current (/ side), free seats then
+    ``passengers``      (P, 12)           float32  --    ``uamfleet.types.PASSENGER_FEATURES``; 0 while hidden
+    ``passenger_mask``  (P,)              int8     --    1 = released request
+    ``sinr_patch``      (k, k)            float32  dB    block SINR - threshold around the taxi, in [-30, 30]
+    ``visit_patch``     (k, k)            float32  --    this taxi's visits of those blocks / max(t, 1), <= 1
+    ``others``          (max(A-1, 1), 3)  float32  --    other taxis: dx, dy (/ side), free seats (/ seats)
+    ``others_mask``     (max(A-1, 1),)    int8     --    1 = a real other taxi
+    ``action_mask``     (16,)             int8     --    1 = heading allowed
+    ==================  ================  =======  ====  =====================================================
+
+    ``state()``: float32 [4 A + 9 P + 1], in this order:
+
+    ==========  ======  =======  ====  ==========================================================================
+    part        shape   dtype    unit  meaning
+    ==========  ======  =======  ====  ==========================================================================
+    taxis       (A, 4)  float32  --    x, y (/ side, absolute), free seats (/ seats), taxi index / A
+    passengers  (P, 9)  float32  --    origin x, y, destination x, y (/ side), status one-hot (waiting, on
+                                       board, delivered), (carrier + 1) / A, (t - release) / time limit; 0 while
+                                       hidden
+    time        (1,)    float32  --    t / time limit, <= 1
+    ==========  ======  =======  ====  ==========================================================================
+
+    Units and the rules behind each field: ``docs/rules.md`` ("Observation", "State").
+    """
+
     metadata: ClassVar[dict[str, Any]] = {
         "name": "uamfleet_v0",
         "render_modes": ["rgb_array", "human"],
@@ -114,7 +148,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self._live = frozenset(self.possible_agents)
         self._at = [(agent, (0, i)) for i, agent in enumerate(self.possible_agents)]  # (agent, its [E, A] index)
         self._obs_space = self.core.single_observation_space
-        self._act_space = spaces.Discrete(16)
+        self._act_space = self.core.single_action_space
         self.state_space = self.core.state_space
         self._trails: list[np.ndarray] = []  # [A, 2] positions of every step so far, kept only when rendering
         self._viewer: Renderer | None = None  # made by the first render() (for "human": the meshcat viewer)

@@ -1,6 +1,7 @@
 """Named reward terms computed from step events (never from physics).
 
-Each term is [E, A]; the reward of a taxi is their sum. Weights come from :class:`RewardConfig`.
+Each term is [E, A]; the reward of a taxi is their sum. Term ``name`` is weighted by ``RewardConfig.<name>``
+(docs/rules.md, "Rewards").
 """
 
 from __future__ import annotations
@@ -15,42 +16,56 @@ from uamfleet.config import REWARD_TERMS, RewardConfig
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
 
 
-def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray | None = None) -> np.ndarray:
-    """[E, A, len(REWARD_TERMS)] weighted terms in the order of ``REWARD_TERMS``:
+# Column of each term in the [E, A, len(REWARD_TERMS)] array, found by name (numba reads them as constants).
+STEP = REWARD_TERMS.index("step")
+EXPLORE = REWARD_TERMS.index("explore")
+PICKUP = REWARD_TERMS.index("pickup")
+DROPOFF = REWARD_TERMS.index("dropoff")
+BLOCKED = REWARD_TERMS.index("blocked")
+SHAPING = REWARD_TERMS.index("shaping")
 
-    ``step`` every step; ``explore``: ``first_visit`` on entering a new block, else ``repeat_visit * (visits -
-    1)`` (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move;
-    ``shaping`` as given (see :func:`shaping_term`).
+
+def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray | None = None) -> np.ndarray:
+    """[E, A, len(REWARD_TERMS)] weighted terms, column ``REWARD_TERMS.index(name)`` for term ``name``:
+
+    ``step`` every step; ``explore``: ``explore`` on entering a new block, else ``explore_repeat * (visits - 1)``
+    (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move; ``shaping`` as
+    given (see :func:`shaping_term`). Each term is weighted by the :class:`RewardConfig` field of its name.
     """
-    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, _weight_vector(weights))
+    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, *_weights(weights))
     if shaping is not None:
-        terms[..., REWARD_TERMS.index("shaping")] = shaping
+        terms[..., SHAPING] = shaping
     return terms
 
 
 @functools.lru_cache(maxsize=64)
-def _weight_vector(weights: RewardConfig) -> np.ndarray:
-    """The kernel's weight vector, built once per (frozen, hashable) config instead of every step."""
-    w = np.array([weights.step, weights.first_visit, weights.repeat_visit, weights.pickup, weights.dropoff,
-                  weights.blocked])  # fmt: skip
+def _weights(weights: RewardConfig) -> tuple[np.ndarray, float]:
+    """The kernel's weights: [len(REWARD_TERMS)] (each term's weight, by name) and ``explore_repeat``; built once
+    per (frozen, hashable) config instead of every step."""
+    w = np.array([getattr(weights, name) for name in REWARD_TERMS], dtype=np.float64)
     w.setflags(write=False)  # shared between calls
-    return w
+    return w, float(weights.explore_repeat)
 
 
 @njit(cache=True)
 def _terms(
-    moved: np.ndarray, block_visits: np.ndarray, pickups: np.ndarray, dropoffs: np.ndarray, w: np.ndarray
+    moved: np.ndarray,  # [E, A] bool
+    block_visits: np.ndarray,  # [E, A]
+    pickups: np.ndarray,  # [E, A]
+    dropoffs: np.ndarray,  # [E, A]
+    w: np.ndarray,  # [len(REWARD_TERMS)]
+    explore_repeat: float,
 ) -> np.ndarray:
     num_envs, num_taxis = moved.shape
-    out = np.zeros((num_envs, num_taxis, 6))
+    out = np.zeros((num_envs, num_taxis, len(REWARD_TERMS)))
     for e in range(num_envs):
         for a in range(num_taxis):
             visits = block_visits[e, a]
-            out[e, a, 0] = w[0]
-            out[e, a, 1] = w[1] if visits == 1 else w[2] * (visits - 1)
-            out[e, a, 2] = w[3] * pickups[e, a]
-            out[e, a, 3] = w[4] * dropoffs[e, a]
-            out[e, a, 4] = 0.0 if moved[e, a] else w[5]
+            out[e, a, STEP] = w[STEP]
+            out[e, a, EXPLORE] = w[EXPLORE] if visits == 1 else explore_repeat * (visits - 1)
+            out[e, a, PICKUP] = w[PICKUP] * pickups[e, a]
+            out[e, a, DROPOFF] = w[DROPOFF] * dropoffs[e, a]
+            out[e, a, BLOCKED] = 0.0 if moved[e, a] else w[BLOCKED]
     return out
 
 

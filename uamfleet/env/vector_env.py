@@ -22,7 +22,7 @@ from uamfleet.env import dynamics, generator, reward
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields
-from uamfleet.types import DELIVERED, FleetState, StepEvents
+from uamfleet.types import DELIVERED, NUM_HEADINGS, FleetState
 
 
 class VectorEnv:
@@ -48,13 +48,12 @@ class VectorEnv:
         self.observer = Observer(self.world)
         self.source = generator.InstanceSource(self.world)
         self.single_observation_space: spaces.Dict = self.observer.observation_space
-        self.single_action_space = spaces.Discrete(16)
+        self.single_action_space = spaces.Discrete(NUM_HEADINGS)
         self.state_space = self.observer.state_space
         self.state: FleetState = generator.allocate_state(self.world, self.num_envs)
         self.rngs: list[np.random.Generator] = []
         self.episode_terms = np.zeros((self.num_envs, self.num_taxis, len(REWARD_TERMS)))
         self.needs_reset = True
-        self.last_events: StepEvents | None = None
         self._distance_to: reward.DistanceTo = reward.euclidean
         if cfg.reward.shaping > 0 and cfg.reward.shaping_metric == "path":
             # Feasible-path distances come from the planners' raster graph (built once per map and threshold).
@@ -108,7 +107,6 @@ class VectorEnv:
         terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
         self.episode_terms += terms
         rewards = terms.sum(axis=-1)
-        self.last_events = events
 
         obs = self.observer.observe(state)
         info: dict[str, Any] = {"reward_terms": terms, "events": events}
@@ -160,14 +158,6 @@ class VectorEnv:
         self.cfg = self.cfg.replace(reward=weights)
 
     # ---- views ---------------------------------------------------------------------------------------
-    def observe(self) -> dict[str, np.ndarray]:
-        return self.observer.observe(self.state)
-
     def global_state(self) -> np.ndarray:
         """[E, S] global state for centralised critics."""
         return self.observer.state(self.state)
-
-    @property
-    def action_mask(self) -> np.ndarray:
-        """[E, A, 16] np.int8: 1 where the heading is allowed."""
-        return self.state.action_mask.astype(np.int8)

@@ -7,16 +7,40 @@ sample the raster along each move in the compiled kernels (:mod:`uamfleet.radio.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy import ndimage
 
-from uamfleet.config import NUM_HEADINGS, EnvConfig, heading_vectors
+from uamfleet.config import EnvConfig, heading_vectors
 from uamfleet.env import kernels
 from uamfleet.radio import BlockMap
+from uamfleet.types import NUM_HEADINGS
 
 PATCH_PAD_DB = -30.0
 """Value of SINR-patch cells outside the map (relative to the threshold, dB): clearly not flyable."""
 PATCH_CLIP_DB = 30.0
+
+
+class WorldArrays(NamedTuple):
+    """What the compiled kernels read of a :class:`World` (and of its config), passed to them whole."""
+
+    moves_m: np.ndarray  # [NUM_HEADINGS, 2] float64, the move of each heading
+    side_m: float  # the operating area is [0, side_m]^2
+    step_m: float
+    radius_m: float  # pick-up / drop-off radius
+    min_separation_m: float
+    rule: int  # kernels.RULE_ENDPOINT_BLOCK or kernels.RULE_SEGMENT_RASTER
+    block_ok: np.ndarray  # [nbx, nby] bool, block SINR >= threshold
+    block_m: float
+    patch_lo: int  # patch rows b - patch_lo ... b + k - patch_lo - 1 around block b
+    sinr_patch_source: np.ndarray  # [nbx + k, nby + k] float32, block SINR - threshold (dB), padded
+    raster: np.ndarray  # [nx, ny] float64 SINR dB, NaN = not computed
+    raster_origin: np.ndarray  # [2] float64, world coordinates of raster cell (0, 0)
+    raster_res: float
+    threshold_db: float
+    seats: float
+    time_limit_steps: float
 
 
 class World:
@@ -28,8 +52,7 @@ class World:
         self.side_m = cfg.side_m
         self.step_m = cfg.step_m
         self.threshold_db = cfg.sinr_min_db
-        self.headings = heading_vectors()  # [16, 2]
-        self.moves_m = cfg.step_m * self.headings  # [16, 2]
+        self.moves_m = cfg.step_m * heading_vectors()  # [NUM_HEADINGS, 2]
         self.blocks: BlockMap = self.radio.block_map(cfg.block_size_m, nc_rule=cfg.nc_rule)
         with np.errstate(invalid="ignore"):
             self.block_ok = np.asarray(self.blocks.sinr_db >= self.threshold_db)  # [nbx, nby] bool, NaN -> False
@@ -45,6 +68,24 @@ class World:
         self.rule = kernels.RULE_ENDPOINT_BLOCK if cfg.feasibility == "endpoint_block" else kernels.RULE_SEGMENT_RASTER
         # 8-connected components of flyable blocks: the reachability test for stops.
         self.components, self.num_components = ndimage.label(self.block_ok, structure=np.ones((3, 3), bool))
+        self.arrays = WorldArrays(
+            moves_m=np.ascontiguousarray(self.moves_m, dtype=np.float64),
+            side_m=float(self.side_m),
+            step_m=float(cfg.step_m),
+            radius_m=float(cfg.radius_m),
+            min_separation_m=float(cfg.min_separation_m),
+            rule=int(self.rule),
+            block_ok=np.ascontiguousarray(self.block_ok),
+            block_m=float(self.blocks.block_m),
+            patch_lo=int(self.patch_lo),
+            sinr_patch_source=self.sinr_patch_source,
+            raster=np.ascontiguousarray(self.radio.sinr_db, dtype=np.float64),
+            raster_origin=self.raster_origin,
+            raster_res=float(self.radio.resolution_m),
+            threshold_db=float(self.threshold_db),
+            seats=float(cfg.seats),
+            time_limit_steps=float(cfg.time_limit_steps),
+        )
 
     # ---- points --------------------------------------------------------------------------------------
     def in_domain(self, points: np.ndarray) -> np.ndarray:
@@ -70,12 +111,9 @@ class World:
 
     # ---- moves ---------------------------------------------------------------------------------------
     def action_mask(self, pos_m: np.ndarray) -> np.ndarray:
-        """bool [..., 16]: which headings are allowed from each position."""
+        """bool [..., NUM_HEADINGS]: which headings are allowed from each position."""
         pos = np.ascontiguousarray(pos_m, dtype=np.float64)
         flat = pos.reshape(-1, 2)
         out = np.empty((flat.shape[0], NUM_HEADINGS), dtype=bool)
-        kernels.action_mask(
-            flat, self.moves_m, self.side_m, self.rule, self.block_ok, self.blocks.block_m, self.radio.sinr_db,
-            self.raster_origin, self.radio.resolution_m, self.threshold_db, out,
-        )  # fmt: skip
+        kernels.action_mask(flat, self.arrays, out)
         return out.reshape(*pos.shape[:-1], NUM_HEADINGS)

@@ -1,6 +1,6 @@
 """3GPP TR 36.777 Annex B UMi-AV channel for aerial UEs, and the expected SINR map of paper Eq. 4/6.
 
-Model (SPEC §2; TR 36.777 Tables B-1, B-2; aerial UE 22.5 m < h <= 300 m; f_c in GHz, distances in m):
+Model (TR 36.777 Tables B-1, B-2; aerial UE 22.5 m < h <= 300 m; f_c in GHz, distances in m):
 
 - LoS:  PL = max(PL_fs, 30.9 + (22.25 - 0.5 log10 h) log10 d3D + 20 log10 f_c)
 - NLoS: PL = max(PL_LoS, 32.4 + (43.2 - 7.6 log10 h) log10 d3D + 20 log10 f_c)
@@ -9,10 +9,11 @@ Model (SPEC §2; TR 36.777 Tables B-1, B-2; aerial UE 22.5 m < h <= 300 m; f_c i
 - shadowing sigma: LoS max(5 exp(-0.01 h), 2) dB, NLoS 8 dB
 
 The path loss uses the 3-D distance ``d3D = sqrt(d2D^2 + (h - h_BS)^2)``, as the TR does, and P_LoS the 2-D
-distance. SPEC §2's check values (h = 100 m) imply exactly that with a height difference of 81 ... 99 m, e.g.
-h_BS = 10 m, the UMi default: from d2D, PL_NLoS would be 114.0 / 122.4 dB instead of 114.2 / 122.5 dB, and
-with h_BS = 20 m PL_NLoS(500 m) = 114.15 dB. The formulas are also used beyond d2D = 4 km (the TR's range) for
-city-sized maps; the values there are an extrapolation.
+distance. The check values P_LoS = 0.771 / 0.547 / 0.254 at d2D = 300 / 500 / 1000 m and PL_LoS / PL_NLoS =
+94.4 / 114.2 dB at 500 m, 100.7 / 122.5 dB at 1 km (h = 100 m, f_c = 2 GHz) imply exactly that with a height
+difference of 81 ... 99 m, e.g. h_BS = 10 m, the UMi default: from d2D, PL_NLoS would be 114.0 / 122.4 dB
+instead of 114.2 / 122.5 dB, and with h_BS = 20 m PL_NLoS(500 m) = 114.15 dB. The formulas are also used beyond
+d2D = 4 km (the TR's range) for city-sized maps; the values there are an extrapolation.
 """
 
 from __future__ import annotations

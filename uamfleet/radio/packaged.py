@@ -1,4 +1,4 @@
-"""The radio maps shipped with the package, by name (SPEC §2).
+"""The radio maps shipped with the package, by name.
 
 - ``"berlin"``: the authors' WinProp map (Traffic-Alpha/UAM-Path-Planning, MIT; uamfleet/data/LICENSE.berlin),
   stored losslessly as ``uamfleet/data/berlin_sinr_100m.npz`` (see ``_build_packaged.py``).
@@ -39,7 +39,7 @@ DETROIT_BLOCK_M = 320.0
 # feasibility of such blocks is known; any other threshold on this map is a guess.
 DETROIT_BELOW_FLOOR_DB = -25.0
 
-# Synthetic Detroit (SPEC §2): GBS at the estimate's SINR peaks, grid frame, each known to +-160 m.
+# Synthetic Detroit (TR 36.777): GBS at the estimate's SINR peaks, grid frame, each known to +-160 m.
 DETROIT_GBS_SITES_M: tuple[tuple[float, float], ...] = (
     (2080.0, 1760.0),
     (8160.0, 1760.0),

@@ -1,6 +1,7 @@
 """Radio maps: an expected-SINR raster in an explicit world frame, and its block averages.
 
-Frame (SPEC §2): metres, x east, y north; arrays are indexed ``[ix, iy]`` (x first). The operating area is
+Frame: metres from the raster's first data point (min east, min north), x east, y north; arrays are indexed
+``[ix, iy]`` (x first). The operating area is
 the square ``[0, side_m]^2``. A raster value is the SINR at a cell *centre*; a point belongs to the cell whose
 centre is nearest, with ties (a point exactly half-way) going to the higher index.
 """

@@ -1,4 +1,4 @@
-"""Reader for Altair WinProp ASCII result files (I/O only; SPEC §2).
+"""Reader for Altair WinProp ASCII result files (I/O only).
 
 Layout::
 

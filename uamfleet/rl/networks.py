@@ -42,10 +42,11 @@ from torch import nn
 from torch.distributions import Categorical
 
 from uamfleet.env.observer import ObservationShapeError
+from uamfleet.types import NUM_HEADINGS
 
 VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
 READOUTS: tuple[str, ...] = ("flatten", "mean")
-NUM_ACTIONS = 16
+NUM_ACTIONS = NUM_HEADINGS  # one logit per heading
 MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
 
 
