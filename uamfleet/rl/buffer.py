@@ -76,7 +76,7 @@ class RunningMeanStd:
 
     def load_state_dict(self, state: dict[str, torch.Tensor | np.ndarray | float]) -> None:
         self.mean, self.var = _float64(state["mean"]), _float64(state["var"])
-        self.count = float(state["count"])  # type: ignore[arg-type]
+        self.count = float(state["count"])
 
 
 def _float64(x: torch.Tensor | np.ndarray | float) -> np.ndarray:

@@ -27,12 +27,16 @@ What makes 2 ranks x E/2 envs the same run as 1 rank x E envs (``tests/rl/test_d
 from __future__ import annotations
 
 import os
+import socket
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import timedelta
+from typing import Any
 
 import numpy as np
 import torch
 import torch.distributed as dist
+import torch.multiprocessing as mp
 from torch.distributions import Categorical
 
 
@@ -179,4 +183,26 @@ def sample_actions(logits: torch.Tensor, offset: int, total: int) -> torch.Tenso
     return (probs / noise[offset : offset + probs.shape[0]]).argmax(-1)  # [B]
 
 
-__all__ = ["World", "sample_actions"]
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _launched(local_rank: int, world_size: int, port: int, fn: Callable[..., None], args: tuple[Any, ...]) -> None:
+    os.environ.update(RANK=str(local_rank), WORLD_SIZE=str(world_size), LOCAL_RANK=str(local_rank),
+                      LOCAL_WORLD_SIZE=str(world_size), MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port))  # fmt: skip
+    try:
+        fn(*args)
+    finally:
+        if dist.is_initialized():
+            dist.destroy_process_group()
+
+
+def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
+    """Run ``fn(*args)`` in ``world_size`` fresh processes with torchrun's environment on this machine (tests and
+    benchmarks; users run ``torchrun``). ``fn`` must be importable by name (a module-level function)."""
+    mp.spawn(_launched, args=(world_size, free_port(), fn, args), nprocs=world_size, join=True)
+
+
+__all__ = ["World", "launch_local", "sample_actions"]

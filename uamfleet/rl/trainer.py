@@ -192,6 +192,8 @@ class TrainResult:
     target_reached_s: float | None = None
     losses: list[dict[str, float]] = field(default_factory=list)
     interrupted: bool = False
+    rank: int = 0
+    """torch.distributed rank (under torchrun only rank 0 logs, so only its rows and evaluations are filled)"""
 
 
 def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool = True) -> EnvConfig:
@@ -303,12 +305,11 @@ class Checkpoint:
         try:
             payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)
         except Exception as err:  # torch raises UnpicklingError, RuntimeError or ValueError by cause
-            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
             raise ValueError(
                 f"{source} is not a checkpoint uamfleet loads safely (torch.load(weights_only=True) refused it: "
-                f"{first}). Checkpoints of uamfleet before format {CHECKPOINT_FORMAT} held a pickled NumPy RNG "
-                "state: train the run again, or re-save a file you trust with uamfleet.rl.trainer."
-                "upgrade_checkpoint()."
+                f"{_load_error(err)}). Checkpoints of uamfleet before format {CHECKPOINT_FORMAT} held a pickled "
+                "NumPy RNG state: train the run again, or re-save a file you trust with "
+                "uamfleet.rl.trainer.upgrade_checkpoint()."
             ) from None
         names = [f.name for f in dataclasses.fields(cls)]
         required = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING]
@@ -341,6 +342,17 @@ class Checkpoint:
             )
 
 
+def _load_error(err: Exception) -> str:
+    """The one line of torch's refusal that says why (it also advises weights_only=False: not for us)."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(err))
+    why = r"Unsupported global: GLOBAL \S+|unsupported GLOBAL [^\n]*blocked|Unsupported operand \S+"
+    found = re.search(f"({why})", text)
+    if found:
+        return found.group(1)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[0].split(". ")[0] if lines else type(err).__name__
+
+
 def upgrade_checkpoint(path: str | Path) -> Path:
     """Re-save a checkpoint of format 1 (pickled NumPy RNG state) in the safe format, in place.
 
@@ -355,7 +367,7 @@ def upgrade_checkpoint(path: str | Path) -> Path:
         if old.get(key) is not None:
             fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
             for rms in fields.values():
-                rms["mean"], rms["var"] = torch.tensor(rms["mean"]), torch.tensor(rms["var"])
+                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
                 rms["count"] = float(rms["count"])
     old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
     args = Checkpoint(**{**old, "obs_shapes": {}}).train_args()
@@ -821,6 +833,7 @@ def _result(run: Run, counters: Counters, rows: list[dict[str, float]], interrup
         best_eval=counters.best_eval, best_step=counters.best_step, target_reached_step=counters.target_step,
         target_reached_s=counters.target_s,
         losses=[{k: v for k, v in r.items() if k.startswith("losses/")} for r in rows], interrupted=interrupted,
+        rank=run.world.rank,
     )  # fmt: skip
 
 
