@@ -26,8 +26,9 @@ TWO_TAXIS = small_config(
 NUM_ENVS = 4
 
 
-def args_for(run_dir: Path, iterations: int) -> TrainArgs:
+def args_for(run_dir: Path, iterations: int, resume: bool = False) -> TrainArgs:
     return TrainArgs(
+        resume=resume,
         total_timesteps=iterations * 32 * NUM_ENVS * 2, num_envs=NUM_ENVS, num_steps=32, num_minibatches=4,
         update_epochs=2, eval_every=0, checkpoint_every=1, run_dir=run_dir, run_name="dp", progress=False,
         tensorboard=False, threads=1, time_limit_steps=12, d_model=16, num_heads=2, seed=5, device="cpu",
@@ -38,32 +39,47 @@ def _flat_params(net: torch.nn.Module) -> torch.Tensor:
     return torch.cat([p.detach().reshape(-1).clone() for p in net.parameters()])
 
 
-def _worker(run_dir: str, iterations: int, out: str) -> None:
+def _worker(run_dir: str, iterations: int, out: str, resume: bool = False) -> None:
     params: list[torch.Tensor] = []
-    result = train(args_for(Path(run_dir), iterations), TWO_TAXIS, on_iteration=lambda _, net: params.append(
-        _flat_params(net)))  # fmt: skip
-    torch.save({"params": params, "losses": result.losses}, f"{out}_rank{result.rank}.pt")
+    seen: list[int] = []
+
+    def record(iteration: int, net: torch.nn.Module) -> None:
+        seen.append(iteration)
+        params.append(_flat_params(net))
+
+    result = train(args_for(Path(run_dir), iterations, resume), TWO_TAXIS, on_iteration=record)
+    torch.save({"params": params, "losses": result.losses, "iterations": seen}, f"{out}_rank{result.rank}.pt")
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("dp")
-    launch_local(2, _worker, str(tmp / "two"), 3, str(tmp / "two"))
+    launch_local(2, _worker, str(tmp / "two"), 2, str(tmp / "two"))
+    launch_local(2, _worker, str(tmp / "two"), 3, str(tmp / "resumed"), True)  # every rank resumes from last.pt
     launch_local(1, _worker, str(tmp / "one"), 1, str(tmp / "one"))
     plain: list[torch.Tensor] = []
     result = train(args_for(tmp / "plain", 1), TWO_TAXIS, on_iteration=lambda _, net: plain.append(_flat_params(net)))
     load = lambda name: torch.load(tmp / f"{name}.pt", weights_only=True)  # noqa: E731
     return {"two": [load("two_rank0"), load("two_rank1")], "one": load("one_rank0"),
+            "resumed": [load("resumed_rank0"), load("resumed_rank1")],
             "plain": {"params": plain, "losses": result.losses}, "tmp": tmp}  # fmt: skip
 
 
 def test_ranks_hold_identical_weights_after_every_update(runs):
     rank0, rank1 = runs["two"]
-    assert len(rank0["params"]) == len(rank1["params"]) == 3
+    assert len(rank0["params"]) == len(rank1["params"]) == 2
     for a, b in zip(rank0["params"], rank1["params"], strict=True):
         assert torch.equal(a, b)
-    assert len(rank0["losses"]) == 3 and rank1["losses"] == []  # only rank 0 logs
+    assert len(rank0["losses"]) == 2 and rank1["losses"] == []  # only rank 0 logs
     assert not torch.equal(rank0["params"][0], rank0["params"][1])  # and the updates did change the weights
+
+
+def test_every_rank_resumes_from_rank_0s_checkpoint(runs):
+    rank0, rank1 = runs["resumed"]
+    assert rank0["iterations"] == rank1["iterations"] == [2]  # both continued after iteration 2
+    assert torch.equal(rank0["params"][0], rank1["params"][0])
+    assert not torch.equal(rank0["params"][0], runs["two"][0]["params"][1])
+    assert len(rank0["losses"]) == 3  # the CSV rows before the resume, and one more
 
 
 def test_two_ranks_make_the_first_update_of_one_rank_with_all_envs(runs):
@@ -80,7 +96,8 @@ def test_two_ranks_make_the_first_update_of_one_rank_with_all_envs(runs):
 def test_only_rank_0_writes_the_run(runs):
     folder = runs["tmp"] / "two" / "dp"
     assert sorted(p.name for p in folder.iterdir()) == ["best.pt", "last.pt", "progress.csv"]
-    assert len((folder / "progress.csv").read_text().splitlines()) == 1 + 3
+    assert [line.split(",")[:2] for line in (folder / "progress.csv").read_text().splitlines()[1:]] == [
+        ["1", "256"], ["2", "512"], ["3", "768"]]  # fmt: skip
 
 
 def test_sampler_is_categorical_sampling_draw_for_draw():

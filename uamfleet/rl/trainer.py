@@ -539,11 +539,7 @@ def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
     if ckpt.cuda_rng is not None and run.device.type == "cuda":
         torch.cuda.set_rng_state(ckpt.cuda_rng.cpu(), run.device)
     _set_numpy_rng_state(ckpt.numpy_rng)
-    return Counters(
-        iteration=ckpt.iteration, global_step=ckpt.global_step, wall_offset=ckpt.wall_s,
-        best_eval={k: float(v) for k, v in ckpt.best_eval.items()}, best_step=ckpt.best_step,
-        target_step=ckpt.target_step, target_s=ckpt.target_s,
-    )  # fmt: skip
+    return restore_counters(ckpt)
 
 
 def start(run: Run, learner: Learner) -> tuple[Counters, list[dict[str, float]]]:
@@ -811,6 +807,7 @@ def train(
         if snapshot is not None:  # the state after the last finished iteration: the interrupted one is redone
             snapshot.save(run.folder / "last.pt")
             counters = restore_counters(snapshot)
+            rows = [r for r in rows if r["iteration"] <= snapshot.iteration]
             print(f"\ninterrupted: checkpoint of iteration {snapshot.iteration} saved to {run.folder / 'last.pt'}; "
                   "continue with --resume")  # fmt: skip
         return _result(run, counters, rows, interrupted=True)
@@ -821,8 +818,10 @@ def train(
 
 
 def restore_counters(ckpt: Checkpoint) -> Counters:
-    return Counters(ckpt.iteration, ckpt.global_step, ckpt.wall_s, ckpt.best_eval, ckpt.best_step, ckpt.target_step,
-                    ckpt.target_s)  # fmt: skip
+    best = {k: float(v) for k, v in ckpt.best_eval.items()}
+    return Counters(
+        ckpt.iteration, ckpt.global_step, ckpt.wall_s, best, ckpt.best_step, ckpt.target_step, ckpt.target_s
+    )
 
 
 def _result(run: Run, counters: Counters, rows: list[dict[str, float]], interrupted: bool) -> TrainResult:
@@ -904,7 +903,8 @@ def _csv(rows: list[dict[str, float]]) -> str:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=keys, lineterminator="\n")
     writer.writeheader()
-    writer.writerows(rows)
+    # counters stay integers when a resumed run writes back the rows it read (as floats)
+    writer.writerows({**r, **{k: int(r[k]) for k in ("iteration", "global_step") if k in r}} for r in rows)
     return buffer.getvalue()
 
 
