@@ -7,20 +7,24 @@ Adam updates), per network variant and per number of data-parallel ranks, side b
 
 One rank is the plain ``train()`` (no torchrun); R > 1 ranks are R local processes with torchrun's
 environment (gloo; with --device cuda they share the GPU), ``--num-envs`` and the batch being global, so
-every row trains the same PPO problem. Rates are measured between the end of the first iteration (warm-up:
+every row trains the same PPO problem. Rates are measured between the end of the first update (warm-up:
 numba compilation, allocations) and the end of the last, so start-up and the final evaluation are excluded.
+"CPU s/update/rank" is the CPU time the busiest rank spent per update: on a machine whose cores are shared
+with other work, its ratio ("CPU speed-up") says what the ranks would gain on idle cores, before waiting.
 """
 
 from __future__ import annotations
 
+import json
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import tyro
 
 from uamfleet.rl.distributed import launch_local
-from uamfleet.rl.trainer import TrainArgs, read_progress, train
+from uamfleet.rl.trainer import TrainArgs, train
 
 
 @dataclass
@@ -48,20 +52,26 @@ def train_args(args: Args, variant: str, run_dir: Path) -> TrainArgs:
 
 
 def _rank_main(args: Args, variant: str, run_dir: str) -> None:
-    train(train_args(args, variant, Path(run_dir)))
+    """Train; record each iteration's end as (wall s, this process's CPU s) in run_dir/times_rank<r>.json."""
+    times: list[tuple[float, float]] = []
+    result = train(train_args(args, variant, Path(run_dir)),
+                   on_iteration=lambda _, __: times.append((time.perf_counter(), time.process_time())))  # fmt: skip
+    (Path(run_dir) / f"times_rank{result.rank}.json").write_text(json.dumps(times))
 
 
-def measure(args: Args, variant: str, ranks: int) -> tuple[float, float]:
-    """(agent-steps/s, updates/s) between the end of the first and of the last iteration."""
+def measure(args: Args, variant: str, ranks: int) -> tuple[float, float, float]:
+    """(agent-steps/s, updates/s, CPU s per update of the busiest rank), between the end of the first and of the
+    last iteration."""
     with tempfile.TemporaryDirectory() as tmp:
         if ranks == 1:
-            train(train_args(args, variant, Path(tmp)))
+            _rank_main(args, variant, tmp)
         else:
             launch_local(ranks, _rank_main, args, variant, tmp)
-        rows = read_progress(Path(tmp) / "bench" / "progress.csv")
-    first, last = rows[0], rows[-1]
-    seconds = last["wall_s"] - first["wall_s"]
-    return (last["global_step"] - first["global_step"]) / seconds, (last["iteration"] - first["iteration"]) / seconds
+        times = [json.loads((Path(tmp) / f"times_rank{r}.json").read_text()) for r in range(ranks)]
+    updates = len(times[0]) - 1
+    seconds = times[0][-1][0] - times[0][0][0]
+    cpu = max((t[-1][1] - t[0][1]) / updates for t in times)
+    return updates * args.num_envs * args.num_steps / seconds, updates / seconds, cpu
 
 
 def main(args: Args) -> list[dict[str, float | str | int]]:
@@ -71,15 +81,18 @@ def main(args: Args) -> list[dict[str, float | str | int]]:
     print(f"berlin_p4, {args.num_envs} envs (global) x {args.num_steps} steps per iteration, "
           f"{defaults.update_epochs} epochs x {defaults.num_minibatches} minibatches, device {args.device}, "
           f"{args.threads} thread(s) per rank, {args.iterations - 1} timed iterations")  # fmt: skip
-    print(f"{'variant':<10} {'ranks':>5} {'agent-steps/s':>14} {'updates/s':>10} {'speed-up':>9}")
+    print(f"{'variant':<10} {'ranks':>5} {'agent-steps/s':>14} {'updates/s':>10} {'speed-up':>9} "
+          f"{'CPU s/update/rank':>18} {'CPU speed-up':>13}")  # fmt: skip
     table: list[dict[str, float | str | int]] = []
     for variant in args.variants:
-        base = None
+        base = base_cpu = None
         for ranks in args.ranks:
-            sps, ups = measure(args, variant, ranks)
-            base = base or sps
-            table.append({"variant": variant, "ranks": ranks, "sps": sps, "ups": ups, "speedup": sps / base})
-            print(f"{variant:<10} {ranks:>5} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x", flush=True)
+            sps, ups, cpu = measure(args, variant, ranks)
+            base, base_cpu = base or sps, base_cpu or cpu
+            table.append({"variant": variant, "ranks": ranks, "sps": sps, "ups": ups, "speedup": sps / base,
+                          "cpu_per_update": cpu, "cpu_speedup": base_cpu / cpu})  # fmt: skip
+            print(f"{variant:<10} {ranks:>5} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x {cpu:>18.2f} "
+                  f"{base_cpu / cpu:>12.2f}x", flush=True)  # fmt: skip
     return table
 
 
