@@ -14,7 +14,7 @@ from conftest import small_config
 from torch.distributions import Categorical
 
 from uamfleet.config import Request
-from uamfleet.rl.buffer import ObservationNormalizer, RunningMeanStd
+from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RunningMeanStd
 from uamfleet.rl.distributed import World, free_port, launch_local, sample_actions
 from uamfleet.rl.trainer import TrainArgs, train
 
@@ -162,3 +162,15 @@ def test_pooled_normaliser_moments_equal_the_moments_of_the_joined_batch():
     np.testing.assert_allclose(norm.fields["x"].mean, joined.mean, rtol=1e-12)
     np.testing.assert_allclose(norm.fields["x"].var, joined.var, rtol=1e-9)
     assert norm.fields["x"].count == pytest.approx(joined.count)
+
+
+def test_rollout_reward_scaling_in_one_all_reduce_equals_scaling_step_by_step():
+    rng = np.random.default_rng(2)
+    rewards, done = rng.normal(1.0, 3.0, size=(20, 6)), rng.random((20, 6)) < 0.1
+    stepwise, batched = RewardScaler(6, 0.9), RewardScaler(6, 0.9)
+    expected = np.stack([stepwise(rewards[t], done[t]) for t in range(20)])
+    world = _FakeWorld(active=True)
+    object.__setattr__(world, "other", 0.0)  # a world of one rank
+    np.testing.assert_allclose(batched.scale_rollout(rewards, done, world), expected, rtol=1e-10)
+    np.testing.assert_allclose(batched.rms.var, stepwise.rms.var, rtol=1e-10)
+    np.testing.assert_array_equal(batched.returns, stepwise.returns)

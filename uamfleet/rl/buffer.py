@@ -153,15 +153,29 @@ class RewardScaler:
         self.returns = np.zeros(num_agents)
         self.gamma = gamma
 
-    def __call__(self, rewards: np.ndarray, done: np.ndarray, world: World | None = None) -> np.ndarray:
+    def __call__(self, rewards: np.ndarray, done: np.ndarray) -> np.ndarray:
+        """One step's rewards [N] scaled; ``done`` [N] ends the agents' returns."""
         self.returns = self.returns * self.gamma + rewards
-        if world is None or not world.active:
-            self.rms.update(self.returns)
-        else:
-            ((mean, var, count),) = global_moments([self.returns], [self.rms.mean], world)
-            self.rms.update_from_moments(mean, var, count)
+        self.rms.update(self.returns)
         self.returns[done] = 0.0
         return rewards / np.sqrt(self.rms.var + 1e-8)
+
+    def scale_rollout(self, rewards: np.ndarray, done: np.ndarray, world: World) -> np.ndarray:
+        """A rollout's rewards [T, N] scaled as T calls would, with the statistics of all ranks' returns.
+
+        The scaled rewards are needed only after the rollout, so the T steps' return moments travel in one
+        all-reduce instead of one per step; the statistics then take the T updates in order."""
+        batches = []
+        for t in range(rewards.shape[0]):
+            self.returns = self.returns * self.gamma + rewards[t]
+            batches.append(self.returns.copy())  # [N]
+            self.returns[done[t]] = 0.0
+        scaled = np.empty_like(rewards)
+        moments = global_moments(batches, [self.rms.mean] * len(batches), world)
+        for t, (mean, var, count) in enumerate(moments):
+            self.rms.update_from_moments(mean, var, count)
+            scaled[t] = rewards[t] / np.sqrt(self.rms.var + 1e-8)
+        return scaled
 
 
 class RolloutBuffer:

@@ -90,9 +90,10 @@ class TrainArgs:
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
     total_timesteps: int = 200_000
-    """agent-steps (env steps x taxis) to train for"""
+    """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together)"""
     num_envs: int = 32
-    """parallel envs of the batched core (agents per step = num_envs x taxis)"""
+    """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
+    split evenly among the ranks"""
     num_steps: int = 64
     """rollout length per env and iteration"""
     num_minibatches: int = 16
@@ -353,8 +354,9 @@ def _load_error(err: Exception) -> str:
     return lines[0].split(". ")[0] if lines else type(err).__name__
 
 
-def upgrade_checkpoint(path: str | Path) -> Path:
-    """Re-save a checkpoint of format 1 (pickled NumPy RNG state) in the safe format, in place.
+def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None) -> Path:
+    """Re-save a checkpoint of format 1 (pickled NumPy RNG state) in the safe format, in place (pass the
+    ``env_config`` it was trained on, if not its named scenario).
 
     This unpickles the file once with ``weights_only=False``: run it only on files you wrote yourself."""
     path = Path(path)
@@ -371,7 +373,8 @@ def upgrade_checkpoint(path: str | Path) -> Path:
                 rms["count"] = float(rms["count"])
     old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
     args = Checkpoint(**{**old, "obs_shapes": {}}).train_args()
-    venv = VectorEnv(make_env_config(args.scenario, args, training=False), num_envs=1)
+    base: str | EnvConfig = env_config if env_config is not None else args.scenario
+    venv = VectorEnv(make_env_config(base, args, training=False), num_envs=1)
     old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     Checkpoint(**{k: v for k, v in old.items() if k != "format"}).save(path)
     return path
@@ -623,9 +626,9 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
         done = terminated | truncated  # [E]
         buf.terminated[step] = np.repeat(terminated, taxis)
         buf.truncated[step] = np.repeat(truncated, taxis)
-        raw = rewards.reshape(-1)
-        scaler = learner.scaler
-        buf.rewards[step] = scaler(raw, np.repeat(done, taxis), run.world) if scaler is not None else raw
+        buf.rewards[step] = rewards.reshape(-1)
+        if learner.scaler is not None and not run.world.active:
+            buf.rewards[step] = learner.scaler(buf.rewards[step], np.repeat(done, taxis))
         if truncated.any():  # bootstrap a time limit from the real final observation
             final = normalise(run, learner, run.flat(info["final_obs"]), update=False)
             with torch.no_grad():
@@ -635,6 +638,8 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
             ep = info["episode"]
             episodes += [ep["return"][e].mean(), ep["length"][e], ep["service_rate"][e], ep["distance_m"][e].sum(), 1]
         run.obs = run.flat(next_obs)
+    if learner.scaler is not None and run.world.active:  # all steps' statistics in one all-reduce
+        buf.rewards[:] = learner.scaler.scale_rollout(buf.rewards, buf.terminated | buf.truncated, run.world)
     return RolloutStats(term_sums, episodes)
 
 
