@@ -166,9 +166,10 @@ class World:
         dist.broadcast(buf, src=0)
         return buf.cpu().numpy().tobytes()
 
-    def close(self) -> None:
-        if self.active and dist.is_initialized():
-            dist.destroy_process_group()
+    def barrier(self) -> None:
+        """Wait for every rank (the end of training: no rank tears the group down while rank 0 still saves)."""
+        if self.active:
+            dist.barrier()
 
 
 def sample_actions(logits: torch.Tensor, offset: int, total: int) -> torch.Tensor:

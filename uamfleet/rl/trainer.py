@@ -819,6 +819,7 @@ def train(
     finally:
         if log is not None:
             log.close()
+    world.barrier()
     return _result(run, counters, rows, interrupted=False)
 
 
