@@ -174,3 +174,14 @@ def test_rollout_reward_scaling_in_one_all_reduce_equals_scaling_step_by_step():
     np.testing.assert_allclose(batched.scale_rollout(rewards, done, world), expected, rtol=1e-10)
     np.testing.assert_allclose(batched.rms.var, stepwise.rms.var, rtol=1e-10)
     np.testing.assert_array_equal(batched.returns, stepwise.returns)
+
+
+def test_without_torchrun_the_world_is_one_plain_process(monkeypatch):
+    for key in ("RANK", "WORLD_SIZE"):
+        monkeypatch.delenv(key, raising=False)
+    world, device = World.from_env("cpu")
+    assert (world.active, world.rank, world.world_size, device.type) == (False, 0, 1, "cpu")
+    monkeypatch.setenv("RANK", "0")
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    with pytest.raises(ValueError, match=r"backend='nccl' needs --device cuda"):
+        World.from_env("cpu", backend="nccl")
