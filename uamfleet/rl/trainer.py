@@ -31,8 +31,7 @@ import numpy as np
 import torch
 from torch.distributions import Categorical
 
-import uamfleet
-from uamfleet.config import REWARD_TERMS, EnvConfig
+from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.io import write_bytes_atomic, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
@@ -203,7 +202,7 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
     The shaping term uses the trainer's discount unless ``args.shaping_gamma`` is set, so by default it stays
     potential-based for the return PPO maximises (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own
     gamma)."""
-    cfg = uamfleet.make_config(scenario, **args.env_overrides(training=training))
+    cfg = make_config(scenario, **args.env_overrides(training=training))
     reward = dataclasses.replace(
         cfg.reward,
         shaping=args.shaping,
