@@ -1,45 +1,99 @@
-"""PPO training throughput per network variant: agent-steps per second of rollout + update, on one CPU thread
-(or the GPU with --device cuda).
+"""PPO training throughput: agent-steps/s and updates/s of the whole loop (rollouts from the batched core, GAE,
+Adam updates), per network variant and per number of data-parallel ranks, side by side in one run.
 
-    taskset -c 1 .venv/bin/python benchmarks/train_throughput.py
+    OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/train_throughput.py            # variants, 1 rank
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py --variants de_msfea --ranks 1 2
+    .venv/bin/python benchmarks/train_throughput.py --device cuda --ranks 1 8 --num-envs 256   # a GPU machine
+
+One rank is the plain ``train()`` (no torchrun); R > 1 ranks are R local processes with torchrun's
+environment (gloo; with --device cuda they share the GPU), ``--num-envs`` and the batch being global, so
+every row trains the same PPO problem. Rates are measured between the end of the first update (warm-up:
+numba compilation, allocations) and the end of the last, so start-up and the final evaluation are excluded.
+"CPU s/update/rank" is the CPU time the busiest rank spent per update: on a machine whose cores are shared
+with other work, its ratio ("CPU speed-up") says what the ranks would gain on idle cores, before waiting.
 """
 
 from __future__ import annotations
 
+import json
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import tyro
 
+from uamfleet.rl.distributed import launch_local
 from uamfleet.rl.trainer import TrainArgs, train
 
 
 @dataclass
 class Args:
     variants: tuple[str, ...] = ("le", "de", "de_msfea", "full")
-    iterations: int = 3
+    ranks: tuple[int, ...] = (1,)
+    """data-parallel world sizes to compare"""
+    iterations: int = 4
+    """PPO iterations per measurement (the first is warm-up and not timed)"""
     num_envs: int = 32
+    """global env count (split among the ranks)"""
     num_steps: int = 64
     device: str = "cpu"
     threads: int = 1
+    """torch CPU threads per rank"""
 
 
-def main(args: Args) -> None:
+def train_args(args: Args, variant: str, run_dir: Path) -> TrainArgs:
+    return TrainArgs(
+        variant=variant,  # type: ignore[arg-type]
+        total_timesteps=args.iterations * args.num_envs * args.num_steps, num_envs=args.num_envs,
+        num_steps=args.num_steps, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="bench",
+        progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
+    )  # fmt: skip
+
+
+def _rank_main(args: Args, variant: str, run_dir: str) -> None:
+    """Train; record each iteration's end as (wall s, this process's CPU s) in run_dir/times_rank<r>.json."""
+    times: list[tuple[float, float]] = []
+    result = train(train_args(args, variant, Path(run_dir)),
+                   on_iteration=lambda _, __: times.append((time.perf_counter(), time.process_time())))  # fmt: skip
+    (Path(run_dir) / f"times_rank{result.rank}.json").write_text(json.dumps(times))
+
+
+def measure(args: Args, variant: str, ranks: int) -> tuple[float, float, float]:
+    """(agent-steps/s, updates/s, CPU s per update of the busiest rank), between the end of the first and of the
+    last iteration."""
+    with tempfile.TemporaryDirectory() as tmp:
+        if ranks == 1:
+            _rank_main(args, variant, tmp)
+        else:
+            launch_local(ranks, _rank_main, args, variant, tmp)
+        times = [json.loads((Path(tmp) / f"times_rank{r}.json").read_text()) for r in range(ranks)]
+    updates = len(times[0]) - 1
+    seconds = times[0][-1][0] - times[0][0][0]
+    cpu = max((t[-1][1] - t[0][1]) / updates for t in times)
+    return updates * args.num_envs * args.num_steps / seconds, updates / seconds, cpu
+
+
+def main(args: Args) -> list[dict[str, float | str | int]]:
+    if args.iterations < 2:
+        raise ValueError(f"iterations={args.iterations}: need >= 2 (the first is warm-up)")
     defaults = TrainArgs()
-    print(f"berlin_p4, {args.num_envs} envs x {args.num_steps} steps per iteration, {defaults.update_epochs} epochs "
-          f"x {defaults.num_minibatches} minibatches, device {args.device}, {args.threads} thread(s)")  # fmt: skip
-    print(f"{'variant':<10} {'agent-steps/s':>14}")
+    print(f"berlin_p4, {args.num_envs} envs (global) x {args.num_steps} steps per iteration, "
+          f"{defaults.update_epochs} epochs x {defaults.num_minibatches} minibatches, device {args.device}, "
+          f"{args.threads} thread(s) per rank, {args.iterations - 1} timed iterations")  # fmt: skip
+    print(f"{'variant':<10} {'ranks':>5} {'agent-steps/s':>14} {'updates/s':>10} {'speed-up':>9} "
+          f"{'CPU s/update/rank':>18} {'CPU speed-up':>13}")  # fmt: skip
+    table: list[dict[str, float | str | int]] = []
     for variant in args.variants:
-        with tempfile.TemporaryDirectory() as tmp:
-            result = train(TrainArgs(
-                variant=variant,  # type: ignore[arg-type]
-                total_timesteps=args.iterations * args.num_envs * args.num_steps, num_envs=args.num_envs,
-                num_steps=args.num_steps, eval_every=0, run_dir=Path(tmp), progress=False, tensorboard=False,
-                threads=args.threads, device=args.device,  # type: ignore[arg-type]
-            ))  # fmt: skip
-        # the final greedy evaluation is included in wall_s; it is a small share of 3 iterations
-        print(f"{variant:<10} {result.global_step / result.wall_s:>14,.0f}")
+        base = base_cpu = None
+        for ranks in args.ranks:
+            sps, ups, cpu = measure(args, variant, ranks)
+            base, base_cpu = base or sps, base_cpu or cpu
+            table.append({"variant": variant, "ranks": ranks, "sps": sps, "ups": ups, "speedup": sps / base,
+                          "cpu_per_update": cpu, "cpu_speedup": base_cpu / cpu})  # fmt: skip
+            print(f"{variant:<10} {ranks:>5} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x {cpu:>18.2f} "
+                  f"{base_cpu / cpu:>12.2f}x", flush=True)  # fmt: skip
+    return table
 
 
 if __name__ == "__main__":

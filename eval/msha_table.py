@@ -114,7 +114,8 @@ def train_command(exp: Experiment, args: Args) -> list[str]:
         sys.executable, str(REPO / "train" / "ppo.py"), "--scenario", exp.scenario,
         "--sinr-min-db", f"{exp.threshold_db:g}", "--variant", exp.variant, "--seed", str(exp.seed),
         "--feasibility", args.feasibility, "--total-timesteps", str(exp.total_timesteps),
-        "--run-dir", str(args.run_dir), "--run-name", exp.name, "--threads", "1", "--no-progress", *args.extra,
+        "--run-dir", str(args.run_dir), "--run-name", exp.name, "--overwrite", "--threads", "1", "--no-progress",
+        *args.extra,
     ]  # fmt: skip
 
 

@@ -55,7 +55,7 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
     train_args = TrainArgs(
         scenario="berlin_p4", sinr_min_db=args.sinr_min_db, seed=args.seed, run_dir=args.run_dir,
         run_name=args.run_name, max_wall_s=60.0 * args.minutes, total_timesteps=args.total_timesteps,
-        variant=args.variant, feasibility=args.feasibility, threads=args.threads,
+        variant=args.variant, feasibility=args.feasibility, threads=args.threads, overwrite=True,  # a rerun retrains
     )  # fmt: skip
     print(f"training MSHA-PPO ({args.variant}) on Berlin P4 at {args.sinr_min_db:g} dB for "
           f"{args.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from uamfleet.rl.distributed import World
+
 
 def compute_gae(
     rewards: np.ndarray,  # [T, N]
@@ -58,7 +60,9 @@ class RunningMeanStd:
 
     def update(self, x: np.ndarray) -> None:
         batch = x.reshape(-1, *self.shape)
-        b_mean, b_var, b_count = batch.mean(0), batch.var(0), batch.shape[0]
+        self.update_from_moments(batch.mean(0), batch.var(0), batch.shape[0])
+
+    def update_from_moments(self, b_mean: np.ndarray, b_var: np.ndarray, b_count: float) -> None:
         delta = b_mean - self.mean
         total = self.count + b_count
         self.mean = self.mean + delta * b_count / total
@@ -66,13 +70,42 @@ class RunningMeanStd:
         self.var = m2 / total
         self.count = total
 
-    def state_dict(self) -> dict[str, np.ndarray | float]:
-        return {"mean": self.mean.copy(), "var": self.var.copy(), "count": self.count}
+    def state_dict(self) -> dict[str, torch.Tensor | float]:
+        """Tensors and a float: loadable with ``torch.load(weights_only=True)``."""
+        return {"mean": torch.tensor(self.mean), "var": torch.tensor(self.var), "count": float(self.count)}
 
-    def load_state_dict(self, state: dict[str, np.ndarray | float]) -> None:
-        self.mean = np.asarray(state["mean"], dtype=np.float64).copy()
-        self.var = np.asarray(state["var"], dtype=np.float64).copy()
-        self.count = float(np.asarray(state["count"]))
+    def load_state_dict(self, state: dict[str, torch.Tensor | np.ndarray | float]) -> None:
+        self.mean, self.var = _float64(state["mean"]), _float64(state["var"])
+        self.count = float(state["count"])
+
+
+def _float64(x: torch.Tensor | np.ndarray | float) -> np.ndarray:
+    if isinstance(x, torch.Tensor):
+        x = x.detach().cpu().numpy()
+    return np.array(x, dtype=np.float64)
+
+
+def global_moments(
+    batches: list[np.ndarray], shifts: list[np.ndarray], world: World
+) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """(mean, var, count) of each batch [n, *shape] pooled over all ranks, in one all-reduce.
+
+    Sums are taken around ``shift`` (the running mean, equal on every rank) so that var = E[d^2] - E[d]^2
+    does not cancel catastrophically."""
+    parts = []
+    for x, shift in zip(batches, shifts, strict=True):
+        d = x - shift  # [n, *shape]
+        parts += [np.array([x.shape[0]], np.float64), d.sum(0).ravel(), (d * d).sum(0).ravel()]
+    total = world.all_sum(np.concatenate(parts))
+    out, start = [], 0
+    for x, shift in zip(batches, shifts, strict=True):
+        size = int(np.prod(x.shape[1:]))
+        n = total[start]
+        s1 = total[start + 1 : start + 1 + size].reshape(x.shape[1:]) / n
+        s2 = total[start + 1 + size : start + 1 + 2 * size].reshape(x.shape[1:]) / n
+        out.append((shift + s1, np.maximum(s2 - s1 * s1, 0.0), float(n)))
+        start += 1 + 2 * size
+    return out
 
 
 class ObservationNormalizer:
@@ -82,9 +115,16 @@ class ObservationNormalizer:
         self.fields = {k: RunningMeanStd(s) for k, s in shapes.items() if not k.endswith("mask")}
         self.clip = clip
 
-    def update(self, obs: dict[str, np.ndarray]) -> None:
-        for key, rms in self.fields.items():
-            rms.update(obs[key])
+    def update(self, obs: dict[str, np.ndarray], world: World | None = None) -> None:
+        """Fold a batch [N, ...] into the statistics; with a joined ``world``, the batch of all ranks."""
+        if world is None or not world.active:
+            for key, rms in self.fields.items():
+                rms.update(obs[key])
+            return
+        batches = [obs[key].reshape(-1, *rms.shape) for key, rms in self.fields.items()]
+        moments = global_moments(batches, [rms.mean for rms in self.fields.values()], world)
+        for rms, (mean, var, count) in zip(self.fields.values(), moments, strict=True):
+            rms.update_from_moments(mean, var, count)
 
     def __call__(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         out = dict(obs)
@@ -97,10 +137,10 @@ class ObservationNormalizer:
             out[key] = np.clip(x, -self.clip, self.clip).astype(np.float32)
         return out
 
-    def state_dict(self) -> dict[str, dict[str, np.ndarray | float]]:
+    def state_dict(self) -> dict[str, dict[str, torch.Tensor | float]]:
         return {k: v.state_dict() for k, v in self.fields.items()}
 
-    def load_state_dict(self, state: dict[str, dict[str, np.ndarray | float]]) -> None:
+    def load_state_dict(self, state: dict[str, dict[str, torch.Tensor | np.ndarray | float]]) -> None:
         for key, value in state.items():
             self.fields[key].load_state_dict(value)
 
@@ -114,10 +154,28 @@ class RewardScaler:
         self.gamma = gamma
 
     def __call__(self, rewards: np.ndarray, done: np.ndarray) -> np.ndarray:
+        """One step's rewards [N] scaled; ``done`` [N] ends the agents' returns."""
         self.returns = self.returns * self.gamma + rewards
         self.rms.update(self.returns)
         self.returns[done] = 0.0
         return rewards / np.sqrt(self.rms.var + 1e-8)
+
+    def scale_rollout(self, rewards: np.ndarray, done: np.ndarray, world: World) -> np.ndarray:
+        """A rollout's rewards [T, N] scaled as T calls would, with the statistics of all ranks' returns.
+
+        The scaled rewards are needed only after the rollout, so the T steps' return moments travel in one
+        all-reduce instead of one per step; the statistics then take the T updates in order."""
+        batches = []
+        for t in range(rewards.shape[0]):
+            self.returns = self.returns * self.gamma + rewards[t]
+            batches.append(self.returns.copy())  # [N]
+            self.returns[done[t]] = 0.0
+        scaled = np.empty_like(rewards)
+        moments = global_moments(batches, [self.rms.mean] * len(batches), world)
+        for t, (mean, var, count) in enumerate(moments):
+            self.rms.update_from_moments(mean, var, count)
+            scaled[t] = rewards[t] / np.sqrt(self.rms.var + 1e-8)
+        return scaled
 
 
 class RolloutBuffer:

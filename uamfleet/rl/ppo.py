@@ -30,22 +30,35 @@ def ppo_loss(
     ent_coef: float,
     clip_vloss: bool = True,
     norm_adv: bool = True,
+    adv_stats: tuple[torch.Tensor, torch.Tensor] | None = None,
+    denominator: int | None = None,
 ) -> tuple[torch.Tensor, PPOLossInfo]:
+    """CleanRL's PPO loss over a minibatch of B samples.
+
+    Data-parallel use (one rank's share of a global minibatch): ``adv_stats`` = (mean, std) of the global
+    minibatch's advantages, and ``denominator`` = the global minibatch size, so every mean becomes a sum over
+    this rank's samples / the global size; summed over ranks, loss, gradient and info are the global ones."""
+
+    def mean(x: torch.Tensor) -> torch.Tensor:
+        return x.mean() if denominator is None else x.sum() / denominator
+
     log_ratio = new_logprob - old_logprob  # [B]
     ratio = log_ratio.exp()  # [B]
     with torch.no_grad():
-        old_approx_kl = (-log_ratio).mean()
-        approx_kl = ((ratio - 1) - log_ratio).mean()  # Schulman's unbiased low-variance estimator
-        clipfrac = ((ratio - 1.0).abs() > clip_coef).float().mean()
-    if norm_adv and advantages.numel() > 1:
+        old_approx_kl = mean(-log_ratio)
+        approx_kl = mean((ratio - 1) - log_ratio)  # Schulman's unbiased low-variance estimator
+        clipfrac = mean(((ratio - 1.0).abs() > clip_coef).float())
+    if norm_adv and adv_stats is not None:
+        advantages = (advantages - adv_stats[0]) / (adv_stats[1] + 1e-8)  # [B]
+    elif norm_adv and advantages.numel() > 1:
         advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)  # [B]
-    pg_loss = torch.max(-advantages * ratio, -advantages * ratio.clamp(1 - clip_coef, 1 + clip_coef)).mean()
+    pg_loss = mean(torch.max(-advantages * ratio, -advantages * ratio.clamp(1 - clip_coef, 1 + clip_coef)))
     if clip_vloss:
         v_clipped = old_value + (new_value - old_value).clamp(-clip_coef, clip_coef)  # [B]
-        v_loss = 0.5 * torch.max((new_value - returns) ** 2, (v_clipped - returns) ** 2).mean()
+        v_loss = 0.5 * mean(torch.max((new_value - returns) ** 2, (v_clipped - returns) ** 2))
     else:
-        v_loss = 0.5 * ((new_value - returns) ** 2).mean()
-    entropy_mean = entropy.mean()
+        v_loss = 0.5 * mean((new_value - returns) ** 2)
+    entropy_mean = mean(entropy)
     loss = pg_loss - ent_coef * entropy_mean + vf_coef * v_loss
     info = PPOLossInfo(
         policy_loss=float(pg_loss.detach()),

@@ -1,33 +1,44 @@
 """PPO with one shared MSHA policy over every taxi of every env: ``train(args) -> TrainResult``.
 
-CleanRL's loop (``ppo.py``) made importable: rollouts from the batched core (N = E * A agents per step), GAE
-that bootstraps truncated episodes from their real final observation, clipped surrogate and value losses,
-entropy bonus, gradient clipping, advantage / observation / reward normalisation, a linear learning-rate
-schedule and an optional centralised critic on the global state (MAPPO). Periodic greedy evaluation on a
-separate env, CSV + TensorBoard logs with CleanRL's metric names, atomic checkpoints and ``resume``.
+CleanRL's loop (``ppo.py``) made importable and cut into named parts: :func:`collect_rollout` (the batched
+core, N = E * A agents per step), :func:`compute_advantages` (GAE that bootstraps truncated episodes from their
+real final observation), :func:`ppo_update` (clipped surrogate and value losses, entropy bonus, gradient
+clipping), :func:`evaluate_greedy` on a separate env, :class:`Logger` (CSV + TensorBoard with CleanRL's metric
+names) and :class:`Checkpoint` (atomic, loadable with ``torch.load(weights_only=True)``, ``--resume``).
+Advantage / observation / reward normalisation, a linear learning-rate schedule and an optional centralised
+critic on the global state (MAPPO).
+
+Under ``torchrun`` every rank runs this loop on its share of the envs, data-parallel on ``torch.distributed``
+(uamfleet.rl.distributed says what keeps the ranks equal); rank 0 alone evaluates, logs and checkpoints.
 """
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import io
 import math
+import re
+import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 import torch
+from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.io import write_bytes_atomic, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
+from uamfleet.rl.distributed import World, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
-from uamfleet.rl.ppo import ppo_loss
+from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
 from uamfleet.rollout import fly
 
 
@@ -78,9 +89,10 @@ class TrainArgs:
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
     total_timesteps: int = 200_000
-    """agent-steps (env steps x taxis) to train for"""
+    """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together)"""
     num_envs: int = 32
-    """parallel envs of the batched core (agents per step = num_envs x taxis)"""
+    """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
+    split evenly among the ranks"""
     num_steps: int = 64
     """rollout length per env and iteration"""
     num_minibatches: int = 16
@@ -135,8 +147,13 @@ class TrainArgs:
     """default: {scenario}_{sinr}dB_{variant}_s{seed}"""
     resume: bool = False
     """continue from run_dir/run_name/last.pt"""
+    overwrite: bool = False
+    """replace an existing run of this name (without it, or --resume, an existing run is an error)"""
     device: Literal["auto", "cpu", "cuda"] = "auto"
-    """torch device (auto: CUDA when available)"""
+    """torch device (auto: CUDA when available); under torchrun, cuda means cuda:LOCAL_RANK"""
+    backend: Literal["auto", "gloo", "nccl"] = "auto"
+    """torch.distributed backend under torchrun (auto: NCCL when each local rank has a GPU of its own, else
+    gloo)"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
     progress: bool = True
@@ -175,6 +192,8 @@ class TrainResult:
     target_reached_s: float | None = None
     losses: list[dict[str, float]] = field(default_factory=list)
     interrupted: bool = False
+    rank: int = 0
+    """torch.distributed rank (under torchrun only rank 0 logs, so only its rows and evaluations are filled)"""
 
 
 def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool = True) -> EnvConfig:
@@ -218,16 +237,243 @@ def _score(m: dict[str, float]) -> tuple[float, float]:
     return (-m.get("pr_pct", 0.0), m.get("td_m", math.inf))
 
 
-def _device(choice: str) -> torch.device:
-    if choice == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if choice == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device='cuda' but torch sees no CUDA device; use --device cpu or auto.")
-    return torch.device(choice)
+# ---- checkpoints ----------------------------------------------------------------------------------------------
+
+CHECKPOINT_FORMAT = 2
+"""2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
+NumPy RNG state inside."""
+ARCHITECTURE_FIELDS = ("variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic")
+ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "num_taxis", "feasibility", "norm_obs", "norm_reward")
 
 
-def train(args: TrainArgs, env_config: EnvConfig | None = None) -> TrainResult:  # noqa: C901 - one loop, as CleanRL
-    """Train; ``env_config`` replaces the named scenario (e.g. a user's own map or instance)."""
+def _plain_args(args: TrainArgs) -> dict[str, Any]:
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()}
+
+
+def _numpy_rng_state() -> dict[str, Any]:
+    name, keys, pos, has_gauss, cached = np.random.get_state()
+    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
+            "cached_gaussian": float(cached)}  # fmt: skip
+
+
+def _set_numpy_rng_state(state: dict[str, Any]) -> None:
+    keys = np.array(state["keys"], dtype=np.uint32)
+    np.random.set_state((state["name"], keys, state["pos"], state["has_gauss"], state["cached_gaussian"]))
+
+
+@dataclass
+class Checkpoint:
+    """Everything to continue a run or fly its policy: tensors, numbers, strings, lists and dicts only, so
+    ``torch.load(path, weights_only=True)`` loads it and loading never runs code."""
+
+    model: dict[str, torch.Tensor]
+    optimizer: dict[str, Any]
+    net_config: dict[str, Any]
+    args: dict[str, Any]
+    obs_shapes: dict[str, list[int]]
+    iteration: int  # iterations completed
+    global_step: int  # agent-steps trained on (all ranks)
+    wall_s: float
+    obs_normalizer: dict[str, Any] | None
+    reward_scaler: dict[str, Any] | None
+    best_eval: dict[str, float]
+    best_step: int
+    target_step: int | None
+    target_s: float | None
+    torch_rng: torch.Tensor
+    numpy_rng: dict[str, Any]
+    cuda_rng: torch.Tensor | None = None
+    format: int = CHECKPOINT_FORMAT
+
+    def to_bytes(self) -> bytes:
+        data = io.BytesIO()
+        torch.save({f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, data)
+        return data.getvalue()
+
+    def save(self, path: Path) -> None:
+        write_bytes_atomic(path, self.to_bytes())
+
+    @classmethod
+    def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"checkpoint {path} does not exist; train one with `python train/ppo.py`.")
+        return cls.from_bytes(path.read_bytes(), str(path), map_location)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, source: str, map_location: str | torch.device = "cpu") -> Checkpoint:
+        try:
+            payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)
+        except Exception as err:  # torch raises UnpicklingError, RuntimeError or ValueError by cause
+            raise ValueError(
+                f"{source} is not a checkpoint uamfleet loads safely (torch.load(weights_only=True) refused it: "
+                f"{_load_error(err)}). Checkpoints of uamfleet before format {CHECKPOINT_FORMAT} held a pickled "
+                "NumPy RNG state: train the run again, or re-save a file you trust with "
+                "uamfleet.rl.trainer.upgrade_checkpoint()."
+            ) from None
+        names = [f.name for f in dataclasses.fields(cls)]
+        required = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING]
+        if not isinstance(payload, dict) or any(k not in payload for k in required):
+            got = sorted(payload) if isinstance(payload, dict) else type(payload).__name__
+            raise ValueError(f"{source} is not a uamfleet training checkpoint (expected keys {required}, got {got}).")
+        return cls(**{k: v for k, v in payload.items() if k in names})
+
+    def train_args(self) -> TrainArgs:
+        known = {f.name for f in dataclasses.fields(TrainArgs)}
+        saved = {k: v for k, v in self.args.items() if k in known}
+        saved["run_dir"] = Path(saved.get("run_dir", "runs"))
+        return TrainArgs(**saved)
+
+    def check_matches(self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]]) -> None:
+        """Raise ValueError naming every architecture, scenario or observation-layout field that differs."""
+        diffs = []
+        if args is not None:
+            for key in (*ARCHITECTURE_FIELDS, *ENVIRONMENT_FIELDS):
+                if key in self.args and self.args[key] != getattr(args, key):
+                    diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {getattr(args, key)!r}")
+        for key in sorted(set(self.obs_shapes) | set(obs_shapes)):
+            saved, now = self.obs_shapes.get(key), obs_shapes.get(key)
+            if saved is None or now is None or tuple(saved) != tuple(now):
+                diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
+        if diffs:
+            raise ValueError(
+                "the checkpoint was trained with another setup: " + "; ".join(diffs) + ". Use the same options "
+                "(or a new --run-name for a new run)."
+            )
+
+
+def _load_error(err: Exception) -> str:
+    """The one line of torch's refusal that says why (it also advises weights_only=False: not for us)."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(err))
+    why = r"Unsupported global: GLOBAL \S+|unsupported GLOBAL [^\n]*blocked|Unsupported operand \S+"
+    found = re.search(f"({why})", text)
+    if found:
+        return found.group(1)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[0].split(". ")[0] if lines else type(err).__name__
+
+
+def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None) -> Path:
+    """Re-save a checkpoint of format 1 (pickled NumPy RNG state) in the safe format, in place (pass the
+    ``env_config`` it was trained on, if not its named scenario).
+
+    This unpickles the file once with ``weights_only=False``: run it only on files you wrote yourself."""
+    path = Path(path)
+    old = torch.load(path, map_location="cpu", weights_only=False)
+    if not isinstance(old.get("numpy_rng"), dict):
+        name, keys, pos, has_gauss, cached = old["numpy_rng"]
+        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
+                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
+    for key in ("obs_normalizer", "reward_scaler"):
+        if old.get(key) is not None:
+            fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
+            for rms in fields.values():
+                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
+                rms["count"] = float(rms["count"])
+    old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
+    args = Checkpoint(**{**old, "obs_shapes": {}}).train_args()
+    base: str | EnvConfig = env_config if env_config is not None else args.scenario
+    venv = VectorEnv(make_env_config(base, args, training=False), num_envs=1)
+    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    Checkpoint(**{k: v for k, v in old.items() if k != "format"}).save(path)
+    return path
+
+
+# ---- the run: its folder, its parts, and the state a checkpoint restores ------------------------------------
+
+RUN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._=+,-]*")
+RUN_FILES = ("progress.csv", "last.pt", "best.pt")
+
+
+def run_folder(args: TrainArgs) -> Path:
+    """run_dir/<name>, checked: one folder name, never a path out of run_dir; an existing run is continued
+    only with ``resume``, replaced only with ``overwrite``."""
+    name = args.name
+    if not RUN_NAME.fullmatch(name):
+        raise ValueError(
+            f"run_name={name!r} must be one folder name (letters, digits and '._=+,-', not starting with '.'): "
+            f"runs live in {args.run_dir}/<run_name>."
+        )
+    if args.resume and args.overwrite:
+        raise ValueError("--resume continues the run and --overwrite replaces it: pass one of them.")
+    folder = args.run_dir / name
+    held = [f for f in RUN_FILES if (folder / f).exists()]
+    if held and not args.resume:
+        if not args.overwrite:
+            raise FileExistsError(
+                f"{folder} already holds a run ({', '.join(held)}); continue it with --resume, replace it with "
+                "--overwrite, or choose another --run-name."
+            )
+        for f in held:
+            (folder / f).unlink()
+        shutil.rmtree(folder / "tb", ignore_errors=True)
+    if args.resume and not (folder / "last.pt").exists():
+        raise FileNotFoundError(f"--resume: no checkpoint at {folder / 'last.pt'}; train without --resume first.")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+@dataclass
+class Learner:
+    """What PPO trains and keeps between iterations, identical on every rank."""
+
+    net: MSHAActorCritic
+    optimizer: torch.optim.Optimizer
+    net_cfg: NetConfig
+    normalizer: ObservationNormalizer | None
+    scaler: RewardScaler | None
+
+
+@dataclass
+class Counters:
+    """Progress of the run; a checkpoint holds them as of the end of an iteration."""
+
+    iteration: int = 0
+    global_step: int = 0
+    wall_offset: float = 0.0
+    best_eval: dict[str, float] = field(default_factory=dict)
+    best_step: int = 0
+    target_step: int | None = None
+    target_s: float | None = None
+
+
+@dataclass
+class Run:
+    """One rank's share of a run: its envs (global envs [env_offset, env_offset + num_envs)), rollout buffer
+    and the current observation."""
+
+    args: TrainArgs
+    world: World
+    device: torch.device
+    folder: Path
+    cfg: EnvConfig
+    eval_cfg: EnvConfig
+    venv: VectorEnv
+    obs_shapes: dict[str, tuple[int, ...]]
+    buffer: RolloutBuffer
+    env_offset: int
+    num_agents: int  # this rank's agents per step
+    agent_offset: int  # index of its first agent in the global agent axis
+    total_agents: int  # agents per step over all ranks
+    num_iterations: int
+    state_dim: int
+    obs: dict[str, np.ndarray] = field(default_factory=dict)
+    start_time: float = field(default_factory=time.time)
+
+    @property
+    def batch_size(self) -> int:  # global
+        return self.args.num_steps * self.total_agents
+
+    def flat(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {k: v.reshape(self.num_agents, *v.shape[2:]) for k, v in obs.items()}
+
+    def global_state(self) -> np.ndarray | None:
+        if not self.state_dim:
+            return None
+        return np.repeat(self.venv.global_state(), self.venv.num_taxis, axis=0)  # [N, S]: each taxi's env state
+
+
+def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device: torch.device) -> Run:
     if args.num_envs < 1 or args.num_steps < 1 or args.num_minibatches < 1:
         raise ValueError(
             f"num_envs={args.num_envs}, num_steps={args.num_steps}, num_minibatches={args.num_minibatches} "
@@ -235,251 +481,394 @@ def train(args: TrainArgs, env_config: EnvConfig | None = None) -> TrainResult: 
         )
     if args.variant not in VARIANTS:
         raise ValueError(f"variant={args.variant!r} is unknown; use one of {VARIANTS}.")
-    if args.threads:
-        torch.set_num_threads(args.threads)
-    device = _device(args.device)
-    run_dir = args.run_dir / args.name
-    run_dir.mkdir(parents=True, exist_ok=True)
-
+    env_offset, local_envs = world.shard(args.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
     cfg = make_env_config(base, args, training=True)
-    eval_cfg = make_env_config(base, args, training=False)
-    venv = VectorEnv(cfg, num_envs=args.num_envs)
-    num_taxis = cfg.num_taxis
-    num_agents = args.num_envs * num_taxis
-    batch_size = args.num_steps * num_agents
-    minibatch_size = batch_size // args.num_minibatches
-    num_iterations = max(1, args.total_timesteps // batch_size)
+    venv = VectorEnv(cfg, num_envs=local_envs)
+    taxis = cfg.num_taxis
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     state_dim = int(venv.state_space.shape[0]) if args.centralised_critic else 0
+    batch = args.num_steps * args.num_envs * taxis
+    return Run(
+        args=args, world=world, device=device, folder=args.run_dir / args.name, cfg=cfg,
+        eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes,
+        buffer=RolloutBuffer(args.num_steps, local_envs * taxis, shapes, state_dim), env_offset=env_offset,
+        num_agents=local_envs * taxis, agent_offset=env_offset * taxis, total_agents=args.num_envs * taxis,
+        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim,
+    )  # fmt: skip
 
+
+def make_learner(run: Run) -> Learner:
+    args = run.args
     np.random.seed(args.seed)
     torch.manual_seed(args.seed)
     net_cfg = NetConfig(
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
-        readout=args.readout, critic_state_dim=state_dim or None,
+        readout=args.readout, critic_state_dim=run.state_dim or None,
     )  # fmt: skip
-    net = MSHAActorCritic(venv.single_observation_space, net_cfg).to(device)
-    optimizer = torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5)
-    normalizer = ObservationNormalizer(shapes) if args.norm_obs else None
-    scaler = RewardScaler(num_agents, args.gamma) if args.norm_reward else None
-    buffer = RolloutBuffer(args.num_steps, num_agents, shapes, state_dim)
+    net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
+    return Learner(
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
+        normalizer=ObservationNormalizer(run.obs_shapes) if args.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None,
+    )  # fmt: skip
 
-    start_iteration, global_step, wall_offset = 0, 0, 0.0
-    best_eval: dict[str, float] = {}
-    best_step, target_step, target_s = 0, None, None
-    rows: list[dict[str, float]] = []
-    ckpt_path = run_dir / "last.pt"
-    if args.resume:
-        if not ckpt_path.exists():
-            raise FileNotFoundError(f"--resume: no checkpoint at {ckpt_path}; train without --resume first.")
-        ckpt = torch.load(ckpt_path, map_location=device, weights_only=False)
-        net.load_state_dict(ckpt["model"])
-        optimizer.load_state_dict(ckpt["optimizer"])
-        if normalizer is not None:
-            normalizer.load_state_dict(ckpt["obs_normalizer"])
-        if scaler is not None:
-            scaler.rms.load_state_dict(ckpt["reward_scaler"])
-        start_iteration, global_step = ckpt["iteration"], ckpt["global_step"]
-        wall_offset = ckpt["wall_s"]
-        best_eval, best_step = ckpt["best_eval"], ckpt["best_step"]
-        target_step, target_s = ckpt.get("target_step"), ckpt.get("target_s")
-        torch.set_rng_state(ckpt["torch_rng"])
-        np.random.set_state(ckpt["numpy_rng"])
-        rows = read_progress(run_dir / "progress.csv")
-        print(f"resumed {run_dir} at iteration {start_iteration}, step {global_step} (envs restart their episodes)")
 
-    writer = None
-    if args.tensorboard:
-        from torch.utils.tensorboard import SummaryWriter
+def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
+    """A checkpoint of the current state (copies: training goes on changing the live tensors)."""
+    cuda = torch.cuda.get_rng_state(run.device) if run.device.type == "cuda" else None
+    return Checkpoint(
+        model=copy.deepcopy(learner.net.state_dict()), optimizer=copy.deepcopy(learner.optimizer.state_dict()),
+        net_config=dataclasses.asdict(learner.net_cfg), args=_plain_args(run.args),
+        obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, iteration=counters.iteration,
+        global_step=counters.global_step, wall_s=counters.wall_offset + time.time() - run.start_time,
+        obs_normalizer=learner.normalizer.state_dict() if learner.normalizer is not None else None,
+        reward_scaler=learner.scaler.rms.state_dict() if learner.scaler is not None else None,
+        best_eval=dict(counters.best_eval), best_step=counters.best_step, target_step=counters.target_step,
+        target_s=counters.target_s, torch_rng=torch.get_rng_state(), numpy_rng=_numpy_rng_state(), cuda_rng=cuda,
+    )  # fmt: skip
 
-        writer = SummaryWriter(str(run_dir / "tb"), purge_step=global_step if args.resume else None)
-        writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(
-            f"|{k}|{v}|" for k, v in dataclasses.asdict(args).items()))  # fmt: skip
 
-    def save_checkpoint(iteration: int, path: Path = ckpt_path) -> None:
-        payload = {
-            "model": net.state_dict(), "optimizer": optimizer.state_dict(), "net_config": dataclasses.asdict(net_cfg),
-            "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()},
-            "iteration": iteration, "global_step": global_step, "wall_s": wall_offset + time.time() - start_time,
-            "obs_normalizer": normalizer.state_dict() if normalizer is not None else None,
-            "reward_scaler": scaler.rms.state_dict() if scaler is not None else None,
-            "best_eval": best_eval, "best_step": best_step, "target_step": target_step, "target_s": target_s,
-            "torch_rng": torch.get_rng_state(), "numpy_rng": np.random.get_state(),
-        }  # fmt: skip
-        data = io.BytesIO()
-        torch.save(payload, data)
-        write_bytes_atomic(path, data.getvalue())
+def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
+    ckpt.check_matches(run.args, run.obs_shapes)
+    learner.net.load_state_dict(ckpt.model)
+    learner.optimizer.load_state_dict(ckpt.optimizer)
+    if learner.normalizer is not None and ckpt.obs_normalizer is not None:
+        learner.normalizer.load_state_dict(ckpt.obs_normalizer)
+    if learner.scaler is not None and ckpt.reward_scaler is not None:
+        learner.scaler.rms.load_state_dict(ckpt.reward_scaler)
+    torch.set_rng_state(ckpt.torch_rng.cpu())
+    if ckpt.cuda_rng is not None and run.device.type == "cuda":
+        torch.cuda.set_rng_state(ckpt.cuda_rng.cpu(), run.device)
+    _set_numpy_rng_state(ckpt.numpy_rng)
+    return restore_counters(ckpt)
 
-    def flat(obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {k: v.reshape(num_agents, *v.shape[2:]) for k, v in obs.items()}
 
-    def prepare(obs: dict[str, np.ndarray], update: bool) -> dict[str, np.ndarray]:
-        if normalizer is None:
-            return obs
-        if update:
-            normalizer.update(obs)
-        return normalizer(obs)
+def start(run: Run, learner: Learner) -> tuple[Counters, list[dict[str, float]]]:
+    """Prepare the folder (rank 0), resume from last.pt on every rank, and broadcast rank 0's parameters."""
+    world, data, error = run.world, None, None
+    if world.is_main:
+        try:
+            run_folder(run.args)
+            data = (run.folder / "last.pt").read_bytes() if run.args.resume else None
+        except Exception as err:
+            error = err
+    if not world.broadcast_flag(error is None):
+        if error is not None:
+            raise error
+        raise RuntimeError("rank 0 could not set up the run folder; its error says why.")
+    data = world.broadcast_bytes(data)
+    counters, rows = Counters(), []
+    if data is not None:
+        counters = restore(Checkpoint.from_bytes(data, str(run.folder / "last.pt"), run.device), run, learner)
+        if world.is_main:
+            # rows logged after the checkpoint belong to iterations that are trained again
+            rows = [r for r in read_progress(run.folder / "progress.csv") if r["iteration"] <= counters.iteration]
+    world.broadcast_module(learner.net)
+    obs, _ = run.venv.reset(seed=run.args.seed + run.env_offset)  # global env e gets seed + e
+    run.obs = run.flat(obs)
+    return counters, rows
 
-    def global_state() -> np.ndarray | None:
-        if not state_dim:
-            return None
-        return np.repeat(venv.global_state(), num_taxis, axis=0)  # [N, S]: each taxi's row is its env's state
 
-    obs_np, _ = venv.reset(seed=args.seed)
-    obs = flat(obs_np)
-    start_time = time.time()
-    episode_returns: list[float] = []
-    episode_stats: list[dict[str, float]] = []
-    interrupted = False
-    iteration = start_iteration
-    progress = _progress(args.progress, num_iterations, start_iteration)
-    try:
-        for iteration in range(start_iteration, num_iterations):
-            if args.anneal_lr:
-                optimizer.param_groups[0]["lr"] = args.learning_rate * (1.0 - iteration / num_iterations)
-            shaping_weight = args.shaping
-            if args.shaping > 0 and args.shaping_anneal_frac > 0:
-                # keep a sliver of shaping so the env's shaping machinery stays on (its metric is fixed)
-                start = (1.0 - args.shaping_anneal_frac) * num_iterations
-                decay = min(1.0, max(0.0, 1.0 - (iteration - start) / (args.shaping_anneal_frac * num_iterations)))
-                shaping_weight = max(args.shaping * decay, 1e-6)
-                venv.set_reward_weights(dataclasses.replace(cfg.reward, shaping=shaping_weight))
-            term_sums = np.zeros(len(REWARD_TERMS))
-            for step in range(args.num_steps):
-                global_step += num_agents
-                norm_obs = prepare(obs, update=True)
-                for key, field_value in norm_obs.items():
-                    buffer.obs[key][step] = field_value
-                state = global_state()
-                if buffer.state is not None and state is not None:
-                    buffer.state[step] = state
-                with torch.no_grad():
-                    action, logprob, _, value = net.get_action_and_value(
-                        obs_to_torch(norm_obs, device), state=_tensor(state, device)
-                    )
-                buffer.actions[step] = action.cpu().numpy()
-                buffer.logprobs[step] = logprob.cpu().numpy()
-                buffer.values[step] = value.cpu().numpy()
-                next_obs, rewards, terminated, truncated, info = venv.step(buffer.actions[step].reshape(-1, num_taxis))
-                term_sums += info["reward_terms"].sum(axis=(0, 1))
-                done_env = terminated | truncated
-                buffer.terminated[step] = np.repeat(terminated, num_taxis)
-                buffer.truncated[step] = np.repeat(truncated, num_taxis)
-                raw_rewards = rewards.reshape(-1)
-                buffer.rewards[step] = scaler(raw_rewards, np.repeat(done_env, num_taxis)) if scaler else raw_rewards
-                if truncated.any():
-                    final = prepare(flat(info["final_obs"]), update=False)
-                    with torch.no_grad():
-                        _, final_value = net(obs_to_torch(final, device), state=_tensor(state, device))
-                    buffer.final_values[step] = final_value.cpu().numpy()
-                if done_env.any():
-                    ep = info["episode"]
-                    for e in np.flatnonzero(done_env):
-                        episode_returns.append(float(ep["return"][e].mean()))
-                        episode_stats.append({"service_rate": float(ep["service_rate"][e]),
-                                              "distance_m": float(ep["distance_m"][e].sum()),
-                                              "length": float(ep["length"][e])})  # fmt: skip
-                obs = flat(next_obs)
+# ---- one PPO iteration in named parts -----------------------------------------------------------------------
 
+
+@dataclass
+class RolloutStats:
+    term_sums: np.ndarray  # [terms] reward term totals of this rank
+    episodes: np.ndarray  # [5] sums over finished episodes: return, length, service rate, distance; count
+
+
+def set_schedules(run: Run, learner: Learner, iteration: int) -> float:
+    """Linear learning-rate decay and the shaping weight's anneal; returns the shaping weight."""
+    args, n = run.args, run.num_iterations
+    if args.anneal_lr:
+        learner.optimizer.param_groups[0]["lr"] = args.learning_rate * (1.0 - iteration / n)
+    if args.shaping <= 0 or args.shaping_anneal_frac <= 0:
+        return args.shaping
+    # keep a sliver of shaping so the env's shaping machinery stays on (its metric is fixed)
+    begin = (1.0 - args.shaping_anneal_frac) * n
+    decay = min(1.0, max(0.0, 1.0 - (iteration - begin) / (args.shaping_anneal_frac * n)))
+    weight = max(args.shaping * decay, 1e-6)
+    run.venv.set_reward_weights(dataclasses.replace(run.cfg.reward, shaping=weight))
+    return weight
+
+
+def normalise(run: Run, learner: Learner, obs: dict[str, np.ndarray], update: bool) -> dict[str, np.ndarray]:
+    if learner.normalizer is None:
+        return obs
+    if update:
+        learner.normalizer.update(obs, run.world)
+    return learner.normalizer(obs)
+
+
+def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
+    """num_steps steps of this rank's envs into ``run.buffer``; actions sampled from the current policy."""
+    buf, net, dev, taxis = run.buffer, learner.net, run.device, run.venv.num_taxis
+    term_sums, episodes = np.zeros(len(REWARD_TERMS)), np.zeros(5)
+    for step in range(run.args.num_steps):
+        norm_obs = normalise(run, learner, run.obs, update=True)
+        for key, value in norm_obs.items():
+            buf.obs[key][step] = value
+        state = run.global_state()
+        if buf.state is not None and state is not None:
+            buf.state[step] = state
+        with torch.no_grad():
+            logits, value = net(obs_to_torch(norm_obs, dev), state=_tensor(state, dev))  # [N, 16], [N]
+            action = sample_actions(logits, run.agent_offset, run.total_agents)  # [N]
+            logprob = Categorical(logits=logits).log_prob(action)  # [N]
+        buf.actions[step] = action.cpu().numpy()
+        buf.logprobs[step] = logprob.cpu().numpy()
+        buf.values[step] = value.cpu().numpy()
+        next_obs, rewards, terminated, truncated, info = run.venv.step(buf.actions[step].reshape(-1, taxis))
+        term_sums += info["reward_terms"].sum(axis=(0, 1))
+        done = terminated | truncated  # [E]
+        buf.terminated[step] = np.repeat(terminated, taxis)
+        buf.truncated[step] = np.repeat(truncated, taxis)
+        buf.rewards[step] = rewards.reshape(-1)
+        if learner.scaler is not None and not run.world.active:
+            buf.rewards[step] = learner.scaler(buf.rewards[step], np.repeat(done, taxis))
+        if truncated.any():  # bootstrap a time limit from the real final observation
+            final = normalise(run, learner, run.flat(info["final_obs"]), update=False)
             with torch.no_grad():
-                _, next_value = net(
-                    obs_to_torch(prepare(obs, update=False), device), state=_tensor(global_state(), device)
-                )
-            advantages, returns = compute_gae(
-                buffer.rewards, buffer.values, buffer.terminated, buffer.truncated, buffer.final_values,
-                next_value.cpu().numpy(), args.gamma, args.gae_lambda,
+                _, final_value = net(obs_to_torch(final, dev), state=_tensor(state, dev))
+            buf.final_values[step] = final_value.cpu().numpy()
+        for e in np.flatnonzero(done):
+            ep = info["episode"]
+            episodes += [ep["return"][e].mean(), ep["length"][e], ep["service_rate"][e], ep["distance_m"][e].sum(), 1]
+        run.obs = run.flat(next_obs)
+    if learner.scaler is not None and run.world.active:  # all steps' statistics in one all-reduce
+        buf.rewards[:] = learner.scaler.scale_rollout(buf.rewards, buf.terminated | buf.truncated, run.world)
+    return RolloutStats(term_sums, episodes)
+
+
+def compute_advantages(run: Run, learner: Learner) -> tuple[np.ndarray, np.ndarray]:
+    """GAE over this rank's rollout: (advantages [T, N], returns [T, N])."""
+    buf = run.buffer
+    with torch.no_grad():
+        norm_obs = normalise(run, learner, run.obs, update=False)
+        _, next_value = learner.net(obs_to_torch(norm_obs, run.device), state=_tensor(run.global_state(), run.device))
+    return compute_gae(
+        buf.rewards, buf.values, buf.terminated, buf.truncated, buf.final_values, next_value.cpu().numpy(),
+        run.args.gamma, run.args.gae_lambda,
+    )  # fmt: skip
+
+
+def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.ndarray) -> list[PPOLossInfo]:
+    """update_epochs passes of minibatch Adam steps on the clipped PPO loss.
+
+    The permutation is of the GLOBAL flat batch [T * N_global] (the same on every rank: the NumPy generator
+    is); each rank takes its own samples of each global minibatch (see uamfleet.rl.distributed)."""
+    args, buf, dev, world = run.args, run.buffer, run.device, run.world
+    minibatch_size = run.batch_size // args.num_minibatches
+    adv = torch.as_tensor(advantages.reshape(-1), dtype=torch.float32, device=dev)
+    ret = torch.as_tensor(returns.reshape(-1), dtype=torch.float32, device=dev)
+    val = torch.as_tensor(buf.values.reshape(-1), dtype=torch.float32, device=dev)
+    global_adv = torch.as_tensor(
+        world.gather_agents(advantages, run.agent_offset, run.total_agents).reshape(-1),
+        dtype=torch.float32,
+        device=dev,
+    )  # [T * N_global] the same on every rank
+    params = list(learner.net.parameters())
+    order = np.arange(run.batch_size)
+    infos: list[PPOLossInfo] = []
+    for _epoch in range(args.update_epochs):
+        np.random.shuffle(order)
+        for begin in range(0, run.batch_size, minibatch_size):
+            idx = order[begin : begin + minibatch_size]  # global flat indices t * N_global + n
+            local, share = _local_indices(run, idx)
+            mb_obs, mb_state, mb_actions, mb_logprobs = buf.minibatch(local, dev)
+            _, new_logprob, entropy, new_value = learner.net.get_action_and_value(mb_obs, mb_actions, state=mb_state)
+            stats, denominator = None, None
+            if world.active:
+                stats, denominator = (global_adv[idx].mean(), global_adv[idx].std()), len(idx)
+            loss, info = ppo_loss(
+                new_logprob, mb_logprobs, entropy, new_value, val[local], adv[local], ret[local], args.clip_coef,
+                args.vf_coef, args.ent_coef, args.clip_vloss, args.norm_adv, stats, denominator,
             )  # fmt: skip
-            flat_adv = torch.as_tensor(advantages.reshape(-1), dtype=torch.float32, device=device)
-            flat_ret = torch.as_tensor(returns.reshape(-1), dtype=torch.float32, device=device)
-            flat_val = torch.as_tensor(buffer.values.reshape(-1), dtype=torch.float32, device=device)
+            learner.optimizer.zero_grad()
+            (loss * share).backward()
+            summed = world.all_reduce_grads(params, share * np.array(dataclasses.astuple(info)))
+            infos.append(PPOLossInfo(*(float(x) for x in summed)))
+            torch.nn.utils.clip_grad_norm_(params, args.max_grad_norm)
+            learner.optimizer.step()
+        if args.target_kl is not None and infos[-1].approx_kl > args.target_kl:
+            break
+    return infos
 
-            order = np.arange(batch_size)
-            infos = []
-            for _epoch in range(args.update_epochs):
-                np.random.shuffle(order)
-                for start in range(0, batch_size, minibatch_size):
-                    idx = order[start : start + minibatch_size]
-                    mb_obs, mb_state, mb_actions, mb_logprobs = buffer.minibatch(idx, device)
-                    _, new_logprob, entropy, new_value = net.get_action_and_value(mb_obs, mb_actions, state=mb_state)
-                    loss, loss_info = ppo_loss(
-                        new_logprob, mb_logprobs, entropy, new_value, flat_val[idx], flat_adv[idx], flat_ret[idx],
-                        args.clip_coef, args.vf_coef, args.ent_coef, args.clip_vloss, args.norm_adv,
-                    )  # fmt: skip
-                    optimizer.zero_grad()
-                    loss.backward()
-                    torch.nn.utils.clip_grad_norm_(net.parameters(), args.max_grad_norm)
-                    optimizer.step()
-                    infos.append(loss_info)
-                if args.target_kl is not None and infos[-1].approx_kl > args.target_kl:
-                    break
 
-            var_y = np.var(returns)
-            explained_var = math.nan if var_y == 0 else float(1 - np.var(returns - buffer.values) / var_y)
-            elapsed = wall_offset + time.time() - start_time
-            row: dict[str, float] = {
-                "iteration": iteration + 1, "global_step": global_step, "wall_s": elapsed,
-                "charts/learning_rate": optimizer.param_groups[0]["lr"],
-                "charts/shaping_weight": shaping_weight,
-                "charts/SPS": global_step / max(elapsed, 1e-9),
-                "losses/value_loss": float(np.mean([i.value_loss for i in infos])),
-                "losses/policy_loss": float(np.mean([i.policy_loss for i in infos])),
-                "losses/entropy": float(np.mean([i.entropy for i in infos])),
-                "losses/old_approx_kl": float(np.mean([i.old_approx_kl for i in infos])),
-                "losses/approx_kl": float(np.mean([i.approx_kl for i in infos])),
-                "losses/clipfrac": float(np.mean([i.clipfrac for i in infos])),
-                "losses/explained_variance": explained_var,
-            }  # fmt: skip
-            for name, total in zip(REWARD_TERMS, term_sums, strict=True):
-                row[f"reward/{name}"] = float(total / (args.num_steps * num_agents))  # mean per agent-step
-            if episode_returns:
-                row["charts/episodic_return"] = float(np.mean(episode_returns))
-                row["charts/episodic_length"] = float(np.mean([s["length"] for s in episode_stats]))
-                row["charts/service_rate"] = float(np.mean([s["service_rate"] for s in episode_stats]))
-                row["charts/episodic_distance_m"] = float(np.mean([s["distance_m"] for s in episode_stats]))
-            episode_returns.clear()
-            episode_stats.clear()
+def _local_indices(run: Run, idx: np.ndarray) -> tuple[np.ndarray, float]:
+    """This rank's samples of a global minibatch as flat indices into its buffer, and 1.0; a rank with no
+    sample in it takes sample 0 with weight 0.0 (it must still join the gradient all-reduce)."""
+    if not run.world.active:
+        return idx, 1.0
+    t, n = np.divmod(idx, run.total_agents)
+    mine = (n >= run.agent_offset) & (n < run.agent_offset + run.num_agents)
+    if not mine.any():
+        return np.zeros(1, dtype=np.int64), 0.0
+    return t[mine] * run.num_agents + (n[mine] - run.agent_offset), 1.0
 
-            out_of_time = args.max_wall_s is not None and time.time() - start_time >= args.max_wall_s
-            last = iteration == num_iterations - 1 or out_of_time
-            if (args.eval_every and (iteration + 1) % args.eval_every == 0) or last:
-                policy = GreedyPolicy(net, normalizer, device)
-                m = evaluate(policy, eval_cfg).as_dict()
-                row.update({f"eval/{k}": v for k, v in m.items()})
-                if not best_eval or _score(m) < _score(best_eval):
-                    best_eval, best_step = m, global_step
-                    save_checkpoint(iteration + 1, run_dir / "best.pt")
-                if (target_step is None and args.stop_at_td_m is not None and m["pr_pct"] >= 100.0
-                        and m["td_m"] <= args.stop_at_td_m):  # fmt: skip
-                    target_step, target_s = global_step, elapsed
-            rows.append(row)
-            _log(writer, row, global_step)
-            write_text_atomic(run_dir / "progress.csv", _csv(rows))
-            if progress is not None:
-                progress.update(1)
-                progress.set_postfix_str(_postfix(row, best_eval))
-            if (iteration + 1) % args.checkpoint_every == 0 or last:
-                save_checkpoint(iteration + 1)
-            if (target_step is not None and args.stop_at_td_m is not None) or out_of_time:
-                save_checkpoint(iteration + 1)
+
+def progress_row(
+    run: Run, learner: Learner, counters: Counters, rollout: RolloutStats, infos: list[PPOLossInfo],
+    advantages: np.ndarray, returns: np.ndarray, shaping_weight: float,
+) -> dict[str, float]:  # fmt: skip
+    """The iteration's CSV / TensorBoard row (CleanRL's names), pooled over ranks."""
+    world = run.world
+    values = world.gather_agents(run.buffer.values, run.agent_offset, run.total_agents)  # [T, N_global]
+    returns = world.gather_agents(returns, run.agent_offset, run.total_agents)
+    var_y = np.var(returns)
+    explained_var = math.nan if var_y == 0 else float(1 - np.var(returns - values) / var_y)
+    elapsed = counters.wall_offset + time.time() - run.start_time
+    row: dict[str, float] = {
+        "iteration": counters.iteration + 1, "global_step": counters.global_step, "wall_s": elapsed,
+        "charts/learning_rate": learner.optimizer.param_groups[0]["lr"],
+        "charts/shaping_weight": shaping_weight,
+        "charts/SPS": counters.global_step / max(elapsed, 1e-9),
+    }  # fmt: skip
+    for name in ("value_loss", "policy_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac"):
+        row[f"losses/{name}"] = float(np.mean([getattr(i, name) for i in infos]))
+    row["losses/explained_variance"] = explained_var
+    terms = world.all_sum(rollout.term_sums)
+    for name, total in zip(REWARD_TERMS, terms, strict=True):
+        row[f"reward/{name}"] = float(total / run.batch_size)  # mean per agent-step
+    ret_sum, len_sum, served_sum, dist_sum, count = world.all_sum(rollout.episodes)
+    if count:
+        row["charts/episodic_return"] = float(ret_sum / count)
+        row["charts/episodic_length"] = float(len_sum / count)
+        row["charts/service_rate"] = float(served_sum / count)
+        row["charts/episodic_distance_m"] = float(dist_sum / count)
+    return row
+
+
+def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[str, float]) -> bool:
+    """Rank 0: fly the greedy policy, add eval/* to the row, keep the best; True when it is a new best."""
+    m = evaluate(GreedyPolicy(learner.net, learner.normalizer, run.device), run.eval_cfg).as_dict()
+    row.update({f"eval/{k}": v for k, v in m.items()})
+    target = run.args.stop_at_td_m
+    if counters.target_step is None and target is not None and m["pr_pct"] >= 100.0 and m["td_m"] <= target:
+        counters.target_step, counters.target_s = counters.global_step, row["wall_s"]
+    if counters.best_eval and _score(m) >= _score(counters.best_eval):
+        return False
+    counters.best_eval, counters.best_step = m, counters.global_step
+    return True
+
+
+# ---- the loop --------------------------------------------------------------------------------------------------
+
+
+def train(
+    args: TrainArgs,
+    env_config: EnvConfig | None = None,
+    on_iteration: Callable[[int, torch.nn.Module], None] | None = None,
+) -> TrainResult:
+    """Train; ``env_config`` replaces the named scenario (e.g. a user's own map or instance). Under torchrun
+    every rank calls this; ``on_iteration(iteration, net)`` runs on every rank after each update (tests)."""
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    world, device = World.from_env(args.device, args.backend)
+    run = make_run(args, env_config, world, device)
+    learner = make_learner(run)
+    counters, rows = start(run, learner)
+    if counters.iteration >= run.num_iterations:
+        if world.is_main:
+            print(f"{run.folder} is finished ({counters.iteration} of {run.num_iterations} iterations, "
+                  f"{counters.global_step:,} agent-steps); raise --total-timesteps to train it further")  # fmt: skip
+        return _result(run, counters, rows, interrupted=False)
+    if args.resume and world.is_main:
+        print(f"resumed {run.folder} at iteration {counters.iteration}, step {counters.global_step:,} "
+              "(envs restart their episodes)")  # fmt: skip
+    log = Logger(run, counters, resumed=args.resume) if world.is_main else None
+    snapshot = capture(run, learner, counters) if world.is_main else None
+    try:
+        for iteration in range(counters.iteration, run.num_iterations):
+            shaping_weight = set_schedules(run, learner, iteration)
+            rollout = collect_rollout(run, learner)
+            advantages, returns = compute_advantages(run, learner)
+            infos = ppo_update(run, learner, advantages, returns)
+            counters.global_step += run.batch_size
+            if on_iteration is not None:
+                on_iteration(iteration, learner.net)
+            row = progress_row(run, learner, counters, rollout, infos, advantages, returns, shaping_weight)
+            out_of_time = args.max_wall_s is not None and time.time() - run.start_time >= args.max_wall_s
+            last = world.broadcast_flag(iteration == run.num_iterations - 1 or out_of_time)
+            new_best = False
+            if world.is_main and ((args.eval_every and (iteration + 1) % args.eval_every == 0) or last):
+                new_best = evaluate_greedy(run, learner, counters, row)
+            counters.iteration = iteration + 1
+            stop = world.broadcast_flag(last or (counters.target_step is not None and args.stop_at_td_m is not None))
+            if log is not None:
+                rows.append(row)
+                log.write(rows, counters.best_eval)
+                snapshot = capture(run, learner, counters)
+                if new_best:
+                    snapshot.save(run.folder / "best.pt")
+                if stop or counters.iteration % args.checkpoint_every == 0:
+                    snapshot.save(run.folder / "last.pt")
+            if stop:
                 break
     except KeyboardInterrupt:
-        interrupted = True
-        save_checkpoint(iteration)  # the current iteration restarts on resume
-        print(f"\ninterrupted: checkpoint saved to {ckpt_path}; continue with --resume")
+        if snapshot is not None:  # the state after the last finished iteration: the interrupted one is redone
+            snapshot.save(run.folder / "last.pt")
+            counters = restore_counters(snapshot)
+            rows = [r for r in rows if r["iteration"] <= snapshot.iteration]
+            print(f"\ninterrupted: checkpoint of iteration {snapshot.iteration} saved to {run.folder / 'last.pt'}; "
+                  "continue with --resume")  # fmt: skip
+        return _result(run, counters, rows, interrupted=True)
     finally:
-        if progress is not None:
-            progress.close()
-        if writer is not None:
-            writer.close()
+        if log is not None:
+            log.close()
+    world.barrier()
+    return _result(run, counters, rows, interrupted=False)
 
+
+def restore_counters(ckpt: Checkpoint) -> Counters:
+    best = {k: float(v) for k, v in ckpt.best_eval.items()}
+    return Counters(
+        ckpt.iteration, ckpt.global_step, ckpt.wall_s, best, ckpt.best_step, ckpt.target_step, ckpt.target_s
+    )
+
+
+def _result(run: Run, counters: Counters, rows: list[dict[str, float]], interrupted: bool) -> TrainResult:
     final_eval = {k.removeprefix("eval/"): v for k, v in rows[-1].items() if k.startswith("eval/")} if rows else {}
     return TrainResult(
-        run_dir=run_dir, global_step=global_step, iterations=len(rows), wall_s=wall_offset + time.time() - start_time,
-        final_eval=final_eval, best_eval=best_eval, best_step=best_step, target_reached_step=target_step,
-        target_reached_s=target_s,
+        run_dir=run.folder, global_step=counters.global_step, iterations=len(rows),
+        wall_s=counters.wall_offset + time.time() - run.start_time, final_eval=final_eval,
+        best_eval=counters.best_eval, best_step=counters.best_step, target_reached_step=counters.target_step,
+        target_reached_s=counters.target_s,
         losses=[{k: v for k, v in r.items() if k.startswith("losses/")} for r in rows], interrupted=interrupted,
+        rank=run.world.rank,
     )  # fmt: skip
+
+
+class Logger:
+    """Rank 0's progress.csv, TensorBoard events and progress bar. A resumed run's TensorBoard continues after
+    the checkpoint's step: events logged later (iterations trained again) are purged, its own are kept."""
+
+    def __init__(self, run: Run, counters: Counters, resumed: bool) -> None:
+        self.folder, self.writer = run.folder, None
+        if run.args.tensorboard:
+            from torch.utils.tensorboard import SummaryWriter
+
+            purge = counters.global_step + 1 if resumed else None
+            self.writer = SummaryWriter(str(run.folder / "tb"), purge_step=purge)
+            self.writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(
+                f"|{k}|{v}|" for k, v in dataclasses.asdict(run.args).items()))  # fmt: skip
+        self.bar = _progress(run.args.progress, run.num_iterations, counters.iteration)
+
+    def write(self, rows: list[dict[str, float]], best: dict[str, float]) -> None:
+        row = rows[-1]
+        _log(self.writer, row, int(row["global_step"]))
+        write_text_atomic(self.folder / "progress.csv", _csv(rows))
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix_str(_postfix(row, best))
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        if self.writer is not None:
+            self.writer.close()
 
 
 def _tensor(x: np.ndarray | None, device: torch.device) -> torch.Tensor | None:
@@ -519,7 +908,8 @@ def _csv(rows: list[dict[str, float]]) -> str:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=keys, lineterminator="\n")
     writer.writeheader()
-    writer.writerows(rows)
+    # counters stay integers when a resumed run writes back the rows it read (as floats)
+    writer.writerows({**r, **{k: int(r[k]) for k in ("iteration", "global_step") if k in r}} for r in rows)
     return buffer.getvalue()
 
 
@@ -535,26 +925,35 @@ def load_policy(
     path: str | Path, device: str = "cpu", env_config: EnvConfig | None = None
 ) -> tuple[GreedyPolicy, TrainArgs]:
     """A greedy policy and the training arguments from a checkpoint written by :func:`train` (pass the same
-    ``env_config`` when it was trained on one)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"checkpoint {path} does not exist; train one with `python train/ppo.py`.")
-    ckpt = torch.load(path, map_location=device, weights_only=False)
-    fields = {f.name for f in dataclasses.fields(TrainArgs)}
-    saved = {k: v for k, v in ckpt["args"].items() if k in fields}
-    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
-    args = TrainArgs(**saved)
+    ``env_config`` when it was trained on one). Loads with ``weights_only=True``: a foreign or pickle-only
+    file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
+    ckpt = Checkpoint.load(path, map_location=device)
+    args = ckpt.train_args()
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
     venv = VectorEnv(make_env_config(base, args, training=False), num_envs=1)
-    net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt["net_config"]))
-    net.load_state_dict(ckpt["model"])
+    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    ckpt.check_matches(None, shapes)
+    net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt.net_config)).to(device)
+    net.load_state_dict(ckpt.model)
     net.eval()
     normalizer = None
-    if ckpt["obs_normalizer"] is not None:
-        shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    if ckpt.obs_normalizer is not None:
         normalizer = ObservationNormalizer(shapes)
-        normalizer.load_state_dict(ckpt["obs_normalizer"])
+        normalizer.load_state_dict(ckpt.obs_normalizer)
     return GreedyPolicy(net, normalizer, torch.device(device)), args
 
 
-__all__ = ["GreedyPolicy", "TrainArgs", "TrainResult", "evaluate", "load_policy", "read_progress", "train"]
+__all__ = [
+    "Checkpoint",
+    "GreedyPolicy",
+    "TrainArgs",
+    "TrainResult",
+    "collect_rollout",
+    "compute_advantages",
+    "evaluate",
+    "load_policy",
+    "ppo_update",
+    "read_progress",
+    "train",
+    "upgrade_checkpoint",
+]
