@@ -45,7 +45,7 @@ ready || { echo "FAILED: cannot import uamfleet's dependencies (see this script'
 CUDA=$("$PY" -c "import torch; print(int(torch.cuda.is_available()))")
 "$PY" -c "import torch, numpy, numba; print('torch', torch.__version__, 'numpy', numpy.__version__, 'numba',
 numba.__version__, 'cuda', torch.cuda.get_device_name(0) if torch.cuda.is_available() else None)"
-echo "python $PY, $(nproc) CPU cores, CUDA available: $CUDA"
+echo "python $PY, $(nproc --all) CPU cores (nproc alone obeys OMP_NUM_THREADS=1), CUDA available: $CUDA"
 command -v nvidia-smi >/dev/null && nvidia-smi -L
 FAILED=0
 

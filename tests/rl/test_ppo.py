@@ -89,8 +89,9 @@ ONE_PASSENGER = small_config(requests=(Request(0, (350.0, 150.0), (350.0, 350.0)
 
 
 def test_two_short_cpu_runs_with_one_seed_give_identical_losses(tmp_path):
-    a = train(tiny_args(tmp_path / "a", seed=3), env_config=ONE_PASSENGER)
-    b = train(tiny_args(tmp_path / "b", seed=3), env_config=ONE_PASSENGER)
+    # On the CPU explicitly: CUDA kernels may reduce in another order run to run (seen on an H200: 1e-9 apart).
+    a = train(tiny_args(tmp_path / "a", seed=3, device="cpu"), env_config=ONE_PASSENGER)
+    b = train(tiny_args(tmp_path / "b", seed=3, device="cpu"), env_config=ONE_PASSENGER)
     assert a.losses and a.losses == b.losses
     c = train(tiny_args(tmp_path / "c", seed=4), env_config=ONE_PASSENGER)
     assert c.losses != a.losses
