@@ -1,4 +1,4 @@
-"""Yardstick policies: exact and classic planners (one taxi), a greedy fleet dispatcher, and a policy factory."""
+"""Yardstick policies: raster and step-level planners (one taxi), a greedy fleet dispatcher, and a policy factory."""
 
 from __future__ import annotations
 
@@ -6,24 +6,26 @@ from typing import Any
 
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.baselines.step_planner import STEP_PLANNERS, StepPlannerPolicy
 from uamfleet.rollout import RandomPolicy
 
-POLICIES: tuple[str, ...] = (*PLANNERS, "greedy", "random")
+POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", "random")
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
 
 
 def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
-    """A policy by name: a single-taxi planner (:data:`PLANNERS`), the greedy fleet dispatcher, or random.
+    """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), the greedy fleet
+    dispatcher, or random.
 
     Fly a planner with :func:`planner_env_overrides` applied to its config (one seat for CPTSP, SINR ignored for
     the straight line)."""
-    if name in PLANNERS:
+    if name in PLANNERS or name in STEP_PLANNERS:
         if num_taxis != 1:
             raise ValueError(
                 f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use --policy greedy "
                 "or --policy random for a fleet, or --num-taxis 1."
             )
-        return PlannerPolicy(name)
+        return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
     if name == "greedy":
         return GreedyFleetPolicy()
     if name == "random":
@@ -31,4 +33,13 @@ def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
 
 
-__all__ = ["PLANNERS", "POLICIES", "GreedyFleetPolicy", "PlannerPolicy", "make_policy", "planner_env_overrides"]
+__all__ = [
+    "PLANNERS",
+    "POLICIES",
+    "STEP_PLANNERS",
+    "GreedyFleetPolicy",
+    "PlannerPolicy",
+    "StepPlannerPolicy",
+    "make_policy",
+    "planner_env_overrides",
+]
