@@ -111,6 +111,8 @@ def test_lower_bound_by_hand():
     # two passengers on a line, one seat: 0 -> P0 (1000 -> 2000) -> P1 (2000 -> 3000): 900 + 800 + 0 + 800
     stops = np.array([[1000.0, 0.0], [2000.0, 0.0], [2000.0, 0.0], [3000.0, 0.0]])
     assert lower_bound_m(np.zeros(2), stops, 1, 100.0, 100.0) == 2500.0
+    # each leg is whole steps: 1050 - 100 -> 1000, then 350 - 200 -> 200 (the sum rounded once would be 1100)
+    assert lower_bound_m(np.zeros(2), np.array([[1050.0, 0.0], [1050.0, 350.0]]), 2, 100.0, 100.0) == 1200.0
 
 
 @pytest.mark.slow

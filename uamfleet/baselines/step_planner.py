@@ -26,8 +26,8 @@ beat the best complete plan (``moves * step_m + h`` with the full slack) or at t
 **The lower bound** (:func:`lower_bound_m`) is an exact DP over every stop order (precedence, seats) of
 straight-line legs between the discs of radius ``radius_m`` around the stops: any flight that delivers everyone
 passes within the radius of each stop in some such order, and a straight line is never longer than a flown
-path, so the DP value is below every tour; TD is a whole number of steps, so it is rounded up to one. It ignores
-SINR, so it is loose where the threshold forces detours.
+path; the moves between two consecutive stops are whole steps, so each leg is rounded up to whole steps. It
+ignores SINR, so it is loose where the threshold forces detours.
 """
 
 from __future__ import annotations
@@ -104,12 +104,15 @@ def _codes(num_pax: int) -> np.ndarray:
     return np.array(np.unravel_index(np.arange(3**num_pax), (3,) * num_pax)).T.copy()
 
 
-def remaining_tables(stop_dist_m: np.ndarray, seats: int, leg_slack_m: float) -> tuple[np.ndarray, np.ndarray]:
+def remaining_tables(
+    stop_dist_m: np.ndarray, seats: int, leg_slack_m: float, step_m: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """DP over the stops still to serve (stop 2i = origin of i, 2i + 1 = its destination).
 
     Returns ``next_cost`` [3^P, 2P]: for a state code and a stop s that may be served next, the least length
     of the rest of the tour after s (legs ``max(D - leg_slack_m, 0)``), and inf where s may not be next; and
     ``after`` [3^P, 2P]: the code once s is served (-1 where not allowed). Codes: sum phase_i * 3^(P-1-i).
+    With ``step_m``, every leg is rounded up to whole steps (a leg between two stops is flown in whole moves).
     """
     num_stops = stop_dist_m.shape[0]
     num_pax = num_stops // 2
@@ -126,6 +129,8 @@ def remaining_tables(stop_dist_m: np.ndarray, seats: int, leg_slack_m: float) ->
             elif ph[i] == 1:
                 after[code, 2 * i + 1] = code + weights[i]
     legs = np.maximum(stop_dist_m - leg_slack_m, 0.0)
+    if step_m is not None:
+        legs = step_m * np.ceil(legs / step_m - 1e-9)
 
     @functools.cache
     def rest(code: int, s: int) -> float:  # least length after serving s, the state now being `code`
@@ -153,13 +158,15 @@ def lower_bound_m(start_m: np.ndarray, stops_m: np.ndarray, seats: int, radius_m
 
     ``stops_m`` [2P, 2]: origin and destination of each passenger in turn. Exact DP over the stop orders
     (precedence, ``seats``) of straight-line legs between discs of ``radius_m`` around the stops (the first leg
-    from the start point to the first disc), rounded up to whole steps of ``step_m``."""
+    from the start point to the first disc), each leg rounded up to whole steps of ``step_m``: stops are served
+    at step endpoints, so the moves between two consecutive stops are a whole number, each at most ``step_m``
+    long."""
     stops_m = np.asarray(stops_m, float)
     dist = np.linalg.norm(stops_m[:, None] - stops_m[None], axis=-1)
-    next_cost, _ = remaining_tables(dist, seats, 2.0 * radius_m)
+    next_cost, _ = remaining_tables(dist, seats, 2.0 * radius_m, step_m)
     first = np.maximum(np.linalg.norm(stops_m - np.asarray(start_m, float), axis=-1) - radius_m, 0.0)
-    bound = float(np.min(first + next_cost[0]))
-    return step_m * math.ceil(bound / step_m - 1e-9)
+    first = step_m * np.ceil(first / step_m - 1e-9)
+    return float(np.min(first + next_cost[0]))
 
 
 def instance_lower_bound_m(cfg: EnvConfig) -> float:
