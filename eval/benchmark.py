@@ -63,6 +63,8 @@ class Args:
     feasibility: str = "endpoint_block"
     fixed: bool = False
     """also the paper's fixed scenarios (Berlin P4 -7..-3 dB, Detroit P5) under both feasibility rules"""
+    fixed_rules: tuple[str, ...] = ("endpoint_block", "segment_raster")
+    fixed_scenarios: tuple[str, ...] = tuple(s for s, _ in FIXED)
     methods: tuple[str, ...] = METHODS
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
@@ -226,9 +228,10 @@ def tasks(args: Args) -> list[Task]:
         for seed in split_seeds(args.split, args.count, args.first)
     ]
     if args.fixed:
-        for rule in ("endpoint_block", "segment_raster"):
+        for rule in args.fixed_rules:
             for scenario, thresholds in FIXED:
-                out += [("fixed", scenario, None, t, rule) for t in thresholds]
+                if scenario in args.fixed_scenarios:
+                    out += [("fixed", scenario, None, t, rule) for t in thresholds]
     return out
 
 
@@ -275,7 +278,9 @@ def main(args: Args) -> list[dict[str, Any]]:
             print(f"[{i + 1}/{len(jobs)}] {result[0]['instance']} {result[0]['feasibility']}: "
                   + "  ".join(f"{r['method']} {r['td_m']:.0f}" for r in result)
                   + (f"  (LB {best['lower_bound_m']:.0f})" if best else ""), flush=True)  # fmt: skip
-            if (i + 1) % 10 == 0 and i + 1 < len(jobs):  # partial results survive an interrupted run
+            if ((i + 1) % 10 == 0 or len(jobs) < 50) and i + 1 < len(
+                jobs
+            ):  # partial results survive an interrupted run
                 write_outputs(args, rows, time.perf_counter() - start, f" (partial: {i + 1} of {len(jobs)} instances)")
     write_outputs(args, rows, time.perf_counter() - start)
     return rows
