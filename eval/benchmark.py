@@ -65,6 +65,8 @@ class Args:
     """also the paper's fixed scenarios (Berlin P4 -7..-3 dB, Detroit P5) under both feasibility rules"""
     fixed_rules: tuple[str, ...] = ("endpoint_block", "segment_raster")
     fixed_scenarios: tuple[str, ...] = tuple(s for s, _ in FIXED)
+    fixed_thresholds: tuple[float, ...] = ()
+    """only these thresholds of the fixed scenarios (default: all)"""
     methods: tuple[str, ...] = METHODS
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
@@ -231,7 +233,8 @@ def tasks(args: Args) -> list[Task]:
         for rule in args.fixed_rules:
             for scenario, thresholds in FIXED:
                 if scenario in args.fixed_scenarios:
-                    out += [("fixed", scenario, None, t, rule) for t in thresholds]
+                    chosen = [t for t in thresholds if not args.fixed_thresholds or t in args.fixed_thresholds]
+                    out += [("fixed", scenario, None, t, rule) for t in chosen]
     return out
 
 
