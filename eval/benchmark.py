@@ -35,6 +35,7 @@ from uamfleet.baselines.step_planner import (
     instance_lower_bound_m,
 )
 from uamfleet.config import EnvConfig
+from uamfleet.env.generator import InfeasibleInstanceError
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import episode_metrics
@@ -116,7 +117,11 @@ Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int]
 def run_instance(job: Job) -> list[dict[str, Any]]:
     """Every method on one instance (one worker process)."""
     task, methods, checkpoint, beams, replan_beam = job
-    cfg = _config(task)
+    try:
+        cfg = _config(task)
+    except InfeasibleInstanceError as err:  # e.g. a paper stop below the threshold under the strict rule
+        print(f"skipped {task[1]} at {task[3]} dB ({task[4]}): {err}", flush=True)
+        return []
     label, source, seed, _, rule = task
     name = f"{source}@{cfg.sinr_min_db:g}dB" if label == "fixed" else str(seed)
     bound = instance_lower_bound_m(cfg)
@@ -277,6 +282,8 @@ def main(args: Args) -> list[dict[str, Any]]:
     with mp.get_context("spawn").Pool(args.jobs) as pool:
         for i, result in enumerate(pool.imap(run_instance, jobs)):
             rows += result
+            if not result:
+                continue
             best = next((r for r in result if r["method"] == "best_known"), None)
             print(f"[{i + 1}/{len(jobs)}] {result[0]['instance']} {result[0]['feasibility']}: "
                   + "  ".join(f"{r['method']} {r['td_m']:.0f}" for r in result)
