@@ -48,7 +48,7 @@ PAPER_ABLATION_PR = {"berlin": {"le": 25, "de": 75, "de_msfea": 100, "full": 100
                      "detroit": {"le": 20, "de": 80, "de_msfea": 100, "full": 100}}  # fmt: skip
 PAPER_ABLATION_STATUS = {"berlin": {"de_msfea": "Failure (PR 100 but flagged failed)", "full": "Success, TD 6200"},
                          "detroit": {"de_msfea": "Success, TD 36160", "full": "Success, TD 28160"}}  # fmt: skip
-NEAR_OPT = 1.05  # "within 5 % of the clairvoyant optimum"
+NEAR_OPT = 1.05  # "within 5 % of raster_opt" (a raster planner, not an optimum of the env's moves)
 
 
 @dataclass(frozen=True)

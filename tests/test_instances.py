@@ -33,6 +33,8 @@ def test_instances_are_deterministic_valid_and_within_the_documented_ranges():
     assert [_summary(c) for c in first] == [_summary(c) for c in again]
     assert len({_summary(c) for c in first}) == len(seeds)  # different seeds, different instances
     assert _summary(make_instance("berlin", TRAIN_SEEDS[0])) not in {_summary(c) for c in first}
+    padded = make_instance("berlin", seeds[0], max_passengers=6)  # a padded passenger axis, same instance
+    assert padded.num_passengers == 6 and _summary(padded) == _summary(first[0])
     for cfg in first:
         assert cfg.sinr_min_db in fam.thresholds_db and cfg.num_taxis == 1
         assert fam.min_passengers <= len(cfg.requests) <= fam.max_passengers
