@@ -35,7 +35,8 @@ from uamfleet.baselines.step_planner import (
     instance_lower_bound_m,
 )
 from uamfleet.config import EnvConfig
-from uamfleet.env.generator import InfeasibleInstanceError
+from uamfleet.env.generator import InfeasibleInstanceError, validate_instance
+from uamfleet.env.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import replace_section, write_text_atomic
 from uamfleet.metrics import episode_metrics
@@ -119,6 +120,7 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     task, methods, checkpoint, beams, replan_beam = job
     try:
         cfg = _config(task)
+        validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
     except InfeasibleInstanceError as err:  # e.g. a paper stop below the threshold under the strict rule
         print(f"skipped {task[1]} at {task[3]} dB ({task[4]}): {err}", flush=True)
         return []
