@@ -82,7 +82,7 @@ def evaluate(
     for planner in PLANNERS:
         traj, policy, cfg = fly(scenario, threshold, planner)
         runs.append((planner, traj, cfg, policy.dist_m))
-        if planner == "opt":
+        if planner == "raster_opt":
             stop_dist = policy.dist_m  # shortest feasible paths between this instance's stops
     for name, learned_policy, overrides in learned:
         cfg = uamfleet.make_config(scenario, **{**overrides, "sinr_min_db": threshold})

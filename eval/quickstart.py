@@ -67,8 +67,8 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
         f"MSHA-PPO {args.variant} (ours)": fly(
             policy, args.sinr_min_db, time_limit_steps=trained.time_limit_steps, **rule
         ),
-        "REPLAN (ours)": fly(PlannerPolicy("replan"), args.sinr_min_db, **rule),
-        "clairvoyant OPT (ours)": fly(PlannerPolicy("opt"), args.sinr_min_db, **rule),
+        "raster_replan (ours)": fly(PlannerPolicy("raster_replan"), args.sinr_min_db, **rule),
+        "raster_opt (ours)": fly(PlannerPolicy("raster_opt"), args.sinr_min_db, **rule),
     }
     paper = PAPER_TABLE_II["berlin"]["MSHA-RL"].get(args.sinr_min_db)
     print(

@@ -1,12 +1,12 @@
 """Fly one episode and write it as a 3-D page (meshcat, one offline HTML file), optionally with PNG figures.
 
-    .venv/bin/python -m eval.render --scenario berlin_p4 --policy replan --out berlin.html --png
+    .venv/bin/python -m eval.render --scenario berlin_p4 --policy raster_replan --out berlin.html --png
     .venv/bin/python -m eval.render --scenario berlin_random --policy greedy --num-taxis 4 --out fleet.html
 
-``--policy``: a planner (single taxi: cptsp, pdpcc, replan, opt, straight), ``greedy`` (a simple fleet
-dispatcher, below) or ``random``. ``--png`` also writes ``<out stem>_routes.png`` (the route over the radio map,
-stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along the path over time, with the threshold). Screenshot the
-page with ``scripts/screenshot.sh``.
+``--policy``: a planner (single taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known),
+``greedy`` (a simple fleet dispatcher, below) or ``random``. ``--png`` also writes ``<out stem>_routes.png``
+(the route over the radio map, stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along the path over time, with
+the threshold). Screenshot the page with ``scripts/screenshot.sh``.
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ from uamfleet.viz.strip import plot_sinr_strip
 class Args:
     scenario: str = "berlin_p4"
     """scenario name (one of uamfleet.SCENARIOS)"""
-    policy: str = "replan"
-    """a planner (cptsp, pdpcc, replan, opt, straight: one taxi), greedy (fleet dispatcher) or random"""
+    policy: str = "raster_replan"
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
+    (fleet dispatcher) or random"""
     out: Path = Path("render.html")
     """HTML file to write"""
     png: bool = False

@@ -25,7 +25,8 @@ class Args:
     num_taxis: int | None = None
     """fleet size (default: the scenario's)"""
     policy: str = "random"
-    """a planner (cptsp, pdpcc, replan, opt, straight: one taxi), greedy (fleet dispatcher) or random"""
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
+    (fleet dispatcher) or random"""
     episodes: int = 3
     """number of episodes"""
     seed: int = 0

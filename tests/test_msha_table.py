@@ -44,11 +44,11 @@ def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
                      out_md=md, out_csv=tmp_path / "t.csv"))  # fmt: skip
     assert [r["run"] for r in rows] == [name]
     saved = list(csv.DictReader((tmp_path / "t.csv").open()))
-    assert saved[0]["variant"] == "le" and float(saved[0]["opt_td_m"]) == 5100.0  # OPT at -3 dB, endpoint rule
+    assert saved[0]["variant"] == "le" and float(saved[0]["opt_td_m"]) == 5100.0  # raster_opt at -3 dB, endpoint rule
     assert float(saved[0]["total_steps"]) == 64.0
     text = md.read_text()
     assert "hand-written text stays" in text and "<!-- msha_table:begin -->" in text
-    assert "| 1 | le | 1 |" in text and "clairvoyant OPT (ours) | 100 | 5,100 |" in text
+    assert "| 1 | le | 1 |" in text and "raster_opt (ours) | 100 | 5,100 |" in text
     assert "**MSHA-PPO le" not in text  # an ablation run is not a row of the main table
 
 

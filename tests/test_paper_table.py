@@ -19,8 +19,10 @@ def test_quick_table_with_a_checkpoint(tmp_path: Path) -> None:
               checkpoints=(result.run_dir / "best.pt",)))  # fmt: skip
     rows = list(csv.DictReader((tmp_path / "t.csv").open()))
     ours = {r["method"]: r for r in rows if r["source"] == "ours"}
-    assert set(ours) == {"cptsp", "pdpcc", "replan", "opt", "straight", "msha-full"}
-    assert float(ours["opt"]["pr_pct"]) == 100.0 and float(ours["opt"]["td_m"]) <= float(ours["cptsp"]["td_m"])
+    assert set(ours) == {"cptsp", "pdpcc", "raster_replan", "raster_opt", "straight", "msha-full"}
+    assert float(ours["raster_opt"]["pr_pct"]) == 100.0 and float(ours["raster_opt"]["td_m"]) <= float(
+        ours["cptsp"]["td_m"]
+    )
     assert {r["method"] for r in rows if r["source"] == "paper"} >= {"CPTSP", "PDPCC", "MSHA-RL"}
     text = md.read_text()
     assert "hand-written text stays" in text and "<!-- paper_table:begin -->" in text and "msha-full" in text

@@ -44,7 +44,7 @@ def fly(cfg, planner):
 def test_planner_flies_through_the_gap_and_delivers():
     # start (150, 150), passenger from (150, 350) to (150, 850): the direct line crosses the wall at y ~ 650
     cfg = small_config(WALL_WITH_GAP, requests=(Request(0, (150.0, 350.0), (150.0, 850.0)),), time_limit_steps=60)
-    traj, _ = fly(cfg, "opt")
+    traj, _ = fly(cfg, "raster_opt")
     assert traj.terminated and traj.episode["delivered"] == 1
     path = traj.positions_m[0]
     assert cfg.radio.block_map(100.0).feasible(path, -3.0).all()  # never in a wall block
@@ -71,7 +71,7 @@ def test_offline_plans_append_late_requests_and_replan_reoptimises():
 
 
 def test_replan_replans_when_the_late_request_appears_on_berlin():
-    traj, policy = fly(uamfleet.make_config("berlin_p4"), "replan")
+    traj, policy = fly(uamfleet.make_config("berlin_p4"), "raster_replan")
     assert len(policy.planned) == 2  # the initial plan and one re-plan when P4 was released at step 5
     assert traj.terminated and traj.episode["delivered"] == 4
 
@@ -90,8 +90,8 @@ def test_berlin_planners_serve_everyone_and_opt_is_fastest(threshold):
             assert on_board.max() == 1
         if planner != "straight":  # flown under the SINR rule: every visited block is flyable
             assert cfg.radio.block_map(100.0).feasible(traj.positions_m[0], threshold).all()
-    for planner in ("cptsp", "pdpcc", "replan"):
-        assert completion["opt"] <= completion[planner], (planner, completion)
+    for planner in ("cptsp", "pdpcc", "raster_replan"):
+        assert completion["raster_opt"] <= completion[planner], (planner, completion)
 
 
 def test_exact_stop_length_and_service_order():
@@ -109,7 +109,7 @@ def test_planner_bad_input():
     with pytest.raises(ValueError, match=r"unknown planner 'dijkstra'; choose one of"):
         PlannerPolicy("dijkstra")
     with pytest.raises(ValueError, match=r"flies one taxi in one env; got num_envs=1, num_taxis=2"):
-        PlannerPolicy("opt").reset(VectorEnv(uamfleet.make_config("berlin_p4", num_taxis=2), 1, autoreset=False))
+        PlannerPolicy("raster_opt").reset(VectorEnv(uamfleet.make_config("berlin_p4", num_taxis=2), 1, autoreset=False))
 
 
 CORNER_ONLY = """
@@ -130,7 +130,7 @@ def test_stop_reachable_only_through_a_corner_is_named_with_the_threshold():
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
     with pytest.raises(UnreachableStopError, match=r"origin of passenger 0 \(P1\).*sinr_min_db=-4 dB"):
-        PlannerPolicy("opt").reset(env)
+        PlannerPolicy("raster_opt").reset(env)
 
 
 def test_greedy_fleet_serves_a_random_berlin_demand():

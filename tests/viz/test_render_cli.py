@@ -13,13 +13,13 @@ from eval.render import Args, main
 
 def test_planner_on_berlin_p4_writes_page_and_figures(tmp_path: Path) -> None:
     out = tmp_path / "berlin.html"
-    written = main(Args(scenario="berlin_p4", policy="replan", out=out, png=True))
+    written = main(Args(scenario="berlin_p4", policy="raster_replan", out=out, png=True))
     assert written["html"] == out
     assert set(written) == {"html", "routes", "sinr"}
     for path in written.values():
         assert path.exists() and path.stat().st_size > 10_000, path
     html = out.read_text(encoding="utf-8")
-    assert "berlin_p4 · replan · 1 taxi · γ_T = -3 dB" in html
+    assert "berlin_p4 · raster_replan · 1 taxi · γ_T = -3 dB" in html
     assert not re.search(r"<script[^>]*\bsrc\s*=", html)
     for name in ("routes", "sinr"):
         assert written[name].parent == tmp_path and written[name].name.startswith("berlin_")
@@ -36,7 +36,7 @@ def test_fleet_with_the_greedy_dispatcher(tmp_path: Path) -> None:
 
 def test_planners_fly_one_taxi(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="single-taxi planner"):
-        main(Args(scenario="berlin_p4", policy="replan", num_taxis=2, out=tmp_path / "x.html"))
+        main(Args(scenario="berlin_p4", policy="raster_replan", num_taxis=2, out=tmp_path / "x.html"))
     with pytest.raises(ValueError, match="unknown --policy"):
         main(Args(policy="ppo", out=tmp_path / "x.html"))
     assert not (tmp_path / "x.html").exists()

@@ -1,4 +1,4 @@
-"""Classic planners as policies: a stop plan, flown through the same environment as every other policy.
+"""Raster planners as policies: a stop plan on raster paths, flown through the same environment as every policy.
 
 Planners (the paper's baseline code was never published; these follow its text):
 
@@ -6,12 +6,14 @@ Planners (the paper's baseline code was never published; these follow its text):
   requests appended in release order.
 - ``pdpcc``: capacity 2 pickup-and-delivery with precedence, best sequence of the requests known at the
   start, late requests appended, never re-planned.
-- ``replan``: exact re-optimisation from the current state (position, passengers on board, waiting ones)
-  whenever a request is released.
-- ``opt``: clairvoyant: every request and its release time known at the start (exact); the lower bound for
-  every online method flown under the same rules.
-- ``straight``: a given stop order (default: ``opt``'s) flown in straight lines, ignoring SINR (flown with
-  the threshold switched off; measure its connectivity against the real threshold).
+- ``raster_replan``: the best stop order re-solved from the current state (position, passengers on board,
+  waiting ones) whenever a request is released.
+- ``raster_opt``: clairvoyant: every request and its release time known at the start; the stop order is
+  exact **for raster paths**, but the tour flown in the env's 16-heading steps is *not* the optimum of the
+  env's own moves, nor a lower bound: learned policies and the step-level search
+  (:mod:`uamfleet.baselines.step_planner`: ``best_known``, with a valid lower bound) fly shorter tours.
+- ``straight``: a given stop order (default: ``raster_opt``'s) flown in straight lines, ignoring SINR (flown
+  with the threshold switched off; measure its connectivity against the real threshold).
 
 "Best" means the earliest completion (makespan), with travel times from shortest feasible paths on the
 raster graph of the env's flyable cells (:mod:`uamfleet.paths.grid_graph`) at the env's speed.
@@ -36,7 +38,7 @@ from uamfleet.paths import DistanceFields, StopPaths
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import HIDDEN, ON_BOARD, WAITING
 
-PLANNERS: tuple[str, ...] = ("cptsp", "pdpcc", "replan", "opt", "straight")
+PLANNERS: tuple[str, ...] = ("cptsp", "pdpcc", "raster_replan", "raster_opt", "straight")
 
 NO_SINR_DB = -1000.0
 """Threshold that makes every cell flyable: the straight-line baseline flies with it."""
@@ -88,7 +90,8 @@ def offline_plan(
 def clairvoyant_plan(
     dist_m: np.ndarray, speed_mps: float, release_s: np.ndarray, capacity: int
 ) -> tuple[Plan, list[tuple[int, str]]]:
-    """OPT: every request and its release time known at the start; the earliest completion (exact)."""
+    """raster_opt: every request and its release time known at the start; the earliest completion on raster
+    paths (exact for that model, not for the env's moves)."""
     return _sub_plan(dist_m, speed_mps, release_s, list(range(len(release_s))), capacity, wait=True)
 
 
@@ -154,7 +157,7 @@ class PlannerPolicy:
         self.plan = _TaxiPlan(self._initial_plan())
 
     def _initial_plan(self) -> list[tuple[int, str]]:
-        if self.planner in ("cptsp", "pdpcc", "replan"):
+        if self.planner in ("cptsp", "pdpcc", "raster_replan"):
             capacity = 1 if self.planner == "cptsp" else 2
             plan, stops = offline_plan(self.dist_m, self.speed_mps, self.release_s, capacity)
         elif self.order is not None:
@@ -186,7 +189,7 @@ class PlannerPolicy:
     def _on_release(self, passengers: list[int]) -> None:
         if self.planner in ("cptsp", "pdpcc"):
             self.plan.stops += append_late(passengers, self.release_s)
-        elif self.planner == "replan":
+        elif self.planner == "raster_replan":
             self.plan.stops = self._replan()
 
     def _replan(self) -> list[tuple[int, str]]:

@@ -1,4 +1,5 @@
-"""Exact sequencing of one taxi's pick-ups and drop-offs: the core of the CPTSP, PDPCC, REPLAN and OPT planners.
+"""Exact sequencing of one taxi's pick-ups and drop-offs over a stop distance matrix: CPTSP, PDPCC, the raster
+planners' REPLAN and clairvoyant order; exact for the matrix, not for the env's 16-heading moves.
 
 Node indexing: 0 is the taxi's current position; passenger ``i`` (0-based) has origin node ``1 + 2i`` and
 destination node ``2 + 2i``. ``dist_m[a, b]`` is the flight distance from node a to node b (any metric, e.g.

@@ -59,7 +59,8 @@ def render_frame(world: World, state: FleetState, trails_m: np.ndarray, env: int
     return rgba[..., :3].copy()
 
 
-ROUTE_COLOURS = {"opt": "tab:red", "replan": "tab:orange", "pdpcc": "tab:blue", "cptsp": "tab:green",
+ROUTE_COLOURS = {"raster_opt": "tab:red", "raster_replan": "tab:orange", "best_known": "tab:brown",
+                 "replan": "tab:pink", "pdpcc": "tab:blue", "cptsp": "tab:green",
                  "straight": "black", "msha": "tab:purple"}  # fmt: skip
 
 
