@@ -52,6 +52,17 @@ def planner_env_overrides(planner: str) -> dict[str, Any]:
     return overrides.get(planner, {})
 
 
+def require_one_taxi_env(env: VectorEnv, planner: str, policy_class: str) -> None:
+    """What every single-taxi planner checks at ``reset(env)``: one env of one taxi, already reset."""
+    if env.num_envs != 1 or env.num_taxis != 1:
+        raise ValueError(
+            f"planner {planner!r} flies one taxi in one env; got num_envs={env.num_envs}, "
+            f"num_taxis={env.num_taxis}. (Fleet dispatch is not one of these single-taxi baselines.)"
+        )
+    if env.needs_reset:
+        raise RuntimeError(f"reset the env before the planner: {policy_class}.reset(env) reads its instance.")
+
+
 class FlightConfigs(NamedTuple):
     flown: EnvConfig  # the rules the policy flies under
     scored: EnvConfig  # the rules its metrics are read against (the scenario's own threshold and seats)
@@ -125,13 +136,7 @@ class PlannerPolicy:
 
     # ---- episode start -------------------------------------------------------------------------------
     def reset(self, env: VectorEnv) -> None:
-        if env.num_envs != 1 or env.num_taxis != 1:
-            raise ValueError(
-                f"planner {self.planner!r} flies one taxi in one env; got num_envs={env.num_envs}, "
-                f"num_taxis={env.num_taxis}. (Fleet dispatch is not one of these single-taxi baselines.)"
-            )
-        if env.needs_reset:
-            raise RuntimeError("reset the env before the planner: PlannerPolicy.reset(env) reads its instance.")
+        require_one_taxi_env(env, self.planner, type(self).__name__)
         self.env = env
         self.world = env.world
         self.fields = DistanceFields(env.world) if self.planner != "straight" else None

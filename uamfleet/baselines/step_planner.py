@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from uamfleet.baselines.planner_policy import PlannerPolicy, require_one_taxi_env
 from uamfleet.config import NUM_HEADINGS, EnvConfig, RewardConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
@@ -317,8 +318,6 @@ def _backtrack(layers: list[_Layer], depth: int, child: int) -> list[int]:
 
 def raster_opt_actions(cfg: EnvConfig) -> list[int]:
     """The actions ``raster_opt`` flies on ``cfg`` until its last drop-off (a candidate for ``best_known``)."""
-    from uamfleet.baselines.planner_policy import PlannerPolicy
-
     # Flown here rather than with uamfleet.rollout.fly, which sits a layer above the baselines.
     env, policy = VectorEnv(cfg, num_envs=1, autoreset=False), PlannerPolicy("raster_opt")
     obs, _ = env.reset(seed=0)
@@ -350,13 +349,7 @@ class StepPlannerPolicy:
         self.lower_bound_m = math.nan
 
     def reset(self, env: VectorEnv) -> None:
-        if env.num_envs != 1 or env.num_taxis != 1:
-            raise ValueError(
-                f"planner {self.planner!r} flies one taxi in one env; got num_envs={env.num_envs}, "
-                f"num_taxis={env.num_taxis}."
-            )
-        if env.needs_reset:
-            raise RuntimeError("reset the env before the planner: StepPlannerPolicy.reset(env) reads its instance.")
+        require_one_taxi_env(env, self.planner, type(self).__name__)
         self.env = env
         self.search = StepSearch(env.cfg)
         self.plans = []
