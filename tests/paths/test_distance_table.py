@@ -11,7 +11,8 @@ from scipy.sparse import csgraph
 
 import uamfleet
 from uamfleet.env.world import World
-from uamfleet.paths import DistanceFields, DistanceTable, table_for
+from uamfleet.paths import DistanceFields, DistanceTable, graph_for, table_for
+from uamfleet.paths.distance_table import table_graph
 from uamfleet.paths.grid_graph import GridGraph
 
 RES, BLOCK = 25.0, 100.0
@@ -115,3 +116,44 @@ def test_berlin_lookup_against_distance_fields() -> None:
         errors.append(looked_up[both] - exact[both])
     err = np.abs(np.concatenate(errors))
     assert err.mean() <= 8.0 and err.max() <= 80.0, (err.mean(), err.max())
+
+
+def _fine_world(feasibility: str) -> World:
+    """10 m raster, 200 m blocks (20 cells per block side): a wall of blocks x in [200, 400), y < 400, and one
+    bad raster cell at (100, 500)."""
+    from conftest import small_config
+
+    from uamfleet.config import Request
+    from uamfleet.radio import RadioMap
+
+    x, y = np.meshgrid(np.arange(60) * 10.0, np.arange(60) * 10.0, indexing="ij")
+    sinr = np.where((x >= 200) & (x < 400) & (y < 400), -10.0, 0.0)
+    sinr[10, 50] = -10.0
+    radio = RadioMap(sinr_db=sinr, resolution_m=10.0, origin_m=(0.0, 0.0), side_m=600.0, name="fine")
+    cfg = small_config(radio=radio, step_m=200.0, feasibility=feasibility, starts_m=((100.0, 100.0),),
+                       requests=(Request(0, (500.0, 100.0), (500.0, 300.0)),), nc_rule="nanmean")  # fmt: skip
+    return World(cfg)
+
+
+@pytest.mark.parametrize("feasibility", ["endpoint_block", "segment_raster"])
+def test_a_fine_raster_gets_a_coarser_table_graph(feasibility: str) -> None:
+    world = _fine_world(feasibility)
+    graph = table_graph(world)
+    assert graph.resolution_m == pytest.approx(200.0 / 9) and graph.shape == (27, 27)
+    blocked = ~graph.feasible
+    # the wall: coarse cells 9..17 along x, 0..17 along y (each lies in one block)
+    assert blocked[9:18, 0:18].all()
+    # the lone bad raster cell matters only cell by cell: in the coarse cell (4, 22) under segment_raster
+    segment = feasibility == "segment_raster"
+    assert blocked.sum() == 162 + segment and blocked[4, 22] == segment
+    # and the table's distance round the wall stays close to the 10 m field's: a path on the coarse graph keeps
+    # half a coarse cell (11.1 m, not 5 m) off the wall, ~20 m longer round its two corners (855 m -> 886 m)
+    a, b = np.array([100.0, 100.0]), np.array([500.0, 100.0])
+    exact = DistanceFields(world).remaining_m(b, a[None])[0]
+    looked_up = float(table_for(world).distance(a, b))
+    assert exact > 2 * 400 and exact <= looked_up <= 1.05 * exact
+
+
+def test_the_berlin_table_uses_the_exact_metrics_graph() -> None:
+    world = World(uamfleet.make_config("berlin_random"))
+    assert table_for(world).graph is graph_for(world)

@@ -10,8 +10,9 @@ the step and the lookup into numba:
   cell nearest the centre or, when that cell is not flyable, the nearest flyable cell within ``block_m`` (the
   gap counts as a straight piece); a block with none has no paths.
 - **Entries**: ``distance_m[i, j]`` = gap_i + lattice distance on the raster graph of
-  :func:`~uamfleet.paths.graph_for` (16-connected, 10 m cells on the packaged maps) + gap_j, float32; ``inf``
-  where no feasible path joins them. Row i is one Dijkstra from node i (``scipy.sparse.csgraph``).
+  :func:`~uamfleet.paths.graph_for` (16-connected, 10 m cells on the packaged maps; on a raster much finer than
+  the blocks, a coarser one: :func:`table_graph`) + gap_j, float32; ``inf`` where no feasible path joins them.
+  Row i is one Dijkstra from node i (``scipy.sparse.csgraph``).
 - **Rows on demand**: a row is computed the first time a stop needs it (:meth:`DistanceTable.ensure`, called
   when an instance is written), so a fixed instance costs a few Dijkstras and random demand fills the table
   over its first episodes (Berlin, 33 x 33 blocks: 1,089 rows, 4.7 MB, ~30 s in all on one core;
@@ -40,7 +41,7 @@ from numba import njit
 from scipy.sparse import csgraph
 
 from uamfleet.paths.distance_fields import FlightGeometry, graph_for
-from uamfleet.paths.grid_graph import GridGraph
+from uamfleet.paths.grid_graph import GridGraph, feasible_raster
 from uamfleet.radio import RadioMap
 
 _CHUNK = 32  # Dijkstra sources per scipy call: [chunk, nx * ny] float64 rows (~27 MB on Berlin)
@@ -133,8 +134,48 @@ def table_for(world: FlightGeometry) -> DistanceTable:
     tables = _TABLES.setdefault(world.radio, {})
     key = (world.threshold_db, cfg.feasibility, float(world.blocks.block_m))
     if key not in tables:
-        tables[key] = DistanceTable(graph_for(world), float(world.blocks.block_m), world.blocks.shape)
+        tables[key] = DistanceTable(table_graph(world), float(world.blocks.block_m), world.blocks.shape)
     return tables[key]
+
+
+MAX_CELLS_PER_BLOCK = 12
+"""Above this many raster cells per block side, the table is computed on a coarser raster (see :func:`table_graph`)."""
+COARSE_CELLS_PER_BLOCK = 9
+
+
+def table_graph(world: FlightGeometry) -> GridGraph:
+    """The raster graph the table's rows are computed on.
+
+    The world's own graph (:func:`graph_for`, the one ``path_exact`` uses) when a block side holds at most
+    :data:`MAX_CELLS_PER_BLOCK` raster cells (Berlin: 10). On a finer raster (Detroit 3GPP: 10 m cells, 320 m
+    blocks, 1.2 M nodes, ~0.3 s per Dijkstra) a graph of :data:`COARSE_CELLS_PER_BLOCK` cells per block side
+    (odd, so a block centre is a cell centre; 99 k nodes on Detroit), each cell inside one block: flyable under
+    ``endpoint_block`` when its block is, under ``segment_raster`` when every raster cell centred in it is.
+    """
+    res, block_m = float(world.radio.resolution_m), float(world.blocks.block_m)
+    if block_m / res <= MAX_CELLS_PER_BLOCK:
+        return graph_for(world)
+    cell = block_m / COARSE_CELLS_PER_BLOCK
+    side = float(world.blocks.side_m)
+    n = math.ceil(side / cell - 1e-9)
+    axis = (np.arange(n) + 0.5) * cell
+    centres = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1)  # [n, n, 2]
+    inside = np.all(centres <= side, axis=-1)
+    if world.cfg.feasibility == "endpoint_block":
+        feasible = inside & world.blocks.feasible(centres, world.threshold_db)
+    else:
+        fine = feasible_raster(world.radio, world.threshold_db)  # [nx, ny]
+        ox, oy = world.radio.origin_m
+        kx = np.floor((ox + np.arange(fine.shape[0]) * res) / cell).astype(np.intp)
+        ky = np.floor((oy + np.arange(fine.shape[1]) * res) / cell).astype(np.intp)
+        kx2, ky2 = np.meshgrid(kx, ky, indexing="ij")
+        ok = (kx2 >= 0) & (kx2 < n) & (ky2 >= 0) & (ky2 < n)
+        ids = (kx2 * n + ky2)[ok]
+        count = np.bincount(ids, minlength=n * n)
+        count_ok = np.bincount(ids, weights=fine[ok], minlength=n * n)
+        feasible = inside & ((count > 0) & (count_ok == count)).reshape(n, n)
+    label = f"{world.radio.label} at sinr_min_db={world.threshold_db:g} dB, {cell:.3g} m cells"
+    return GridGraph(feasible, cell, origin_m=(cell / 2, cell / 2), label=label)
 
 
 @njit(cache=True, inline="always")
