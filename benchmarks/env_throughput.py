@@ -5,10 +5,18 @@ A step is the full step: dynamics, rewards, observations and action masks (plus 
 not the env's), and the first step (numba compiles on a cold cache) is not timed. Run on one core:
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/env_throughput.py --seconds 3
+
+The shaping cases (issue 12) time the same step with the potential-based shaping term on, per
+``RewardConfig.shaping_metric``, at one (E, A); ``path`` fills its distance table before the timed steps (the
+fill time is printed: a training run pays it once per map and threshold, spread over its first episodes):
+
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/env_throughput.py \
+        --num-envs 64 --num-taxis 4 --shaping-metrics none path path_exact euclidean --no-pettingzoo --cpu-time
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -17,6 +25,7 @@ import tyro
 
 import uamfleet
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
+from uamfleet.paths import table_for
 
 
 @dataclass
@@ -27,6 +36,11 @@ class Args:
     seconds: float = 2.0
     """time each configuration for about this long"""
     pettingzoo_scenario: str = "berlin_p4"
+    shaping_metrics: tuple[str, ...] = ()
+    """also time the step with shaping (weight 50) under each of these metrics ("none": shaping off), at every
+    (E, A) above"""
+    pettingzoo: bool = True
+    """also time the PettingZoo face"""
     cpu_time: bool = False
     """time the core's steps by this thread's CPU time (time.thread_time) instead of the wall clock: on a machine
     shared with other work, time spent descheduled then does not count (caches shared with it still do)"""
@@ -37,9 +51,19 @@ def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.argmax(scores, axis=-1)
 
 
-def bench_core(scenario: str, num_envs: int, num_taxis: int, seconds: float, cpu_time: bool = False) -> float:
+def bench_core(
+    scenario: str, num_envs: int, num_taxis: int, seconds: float, cpu_time: bool = False, shaping: str = "none"
+) -> float:
     clock = time.thread_time if cpu_time else time.perf_counter
-    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis)
+    reward = uamfleet.RewardConfig(shaping=0.0 if shaping == "none" else 50.0)
+    if shaping != "none":
+        reward = dataclasses.replace(reward, shaping_metric=shaping)
+    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, reward=reward)
+    if shaping == "path":
+        start = time.perf_counter()
+        table = table_for(env.world).fill()
+        took = time.perf_counter() - start
+        print(f"  (path table: {table.shape[0]} x {table.shape[1]} blocks, filled in {took:.1f} s)")
     obs, _ = env.reset(seed=0)
     rng = np.random.default_rng(0)
     obs, *_ = env.step(_allowed_actions(obs["action_mask"], rng))  # compiles on a cold cache: not timed
@@ -78,6 +102,16 @@ def main(args: Args) -> None:
         for num_taxis in args.num_taxis:
             rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time)
             print(f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f} {rate / num_taxis:>13,.0f}")
+    if args.shaping_metrics:
+        print(f"\ncore with shaping (weight 50), {args.scenario} ({clock})")
+        print(f"{'E':>5} {'A':>4} {'shaping_metric':>15} {'agent-steps/s':>15}")
+    for num_envs in args.num_envs if args.shaping_metrics else ():
+        for num_taxis in args.num_taxis:
+            for metric in args.shaping_metrics:
+                rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, metric)
+                print(f"{num_envs:>5} {num_taxis:>4} {metric:>15} {rate:>15,.0f}")
+    if not args.pettingzoo:
+        return
     print(f"\nPettingZoo face: {args.pettingzoo_scenario} (E = 1)")
     print(f"{'A':>4} {'env-steps/s':>13} {'agent-steps/s':>15}")
     for num_taxis in args.num_taxis:

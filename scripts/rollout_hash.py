@@ -1,8 +1,9 @@
 """Fingerprints of seeded rollouts, to show that a refactor changed no number.
 
 Steps the batched core (300 steps, random allowed actions, some disallowed ones) on berlin_random (E = 8,
-A = 4), berlin_p4 with path shaping (E = 8, 60-step episodes, so autoreset runs), berlin_p4 as a 3-taxi fleet
-under the segment rule with euclidean shaping and the stuck rule, and the PettingZoo face; hashes every
+A = 4), berlin_p4 with path shaping (E = 8, 60-step episodes, so autoreset runs; the table metric "path", and
+"path_exact", the name since issue 12 of the earlier "path" metric, whose hashes it keeps), berlin_p4 as a 3-taxi
+fleet under the segment rule with euclidean shaping and the stuck rule, and the PettingZoo face; hashes every
 observation, reward, flag, info (events, terms, episode statistics, final observations) and global state. Run it
 before and after a change and compare the output:
 
@@ -11,6 +12,7 @@ before and after a change and compare the output:
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from typing import Any
 
@@ -72,6 +74,11 @@ def main() -> None:
     euclid = uamfleet.RewardConfig(shaping=5.0, shaping_metric="euclidean")
     core("berlin_random E8 A4", uamfleet.vector_env("berlin_random", num_envs=8, num_taxis=4))
     core("berlin_p4 E8 path shaping", uamfleet.vector_env("berlin_p4", num_envs=8, reward=path, time_limit_steps=60))
+    exact = dataclasses.replace(path, shaping_metric="path_exact")
+    core(
+        "berlin_p4 E8 path_exact shaping",
+        uamfleet.vector_env("berlin_p4", num_envs=8, reward=exact, time_limit_steps=60),
+    )
     core(
         "berlin_p4 E4 A3 segment_raster euclidean",
         uamfleet.vector_env(

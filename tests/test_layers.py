@@ -144,7 +144,7 @@ def test_every_module_has_a_layer_and_the_walk_sees_the_known_edges() -> None:
     assert "uamfleet.viz.figures" in GRAPH["uamfleet.viz.strip"]  # imported inside plot_sinr_strip
     assert "uamfleet.viz.render" in GRAPH["uamfleet"]  # imported inside the face's renderer factory
     assert "uamfleet.rollout" not in GRAPH["uamfleet.viz.meshcat_view"]  # only under TYPE_CHECKING
-    assert "uamfleet.paths" in GRAPH["uamfleet.env.vector_env"]
+    assert "uamfleet.paths" in GRAPH["uamfleet.env.reward"]  # the shaping potential's distance table
     assert "uamfleet.radio" in GRAPH["uamfleet.config"]
     assert len(MODULES) > 40 and sum(map(len, GRAPH.values())) > 100
 

@@ -124,6 +124,9 @@ class Request:
             )
 
 
+SHAPING_METRICS: tuple[str, ...] = ("path", "path_exact", "euclidean")
+"""Values of ``RewardConfig.shaping_metric`` (docs/rules.md "Rewards")."""
+
 REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
 """Names of the reward terms: term ``name`` is weighted by ``RewardConfig.<name>``, is column
 ``REWARD_TERMS.index(name)`` of ``info["reward_terms"]`` and is logged as ``reward/<name>`` (docs/rules.md
@@ -140,7 +143,9 @@ class RewardConfig:
     allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
     ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable
     stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance
-    measured along feasible paths (``shaping_metric="path"``) or in a straight line (``"euclidean"``).
+    measured along feasible paths (``shaping_metric="path"``: looked up in a table of distances between block
+    centres, fast; ``"path_exact"``: a 10 m Dijkstra field per stop, slow on random demand) or in a straight line
+    (``"euclidean"``).
 
     ``first_visit`` and ``repeat_visit`` are the earlier names of ``explore`` and ``explore_repeat``, still
     accepted as keywords.
@@ -154,7 +159,7 @@ class RewardConfig:
     blocked: float = -50.0
     shaping: float = 0.0
     shaping_gamma: float = 0.99
-    shaping_metric: str = "path"  # "path": distance along feasible paths; "euclidean": straight line
+    shaping_metric: str = "path"  # along feasible paths: "path" (table), "path_exact"; "euclidean": straight line
     first_visit: InitVar[float | None] = None  # earlier name of `explore`
     repeat_visit: InitVar[float | None] = None  # earlier name of `explore_repeat`
 
@@ -167,9 +172,9 @@ class RewardConfig:
                 if getattr(self, new) != _REWARD_DEFAULTS[new] and getattr(self, new) != value:
                     raise ValueError(f"RewardConfig got both {new}= and its earlier name {old}=; pass {new} only.")
                 object.__setattr__(self, new, float(value))
-        if self.shaping_metric not in ("path", "euclidean"):
+        if self.shaping_metric not in SHAPING_METRICS:
             raise ConfigError(
-                f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use 'path' or 'euclidean'."
+                f"RewardConfig.shaping_metric={self.shaping_metric!r} is unknown; use one of {SHAPING_METRICS}."
             )
         for f in dataclasses.fields(self):
             if f.name != "shaping_metric":

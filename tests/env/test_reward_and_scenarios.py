@@ -111,18 +111,18 @@ GAP_EAST = """
 """  # a wall along y in [200, 300) with a gap at x in [400, 500)
 
 
-def test_path_potential_goes_round_the_wall():
-    from uamfleet.env import reward
-
+@pytest.mark.parametrize(("metric", "steps"), [("euclidean", 2.0), ("path", 10.0), ("path_exact", 10.0)])
+def test_path_potential_goes_round_the_wall(metric, steps):
     base = dict(starts_m=((50.0, 150.0),), requests=(Request(0, (50.0, 350.0), (450.0, 450.0)),))
-    euclid = VectorEnv(small_config(GAP_EAST, reward=RewardConfig(shaping=1.0, shaping_metric="euclidean"), **base))
-    path = VectorEnv(small_config(GAP_EAST, reward=RewardConfig(shaping=1.0, shaping_metric="path"), **base))
-    euclid.reset(seed=0)
-    path.reset(seed=0)
+    env = VectorEnv(small_config(GAP_EAST, reward=RewardConfig(shaping=1.0, shaping_metric=metric), **base))
+    env.reset(seed=0)
     # straight line: 200 m = 2 steps. Along feasible cells (no corner cutting): east 400 m to x = 450, north 200 m
     # through the gap, west 400 m back to x = 50: 1000 m = 10 steps.
-    assert reward.potential(euclid.state, 100.0)[0, 0] == pytest.approx(-2.0)
-    assert reward.potential(path.state, 100.0, path._distance_to)[0, 0] == pytest.approx(-10.0)
+    assert env.potential is not None
+    assert env.potential(env.state)[0, 0] == pytest.approx(-steps)
+
+
+def test_unknown_shaping_metric():
     with pytest.raises(ValueError, match=r"shaping_metric='manhattan' is unknown"):
         RewardConfig(shaping_metric="manhattan")
 

@@ -7,13 +7,20 @@ Each term is [E, A]; the reward of a taxi is their sum. Term ``name`` is weighte
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from uamfleet.config import REWARD_TERMS, RewardConfig
+from uamfleet.paths import DistanceFields, DistanceTable, table_for
+from uamfleet.paths.distance_table import table_distance
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
+
+if TYPE_CHECKING:
+    from uamfleet.env.world import World
 
 
 # Column of each term in the [E, A, len(REWARD_TERMS)] array, found by name (numba reads them as constants).
@@ -77,13 +84,93 @@ def euclidean(goal: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - goal, axis=-1)
 
 
-def potential(state: FleetState, step_m: float, distance_to: DistanceTo = euclidean) -> np.ndarray:
-    """[E, A] shaping potential: minus the distance (in steps) from each taxi to its nearest actionable stop.
+class Potential:
+    """The shaping potential Phi [E, A] of a world under one ``RewardConfig.shaping_metric`` (docs/rules.md
+    "Rewards"): minus the distance, in steps, from each taxi to its nearest actionable stop.
+
+    ``"euclidean"`` (straight line) and ``"path"`` (feasible paths looked up in the world's
+    :class:`~uamfleet.paths.DistanceTable`) run in one compiled kernel over all envs and taxis (:func:`_phi`);
+    ``"path_exact"`` measures with :class:`~uamfleet.paths.DistanceFields` (a 10 m Dijkstra field per stop, in
+    Python: exact on the raster graph but ~1,000x slower on random demand) through :func:`potential_reference`.
+    The same object computes Phi before and after a step, so the shaping stays exactly potential-based.
+    """
+
+    def __init__(self, world: World, metric: str) -> None:
+        self.metric = metric
+        self.step_m = float(world.step_m)
+        self._table: DistanceTable | None = None
+        self._fields: DistanceFields | None = None
+        if metric == "path":
+            self._table = table_for(world)
+        elif metric == "path_exact":
+            self._fields = DistanceFields(world)
+        elif metric != "euclidean":
+            raise ValueError(f"shaping_metric={metric!r} is unknown; use 'path', 'path_exact' or 'euclidean'.")
+
+    def __call__(self, state: FleetState) -> np.ndarray:
+        if self._fields is not None:
+            fields = self._fields
+            return potential_reference(state, self.step_m, lambda goal, points: fields.remaining_m(goal, points))
+        out = np.empty(state.free_seats.shape)
+        table = self._table
+        if table is None:
+            _phi(state, _NO_TABLE, 1.0, 1, 1, False, self.step_m, out)
+        elif not _phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out):
+            # a stop whose table rows are not computed yet (a new instance): compute them, then again
+            table.ensure(np.concatenate([state.pax_origin_m[state.pax_exists], state.pax_dest_m[state.pax_exists]]))
+            _phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out)
+        return out
+
+
+_NO_TABLE = np.zeros((1, 1), dtype=np.float32)
+
+
+@njit(cache=True)
+def _phi(
+    s: FleetState,
+    table: np.ndarray,  # DistanceTable.distance_m, or a dummy when not use_table
+    block_m: float,
+    nbx: int,
+    nby: int,
+    use_table: bool,
+    step_m: float,
+    out: np.ndarray,  # [E, A]
+) -> bool:
+    """out[e, a] = Phi of taxi a of env e (see :class:`Potential`). Returns False when a table row was missing
+    (then ``out`` is incomplete)."""
+    num_envs, num_taxis = s.free_seats.shape
+    num_pax = s.pax_status.shape[1]
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            nearest = math.inf
+            for p in range(num_pax):
+                status = s.pax_status[e, p]
+                if status == ON_BOARD and s.pax_taxi[e, p] == a:
+                    gx, gy = s.pax_dest_m[e, p, 0], s.pax_dest_m[e, p, 1]
+                elif status == WAITING and s.free_seats[e, a] > 0:
+                    gx, gy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+                else:
+                    continue
+                if use_table:
+                    d = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
+                    if math.isnan(d):
+                        return False
+                else:
+                    dx, dy = x - gx, y - gy
+                    d = math.sqrt(dx * dx + dy * dy)
+                nearest = min(nearest, d)
+            out[e, a] = -nearest / step_m if nearest < math.inf else 0.0
+    return True
+
+
+def potential_reference(state: FleetState, step_m: float, distance_to: DistanceTo = euclidean) -> np.ndarray:
+    """[E, A] shaping potential with any ``distance_to``, in numpy: the definition :class:`Potential`'s kernel
+    implements (tests compare them), and the ``"path_exact"`` metric.
 
     Actionable stops: the destinations of its passengers on board, and, while it has a free seat, the origins of
-    released passengers waiting. A taxi with nothing to do has potential 0. ``distance_to`` measures the
-    distance: straight-line, or along feasible paths (``RewardConfig.shaping_metric = "path"``), which has no
-    local optimum at the edge of a no-fly area (a straight-line potential rewards pressing against it).
+    released passengers waiting. A taxi with nothing to do, or whose stops are all out of reach (distance
+    ``inf``), has potential 0.
     """
     E, A = state.free_seats.shape
     P = state.pax_status.shape[1]

@@ -21,7 +21,6 @@ from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
 from uamfleet.env import dynamics, generator, reward
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import World
-from uamfleet.paths import DistanceFields
 from uamfleet.types import DELIVERED, NUM_HEADINGS, FleetState
 
 
@@ -54,11 +53,8 @@ class VectorEnv:
         self.rngs: list[np.random.Generator] = []
         self.episode_terms = np.zeros((self.num_envs, self.num_taxis, len(REWARD_TERMS)))
         self.needs_reset = True
-        self._distance_to: reward.DistanceTo = reward.euclidean
-        if cfg.reward.shaping > 0 and cfg.reward.shaping_metric == "path":
-            # Feasible-path distances come from the planners' raster graph (built once per map and threshold).
-            fields = DistanceFields(self.world)
-            self._distance_to = lambda goal, points: fields.remaining_m(goal, points)
+        # Phi of the shaping term; "path" looks distances up in the world's table (rows filled per new stop).
+        self.potential = reward.Potential(self.world, cfg.reward.shaping_metric) if cfg.reward.shaping > 0 else None
 
     # ---- reset ---------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -91,8 +87,7 @@ class VectorEnv:
             raise RuntimeError("step() called before reset() (or after an episode ended with autoreset=False).")
         actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis)
         state, weights = self.state, self.cfg.reward
-        shaping = weights.shaping > 0
-        phi_before = reward.potential(state, self.cfg.step_m, self._distance_to) if shaping else None
+        phi_before = None if self.potential is None else self.potential(state)
 
         events = dynamics.step(state, actions, self.world)
         terminated = events.all_delivered  # [E]
@@ -101,8 +96,8 @@ class VectorEnv:
             truncated |= np.any(events.block_visits > self.cfg.max_block_visits, axis=1) & ~terminated
 
         shaping_values = None
-        if phi_before is not None:
-            phi_after = reward.potential(state, self.cfg.step_m, self._distance_to)
+        if self.potential is not None and phi_before is not None:
+            phi_after = self.potential(state)
             shaping_values = reward.shaping_term(phi_before, phi_after, terminated, weights)
         terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
         self.episode_terms += terms

@@ -5,6 +5,7 @@ dispatchers all use it, and it imports nothing above ``radio``.
 """
 
 from uamfleet.paths.distance_fields import DistanceFields, graph_for
+from uamfleet.paths.distance_table import DistanceTable, table_for
 from uamfleet.paths.grid_graph import (
     GridGraph,
     StopPaths,
@@ -15,10 +16,12 @@ from uamfleet.paths.grid_graph import (
 
 __all__ = [
     "DistanceFields",
+    "DistanceTable",
     "GridGraph",
     "StopPaths",
     "UnreachableStopError",
     "feasible_raster",
     "feasible_raster_from_blocks",
     "graph_for",
+    "table_for",
 ]

@@ -61,7 +61,7 @@ class TrainArgs:
     """weight of the potential-based shaping term (0 = the authors' reward only). Strong on purpose: one step of
     progress along the feasible path is then worth 50, a quarter of a pick-up, so the heading that makes progress
     stands out of the value noise from the first iterations"""
-    shaping_metric: Literal["path", "euclidean"] = "path"
+    shaping_metric: Literal["path", "path_exact", "euclidean"] = "path"
     """distance in the shaping potential: along feasible paths, or straight line"""
     shaping_gamma: float | None = None
     """discount inside the shaping term gamma * Phi(s') - Phi(s) (default: the trainer's gamma, which keeps it

@@ -1,0 +1,159 @@
+"""DistanceTable: entries against an independent shortest path (Bellman-Ford) and by hand round a wall, the
+lookup's interpolation and unreachable pairs, rows on demand, and its error against DistanceFields on Berlin."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.sparse import csgraph
+
+import uamfleet
+from uamfleet.env.world import World
+from uamfleet.paths import DistanceFields, DistanceTable, graph_for, table_for
+from uamfleet.paths.distance_table import table_graph
+from uamfleet.paths.grid_graph import GridGraph
+
+RES, BLOCK = 25.0, 100.0
+
+
+def walled_graph() -> GridGraph:
+    """A 600 m square of 25 m cells (centres 0, 25, ..., 575); a wall of blocks x in [300, 400), y < 500."""
+    centres = np.arange(int(600 / RES)) * RES
+    x, y = np.meshgrid(centres, centres, indexing="ij")
+    feasible = ~((x >= 300) & (x < 400) & (y < 500))
+    return GridGraph(feasible, RES, label="walled")
+
+
+def test_entries_match_bellman_ford_between_all_block_centres() -> None:
+    graph = walled_graph()
+    table = DistanceTable(graph, BLOCK, (6, 6)).fill()
+    # Block centres (bx + 0.5) * 100 are cell centres here: no gaps, the entries are lattice distances.
+    ok = table.nodes >= 0
+    assert ok.sum() == 36 - 5 and np.all(table.gap_m[ok] == 0.0)  # the 5 wall blocks have no flyable centre
+    nodes = table.nodes[ok]
+    independent = csgraph.shortest_path(graph.adjacency, method="BF", directed=True, indices=nodes)[:, nodes]
+    np.testing.assert_allclose(table.distance_m[np.ix_(ok, ok)], independent, rtol=1e-6)
+    assert np.all(np.isinf(table.distance_m[~ok])) and np.all(np.isinf(table.distance_m[:, ~ok]))
+
+
+def test_the_path_goes_round_the_wall_where_the_straight_line_crosses_it() -> None:
+    table = DistanceTable(walled_graph(), BLOCK, (6, 6))
+    a, b = np.array([150.0, 150.0]), np.array([550.0, 150.0])  # 400 m apart, the wall between them
+    d = float(table.distance(a, b))
+    # The wall cells' squares cover x in [287.5, 387.5], y < 487.5 and no edge may touch them: any path is at
+    # least |a - (287.5, 487.5)| + 100 + |(387.5, 487.5) - b|. Straight legs through the cell centres
+    # (275, 500), (400, 500) are a feasible route; the 16-connected lattice is within 1 / cos(13.28 deg) of it.
+    lower = 2 * math.hypot(137.5, 337.5) + 100
+    upper = (2 * math.hypot(125, 350) + 125) / math.cos(math.atan(0.5) / 2)
+    assert lower <= d <= upper and d > 2 * 400
+
+
+def test_lookup_interpolates_bilinearly_and_never_undercuts_the_straight_line() -> None:
+    graph = GridGraph(np.ones((24, 24), bool), RES)  # open ground
+    table = DistanceTable(graph, BLOCK, (6, 6))
+    stop = np.array([550.0, 550.0])  # a block centre: one table row
+    # at a block centre: the entry itself
+    assert table.distance([150.0, 150.0], stop) == pytest.approx(table.distance_m[5 * 6 + 5, 1 * 6 + 1])
+    # half-way between centres (150, 150) and (250, 150): the mean of both entries (row: the stop's centre)
+    half = 0.5 * (table.distance_m[35, 1 * 6 + 1] + table.distance_m[35, 2 * 6 + 1])
+    assert table.distance([200.0, 150.0], stop) == pytest.approx(half)
+    # next to the stop the interpolated entries are too coarse: the straight line is the floor
+    assert table.distance([560.0, 540.0], stop) == pytest.approx(math.hypot(10, 10))
+    # on open ground the lookup stays within the lattice's detour of the straight line
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(0, 600, (200, 2))
+    d, straight = table.distance(pts, stop), np.linalg.norm(pts - stop, axis=-1)
+    assert np.all(d >= straight - 1e-9) and np.all(d <= 1.03 * straight + 2 * RES)
+
+
+def test_pairs_without_a_path_are_unreachable() -> None:
+    n = int(600 / RES)
+    feasible = np.ones((n, n), bool)
+    feasible[:, 8:12] = False  # a full wall y in [200, 300): two components
+    table = DistanceTable(GridGraph(feasible, RES), BLOCK, (6, 6))
+    assert np.isinf(table.distance([150.0, 50.0], [150.0, 450.0]))
+    assert np.isfinite(table.distance([150.0, 50.0], [450.0, 150.0]))
+    # a point whose upper corners are wall blocks (no node): only the joined corner pairs count, and the entry
+    # (lattice 323.6 m) exceeds the straight line (319.5 m)
+    stop = [450.0, 50.0]
+    assert table.distance([150.0, 160.0], stop) == table.distance([150.0, 150.0], stop) == table.distance_m[4 * 6, 7]
+
+
+def test_rows_on_demand_give_the_entries_of_a_full_fill() -> None:
+    graph = walled_graph()
+    lazy, full = DistanceTable(graph, BLOCK, (6, 6)), DistanceTable(graph, BLOCK, (6, 6)).fill()
+    stop = np.array([510.0, 190.0])
+    assert np.isnan(lazy.distance_m).all()
+    d = lazy.distance([[60.0, 70.0], [220.0, 580.0]], stop)
+    assert lazy.filled.sum() == 4  # the 4 block centres around the stop
+    np.testing.assert_array_equal(d, full.distance([[60.0, 70.0], [220.0, 580.0]], stop))
+    np.testing.assert_array_equal(lazy.distance_m[lazy.filled], full.distance_m[lazy.filled])
+
+
+def test_bad_construction() -> None:
+    with pytest.raises(ValueError, match="block_m must be a finite number > 0"):
+        DistanceTable(walled_graph(), 0.0, (6, 6))
+    with pytest.raises(ValueError, match=r"shape must be \(nbx, nby\)"):
+        DistanceTable(walled_graph(), BLOCK, (0, 6))
+
+
+def test_berlin_lookup_against_distance_fields() -> None:
+    """The table approximates DistanceFields.remaining_m (10 m field from the stop). On 3,000 random pairs
+    (docs/rules.md "Rewards") the error was 4.4 m on average, 33 m at p99, 52 m at most; here a smaller sample."""
+    world = World(uamfleet.make_config("berlin_random"))
+    table, fields = table_for(world), DistanceFields(world)
+    rng = np.random.default_rng(7)
+    flyable = np.argwhere(world.block_ok)
+    errors = []
+    for k in range(10):
+        goal = (flyable[rng.integers(len(flyable))] + (0.5 if k % 2 else rng.random(2))) * BLOCK
+        pts = np.minimum((flyable[rng.integers(len(flyable), size=100)] + rng.random((100, 2))) * BLOCK, world.side_m)
+        exact, looked_up = fields.remaining_m(goal, pts), table.distance(pts, goal)
+        both = np.isfinite(exact)
+        assert np.array_equal(np.isfinite(looked_up), both)  # the same pairs are reachable
+        errors.append(looked_up[both] - exact[both])
+    err = np.abs(np.concatenate(errors))
+    assert err.mean() <= 8.0 and err.max() <= 80.0, (err.mean(), err.max())
+
+
+def _fine_world(feasibility: str) -> World:
+    """10 m raster, 200 m blocks (20 cells per block side): a wall of blocks x in [200, 400), y < 400, and one
+    bad raster cell at (100, 500)."""
+    from conftest import small_config
+
+    from uamfleet.config import Request
+    from uamfleet.radio import RadioMap
+
+    x, y = np.meshgrid(np.arange(60) * 10.0, np.arange(60) * 10.0, indexing="ij")
+    sinr = np.where((x >= 200) & (x < 400) & (y < 400), -10.0, 0.0)
+    sinr[10, 50] = -10.0
+    radio = RadioMap(sinr_db=sinr, resolution_m=10.0, origin_m=(0.0, 0.0), side_m=600.0, name="fine")
+    cfg = small_config(radio=radio, step_m=200.0, feasibility=feasibility, starts_m=((100.0, 100.0),),
+                       requests=(Request(0, (500.0, 100.0), (500.0, 300.0)),), nc_rule="nanmean")  # fmt: skip
+    return World(cfg)
+
+
+@pytest.mark.parametrize("feasibility", ["endpoint_block", "segment_raster"])
+def test_a_fine_raster_gets_a_coarser_table_graph(feasibility: str) -> None:
+    world = _fine_world(feasibility)
+    graph = table_graph(world)
+    assert graph.resolution_m == pytest.approx(200.0 / 9) and graph.shape == (27, 27)
+    blocked = ~graph.feasible
+    # the wall: coarse cells 9..17 along x, 0..17 along y (each lies in one block)
+    assert blocked[9:18, 0:18].all()
+    # the lone bad raster cell matters only cell by cell: in the coarse cell (4, 22) under segment_raster
+    segment = feasibility == "segment_raster"
+    assert blocked.sum() == 162 + segment and blocked[4, 22] == segment
+    # and the table's distance round the wall stays close to the 10 m field's: a path on the coarse graph keeps
+    # half a coarse cell (11.1 m, not 5 m) off the wall, ~20 m longer round its two corners (855 m -> 886 m)
+    a, b = np.array([100.0, 100.0]), np.array([500.0, 100.0])
+    exact = DistanceFields(world).remaining_m(b, a[None])[0]
+    looked_up = float(table_for(world).distance(a, b))
+    assert exact > 2 * 400 and exact <= looked_up <= 1.05 * exact
+
+
+def test_the_berlin_table_uses_the_exact_metrics_graph() -> None:
+    world = World(uamfleet.make_config("berlin_random"))
+    assert table_for(world).graph is graph_for(world)

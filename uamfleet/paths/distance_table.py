@@ -1,0 +1,235 @@
+"""A table of feasible-path distances between block centres, looked up inside compiled kernels.
+
+:class:`~uamfleet.paths.DistanceFields` runs one Dijkstra per goal, in Python, and evaluates it in Python. That is
+fine for a fixed instance (a dozen stops, fields cached) but not for random demand, where every episode brings
+new stops: the shaping potential then took ~99 % of a step (issue 12). The table moves the graph work out of
+the step and the lookup into numba:
+
+- **Nodes**: one per block of the world's block grid (``block_m``, the step by default), at the block centre
+  ``((bx + 0.5) * block_m, (by + 0.5) * block_m)``, flat index ``bx * nby + by``. Its graph node is the raster
+  cell nearest the centre or, when that cell is not flyable, the nearest flyable cell within ``block_m`` (the
+  gap counts as a straight piece); a block with none has no paths.
+- **Entries**: ``distance_m[i, j]`` = gap_i + lattice distance on the raster graph of
+  :func:`~uamfleet.paths.graph_for` (16-connected, 10 m cells on the packaged maps; on a raster much finer than
+  the blocks, a coarser one: :func:`table_graph`) + gap_j, float32; ``inf`` where no feasible path joins them.
+  Row i is one Dijkstra from node i (``scipy.sparse.csgraph``).
+- **Rows on demand**: a row is computed the first time a stop needs it (:meth:`DistanceTable.ensure`, called
+  when an instance is written), so a fixed instance costs a few Dijkstras and random demand fills the table
+  over its first episodes (Berlin, 33 x 33 blocks: 1,089 rows, 4.7 MB, ~30 s in all on one core;
+  :meth:`DistanceTable.fill` computes every row at once). Entries never change once computed, so the same
+  state always gets the same distance, whenever its rows were filled. Tables are cached per (map, threshold,
+  rule, block size), like the graphs.
+- **Lookup** (:func:`table_distance`, compiled): from a point a to a stop b, the entries ``distance_m[j, i]``
+  between the 4 block centres j around b (their rows) and the 4 around a, interpolated bilinearly in both
+  points (16 entries), and at least ``|a - b|``. Bilinear interpolation is exact where the distance varies
+  linearly (open ground, goal not too near), where a "best corner + straight piece" rule is up to ~50 m off.
+  Corner pairs without a path are left out and the other weights renormalised; when no pair is joined, the
+  lookup returns ``inf`` (unreachable). A row not computed yet reads NaN, and the lookup returns NaN, so a
+  kernel can report it and its caller fill the rows and ask again.
+
+It approximates :meth:`DistanceFields.remaining_m` (a 10 m field from the goal), ``tests/paths`` measure the
+difference (docs/rules.md "Rewards").
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+
+import numpy as np
+from numba import njit
+from scipy.sparse import csgraph
+
+from uamfleet.paths.distance_fields import FlightGeometry, graph_for
+from uamfleet.paths.grid_graph import GridGraph, feasible_raster
+from uamfleet.radio import RadioMap
+
+_CHUNK = 32  # Dijkstra sources per scipy call: [chunk, nx * ny] float64 rows (~27 MB on Berlin)
+
+
+class DistanceTable:
+    """Feasible-path distances between the block centres of a ``shape`` grid of ``block_m`` blocks on
+    ``graph`` (see the module docstring). Rows are computed on demand; read entries through :meth:`distance`
+    or, in a kernel, :func:`table_distance` after :meth:`ensure`."""
+
+    def __init__(self, graph: GridGraph, block_m: float, shape: tuple[int, int]) -> None:
+        if not (math.isfinite(block_m) and block_m > 0):
+            raise ValueError(f"block_m must be a finite number > 0 metres, got {block_m!r}")
+        nbx, nby = (int(v) for v in shape)
+        if nbx < 1 or nby < 1:
+            raise ValueError(f"shape must be (nbx, nby) with both >= 1 blocks, got {shape!r}")
+        self.graph = graph
+        self.block_m = float(block_m)
+        self.shape = (nbx, nby)
+        self.label = graph.label
+        bx, by = np.meshgrid(np.arange(nbx), np.arange(nby), indexing="ij")
+        centres = np.stack([(bx.ravel() + 0.5) * block_m, (by.ravel() + 0.5) * block_m], axis=-1)  # [N, 2]
+        self.nodes = np.full(len(centres), -1, dtype=np.intp)  # graph node of each block centre, -1: none
+        self.gap_m = np.zeros(len(centres))  # straight piece from the centre to its node
+        for i, c in enumerate(centres):
+            node = graph.nearest_node(c)
+            gap = float(np.hypot(*(graph.node_xy(node) - c)))
+            if gap <= graph.snap_m:
+                self.nodes[i], self.gap_m[i] = node, gap
+        # NaN marks rows not computed yet; the lookup refuses to read one.
+        self.distance_m = np.full((len(centres), len(centres)), np.nan, dtype=np.float32)
+        self.filled = np.zeros(len(centres), dtype=bool)
+
+    def __repr__(self) -> str:
+        return (
+            f"DistanceTable({self.label!r}, blocks={self.shape}, block_m={self.block_m:g}, "
+            f"rows filled={int(self.filled.sum())}/{self.filled.size}, {self.distance_m.nbytes} B)"
+        )
+
+    def ensure(self, stops: np.ndarray) -> None:
+        """Compute the rows that lookups towards ``stops`` ([..., 2] metres) read, if not done yet."""
+        pts = np.ascontiguousarray(np.asarray(stops, dtype=np.float64).reshape(-1, 2))
+        rows = np.empty((pts.shape[0], 4), dtype=np.int64)
+        corner_rows(pts, self.block_m, self.shape[0], self.shape[1], rows)
+        rows = np.unique(rows[rows >= 0])
+        self._compute(rows[~self.filled[rows]])
+
+    def fill(self) -> DistanceTable:
+        """Compute every row now (e.g. before timing steps); returns self."""
+        self._compute(np.flatnonzero(~self.filled))
+        return self
+
+    def _compute(self, rows: np.ndarray) -> None:
+        if rows.size == 0:
+            return
+        cols = np.flatnonzero(self.nodes >= 0)
+        self.distance_m[rows] = np.inf
+        todo = rows[self.nodes[rows] >= 0]
+        for lo in range(0, todo.size, _CHUNK):
+            chunk = todo[lo : lo + _CHUNK]
+            lattice = csgraph.dijkstra(self.graph.adjacency, directed=True, indices=self.nodes[chunk])
+            d = self.gap_m[chunk, None] + lattice[:, self.nodes[cols]] + self.gap_m[None, cols]
+            self.distance_m[np.ix_(chunk, cols)] = d
+        self.filled[rows] = True
+
+    def distance(self, points: np.ndarray, stops: np.ndarray) -> np.ndarray:
+        """[...] looked-up feasible-path distance (metres) from ``points`` to ``stops`` ([..., 2], broadcast);
+        ``inf`` where no path joins them (module docstring)."""
+        a, b = np.broadcast_arrays(np.asarray(points, np.float64), np.asarray(stops, np.float64))
+        self.ensure(b)
+        flat_a, flat_b = np.ascontiguousarray(a.reshape(-1, 2)), np.ascontiguousarray(b.reshape(-1, 2))
+        out = np.empty(flat_a.shape[0])
+        nbx, nby = self.shape
+        for i in range(out.size):
+            out[i] = table_distance(
+                self.distance_m, self.block_m, nbx, nby, flat_a[i, 0], flat_a[i, 1], flat_b[i, 0], flat_b[i, 1]
+            )
+        return out.reshape(a.shape[:-1])
+
+
+# Per radio map (weakly, so a map's tables go with it): (threshold, rule, block size) -> table.
+_TABLES: weakref.WeakKeyDictionary[RadioMap, dict[tuple[float, str, float], DistanceTable]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def table_for(world: FlightGeometry) -> DistanceTable:
+    """The distance table of the world's map, threshold, rule and block size (cached; rows filled on demand)."""
+    cfg = world.cfg
+    tables = _TABLES.setdefault(world.radio, {})
+    key = (world.threshold_db, cfg.feasibility, float(world.blocks.block_m))
+    if key not in tables:
+        tables[key] = DistanceTable(table_graph(world), float(world.blocks.block_m), world.blocks.shape)
+    return tables[key]
+
+
+MAX_CELLS_PER_BLOCK = 12
+"""Above this many raster cells per block side, the table is computed on a coarser raster (see :func:`table_graph`)."""
+COARSE_CELLS_PER_BLOCK = 9
+
+
+def table_graph(world: FlightGeometry) -> GridGraph:
+    """The raster graph the table's rows are computed on.
+
+    The world's own graph (:func:`graph_for`, the one ``path_exact`` uses) when a block side holds at most
+    :data:`MAX_CELLS_PER_BLOCK` raster cells (Berlin: 10). On a finer raster (Detroit 3GPP: 10 m cells, 320 m
+    blocks, 1.2 M nodes, ~0.3 s per Dijkstra) a graph of :data:`COARSE_CELLS_PER_BLOCK` cells per block side
+    (odd, so a block centre is a cell centre; 99 k nodes on Detroit), each cell inside one block: flyable under
+    ``endpoint_block`` when its block is, under ``segment_raster`` when every raster cell centred in it is.
+    """
+    res, block_m = float(world.radio.resolution_m), float(world.blocks.block_m)
+    if block_m / res <= MAX_CELLS_PER_BLOCK:
+        return graph_for(world)
+    cell = block_m / COARSE_CELLS_PER_BLOCK
+    side = float(world.blocks.side_m)
+    n = math.ceil(side / cell - 1e-9)
+    axis = (np.arange(n) + 0.5) * cell
+    centres = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1)  # [n, n, 2]
+    inside = np.all(centres <= side, axis=-1)
+    if world.cfg.feasibility == "endpoint_block":
+        feasible = inside & world.blocks.feasible(centres, world.threshold_db)
+    else:
+        fine = feasible_raster(world.radio, world.threshold_db)  # [nx, ny]
+        ox, oy = world.radio.origin_m
+        kx = np.floor((ox + np.arange(fine.shape[0]) * res) / cell).astype(np.intp)
+        ky = np.floor((oy + np.arange(fine.shape[1]) * res) / cell).astype(np.intp)
+        kx2, ky2 = np.meshgrid(kx, ky, indexing="ij")
+        ok = (kx2 >= 0) & (kx2 < n) & (ky2 >= 0) & (ky2 < n)
+        ids = (kx2 * n + ky2)[ok]
+        count = np.bincount(ids, minlength=n * n)
+        count_ok = np.bincount(ids, weights=fine[ok], minlength=n * n)
+        feasible = inside & ((count > 0) & (count_ok == count)).reshape(n, n)
+    label = f"{world.radio.label} at sinr_min_db={world.threshold_db:g} dB, {cell:.3g} m cells"
+    return GridGraph(feasible, cell, origin_m=(cell / 2, cell / 2), label=label)
+
+
+@njit(cache=True, inline="always")
+def _axis(v: float, block_m: float, nb: int) -> tuple[int, float]:
+    """Lower corner (block centre index) around coordinate v and the weight of the upper one, clamped to the
+    grid (a point beyond the outer centres takes the outer centre's value)."""
+    if nb == 1:
+        return 0, 0.0
+    f = v / block_m - 0.5
+    i = min(max(math.floor(f), 0), nb - 2)
+    return i, min(max(f - i, 0.0), 1.0)
+
+
+@njit(cache=True)
+def corner_rows(points: np.ndarray, block_m: float, nbx: int, nby: int, out: np.ndarray) -> None:
+    """out[k] = the 4 table rows (block centres) a lookup towards points[k] reads; -1 for a zero weight."""
+    for k in range(points.shape[0]):
+        ix, tx = _axis(points[k, 0], block_m, nbx)
+        iy, ty = _axis(points[k, 1], block_m, nby)
+        for c in range(4):
+            w = (tx if c & 1 else 1.0 - tx) * (ty if c & 2 else 1.0 - ty)
+            out[k, c] = (ix + (c & 1)) * nby + iy + (c >> 1) if w > 0.0 else -1
+
+
+@njit(cache=True)
+def table_distance(
+    table: np.ndarray, block_m: float, nbx: int, nby: int, ax: float, ay: float, bx: float, by: float
+) -> float:
+    """Distance (metres) from point a to stop b in a :class:`DistanceTable`'s ``distance_m`` of ``nbx`` x ``nby``
+    blocks: bilinear in both points over the corner pairs that are joined (weights renormalised), at least
+    ``|a - b|``; ``inf`` when no pair is joined; NaN when a row of b's corners is not computed yet
+    (:meth:`DistanceTable.ensure`)."""
+    iax, tax = _axis(ax, block_m, nbx)
+    iay, tay = _axis(ay, block_m, nby)
+    ibx, tbx = _axis(bx, block_m, nbx)
+    iby, tby = _axis(by, block_m, nby)
+    total = 0.0
+    weight = 0.0
+    for cb in range(4):
+        wb = (tbx if cb & 1 else 1.0 - tbx) * (tby if cb & 2 else 1.0 - tby)
+        if wb == 0.0:
+            continue
+        row = table[(ibx + (cb & 1)) * nby + iby + (cb >> 1)]
+        for ca in range(4):
+            wa = (tax if ca & 1 else 1.0 - tax) * (tay if ca & 2 else 1.0 - tay)
+            if wa == 0.0:
+                continue
+            d = row[(iax + (ca & 1)) * nby + iay + (ca >> 1)]
+            if math.isnan(d):
+                return math.nan  # a row not computed yet: the caller ensures it and asks again
+            if d < math.inf:
+                total += wa * wb * d
+                weight += wa * wb
+    if weight == 0.0:
+        return math.inf
+    dx, dy = ax - bx, ay - by
+    return max(total / weight, math.sqrt(dx * dx + dy * dy))
