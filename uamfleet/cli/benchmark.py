@@ -70,7 +70,7 @@ class Args:
     fixed_rules: tuple[Feasibility, ...] = ("endpoint_block", "segment_raster")
     fixed_scenarios: tuple[Scenario, ...] = tuple(s for s, _ in FIXED)
     fixed_thresholds: tuple[float, ...] = ()
-    """only these thresholds of the fixed scenarios (default: all)"""
+    """only these thresholds of the fixed scenarios (empty: all)"""
     methods: tuple[str, ...] = METHODS
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
@@ -89,7 +89,7 @@ class Args:
     wall_min: float = math.nan
     """with --from-csv: the wall-clock minutes of that run, for the table's note"""
     command: str = ""
-    """the command line to print above the table (default: reconstructed)"""
+    """the command line to print above the table (empty: this one, reconstructed)"""
 
 
 Task = tuple[str, str, Any, float | None, str]  # (set label, family or scenario, seed, threshold, feasibility)

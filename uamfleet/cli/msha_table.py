@@ -34,6 +34,7 @@ from typing import Any, Literal
 
 import uamfleet
 from uamfleet.cli._common import Variant, run
+from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.io import replace_section, write_text_atomic
@@ -183,9 +184,8 @@ def run_row(exp: Experiment, args: Args, opt_td: float) -> dict[str, object] | N
 
 
 def fmt(value: object, digits: int = 0) -> str:
-    if isinstance(value, float):
-        return "–" if math.isnan(value) else f"{value:,.{digits}f}"
-    return str(value)
+    """A table cell: a float with thousands separators and ``digits`` decimals ("–" where undefined), else text."""
+    return fmt_value(value, f",.{digits}f") if isinstance(value, float) else str(value)
 
 
 def steps_s(steps: object, wall: object) -> str:

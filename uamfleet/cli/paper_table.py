@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import uamfleet
+from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli._common import run
 from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import (
@@ -125,9 +126,8 @@ def paper_rows(key: str, label: str, threshold: float) -> list[dict[str, object]
 
 
 def fmt(value: object, digits: int = 1) -> str:
-    if isinstance(value, float):
-        return "–" if math.isnan(value) else f"{value:.{digits}f}"
-    return str(value)
+    """A table cell: a float with ``digits`` decimals ("–" where undefined), anything else as text."""
+    return fmt_value(value, f".{digits}f") if isinstance(value, float) else str(value)
 
 
 def markdown(rows: list[dict[str, object]]) -> str:
@@ -170,8 +170,9 @@ def main(args: Args) -> list[dict[str, object]]:
                     connectivity[str(r["method"])].append(float(r["connectivity_pct"]))  # type: ignore[arg-type]
                 print(
                     f"{label:<45} {threshold:>5.0f} dB  {r['method']:<9} PR {r['pr_pct']:5.1f} %  "
-                    f"TD {r['td_m']:7.0f} m  exact {r['td_exact_m']:7.0f} m  ATT {r['att_s']:7.2f} s  "
-                    f"AWT {r['awt_s']:7.2f} s  ELR {r['elr_pct']:5.1f} %  conn {r['connectivity_pct']:5.1f} %"
+                    f"TD {fmt(r['td_m'], 0):>7} m  exact {fmt(r['td_exact_m'], 0):>7} m  "
+                    f"ATT {fmt(r['att_s'], 2):>7} s  AWT {fmt(r['awt_s'], 2):>7} s  ELR {fmt(r['elr_pct']):>5} %  "
+                    f"conn {fmt(r['connectivity_pct']):>5} %"
                 )
             if threshold in (thresholds[0], thresholds[-1]):
                 cfg = uamfleet.make_config(scenario, sinr_min_db=threshold)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from uamfleet.cli._common import Feasibility, Variant, run
+from uamfleet.cli._common import Feasibility, Variant, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
@@ -81,8 +81,8 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
         td, att, awt, elr = paper
         print(f"{'MSHA-RL (paper)':<26} {100:>5.0f} {td:>6.0f} {att:>7.2f} {awt:>7.2f} {elr:>6.2f} {'100':>8}")
     for name, m in rows.items():
-        print(f"{name:<26} {m.pr_pct:>5.0f} {m.td_m:>6.0f} {m.att_s:>7.2f} {m.awt_s:>7.2f} {m.elr_pct:>6.2f} "
-              f"{m.connectivity_pct:>8.1f}")  # fmt: skip
+        print(f"{name:<26} {fmt(m.pr_pct, '.0f'):>5} {fmt(m.td_m, '.0f'):>6} {fmt(m.att_s, '.2f'):>7} "
+              f"{fmt(m.awt_s, '.2f'):>7} {fmt(m.elr_pct, '.2f'):>6} {fmt(m.connectivity_pct, '.1f'):>8}")  # fmt: skip
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
     return rows
 
