@@ -59,6 +59,18 @@ def test_a_bad_value_is_one_line_and_exit_2(cli: Cli, argv: list[str], message: 
     assert "Traceback" not in err and out == ""
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [(["--episodes", "abc"], "Error parsing --episodes: invalid literal for int()"),
+     (["--num-taxi", "2"], "Unrecognized options: --num-taxi")],
+)  # fmt: skip
+def test_an_unparsable_value_is_one_line_too(argv: list[str], message: str, capsys) -> None:
+    assert exit_status(rollout.cli, argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("uamfleet-rollout: error: ") and message in err and err.count("\n") == 1, err
+    assert err.rstrip().endswith("(see uamfleet-rollout --help)")
+
+
 def test_one_iteration_at_least(tmp_path: Path, capsys) -> None:
     # 100 agent-steps used to train one whole iteration of 2,048 without a word
     argv = ["--total-timesteps", "100", "--run-dir", str(tmp_path)]
@@ -85,9 +97,8 @@ def test_one_iteration_at_least(tmp_path: Path, capsys) -> None:
 def test_a_typo_in_a_known_set_is_a_usage_error_listing_the_choices(cli: Cli, flag: str, choices, capsys) -> None:
     assert exit_status(cli, [flag, "berln"]) == 2
     out, err = capsys.readouterr()
-    assert "Traceback" not in out + err
-    text = " ".join(err.replace("│", " ").split())
-    assert "invalid choice 'berln'" in text and all(repr(c) in text for c in choices), text
+    assert "Traceback" not in out + err and err.count("\n") == 1, err  # one line, not tyro's box
+    assert f"error: invalid choice 'berln' for argument '{flag}'" in err and all(repr(c) in err for c in choices)
     assert exit_status(cli, ["--help"]) == 0
     help_text = capsys.readouterr().out
     assert all(c in help_text for c in choices)
@@ -218,3 +229,28 @@ def test_the_repository_forms_still_run(tmp_path: Path) -> None:
         done = subprocess.run([sys.executable, *argv], cwd=ROOT, capture_output=True, text=True, timeout=120)
         assert done.returncode == 2 and done.stderr.startswith(f"{prog}: error: "), done.stderr
         assert done.stderr.count("\n") == 1
+
+
+def test_the_message_of_tyros_box_in_both_of_its_drawings() -> None:
+    from uamfleet.cli._common import _box_message
+
+    framed = "\n".join([
+        "╭─ Invalid choice ──────────────────╮",
+        "│ invalid choice 'x' for argument   │",
+        "│ '--scenario'. Expected one of     │",
+        "│ ('a', 'b').                       │",
+        "│ ───────────────────────────────── │",
+        "│ For full helptext, run p --help   │",
+        "╰───────────────────────────────────╯",
+    ])  # fmt: skip
+    plain = "\n".join([
+        " Invalid choice     ",
+        " ------------------ ",
+        "  invalid choice 'x' for argument",
+        "  '--scenario'. Expected one of",
+        "  ('a', 'b').",
+        "  ------------------",
+        "  For full helptext, run p --help",
+    ])  # fmt: skip
+    expected = "invalid choice 'x' for argument '--scenario'. Expected one of ('a', 'b')."
+    assert _box_message(framed) == _box_message(plain) == expected

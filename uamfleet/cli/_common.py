@@ -3,8 +3,10 @@ undefined figures."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
+import io
 import math
 import os
 import sys
@@ -89,15 +91,50 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
     return dataclasses.dataclass(Checked)
 
 
+_RULE = set("─━-=+╭╮╰╯│| ")
+
+
+def _box_message(text: str) -> str:
+    """The message of tyro's error box as one line. rich draws it framed (title bar, message, rule, "For full
+    helptext ...") or plain (title, rule, message, rule, ...): the message is the text after the first rule
+    (a title bar counts as one) up to the next."""
+    blocks: list[list[str]] = [[]]
+    for line in text.splitlines():
+        inner = line.strip().strip("│|").strip()
+        if inner and (set(inner) <= _RULE or (inner[0] in _RULE and inner[-1] in _RULE)):  # a rule or title bar
+            blocks.append([])
+        elif inner:
+            blocks[-1].append(inner)
+    words = blocks[1] if len(blocks) > 2 else [line for block in blocks for line in block]
+    return " ".join(" ".join(words).split())
+
+
+def _parse(args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, description: str) -> T:
+    """tyro's parse, its usage errors (unknown choice or option, unparsable number) turned into one line and
+    exit status 2 like every other error (tyro draws them as a box)."""
+    captured = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(captured):
+            args = tyro.cli(args_type, args=argv, prog=prog, description=description)
+    except SystemExit as done:
+        if done.code in (0, None):
+            raise
+        message = _box_message(captured.getvalue()) or " ".join(captured.getvalue().split())
+        print(f"{prog}: error: {message} (see {prog} --help)", file=sys.stderr)
+        raise SystemExit(2) from None
+    sys.stderr.write(captured.getvalue())
+    return args
+
+
 def run(
     main: Callable[[T], Any], args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, doc: str | None
 ) -> int:
     """Parse ``argv`` into ``args_type`` and call ``main``; the exit status. Bad input (any ``ValueError``, the
     type of every documented input error of the package) prints ``prog: error: <message>`` on stderr and returns
-    2; tyro's own parse errors exit 2 too. ``UAMFLEET_TRACEBACK=1`` re-raises instead, for debugging."""
+    2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1`` re-raises instead, for debugging."""
     description = (doc or "").strip()
     try:
-        args = tyro.cli(_deferring_checks(args_type), args=argv, prog=prog, description=description)
+        args = _parse(_deferring_checks(args_type), argv, prog, description)
         if (error := getattr(args, "_cli_error", None)) is not None:
             raise error
         status = main(args)
