@@ -46,6 +46,8 @@ BAD_VALUES = [
     (train_cli.cli, ["--sinr-min-db", "nan"], "--sinr-min-db=nan must be a finite number"),
     (render.cli, ["--out", "/nonexistent/sub/x.html"], "neither its folder /nonexistent/sub nor that folder's parent"),
     (benchmark.cli, ["--methods", "ppo", "--count", "1"], "unknown --methods ['ppo']"),
+    (render.cli, ["--checkpoint", "/nonexistent.pt"], "checkpoint /nonexistent.pt does not exist; train one with"),
+    (benchmark.cli, ["--from-csv", "/nonexistent.csv"], "No such file or directory: '/nonexistent.csv'"),
 ]
 
 

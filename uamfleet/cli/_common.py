@@ -85,7 +85,7 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
         def __post_init__(self) -> None:
             try:
                 super().__post_init__()
-            except ValueError as err:
+            except (ValueError, FileNotFoundError) as err:
                 self._cli_error = err
 
     return dataclasses.dataclass(Checked)
@@ -130,15 +130,16 @@ def run(
     main: Callable[[T], Any], args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, doc: str | None
 ) -> int:
     """Parse ``argv`` into ``args_type`` and call ``main``; the exit status. Bad input (any ``ValueError``, the
-    type of every documented input error of the package) prints ``prog: error: <message>`` on stderr and returns
-    2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1`` re-raises instead, for debugging."""
+    type of every documented input error of the package, or a missing input file) prints ``prog: error:
+    <message>`` on stderr and returns 2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1``
+    re-raises instead, for debugging."""
     description = (doc or "").strip()
     try:
         args = _parse(_deferring_checks(args_type), argv, prog, description)
         if (error := getattr(args, "_cli_error", None)) is not None:
             raise error
         status = main(args)
-    except ValueError as err:
+    except (ValueError, FileNotFoundError) as err:
         if os.environ.get("UAMFLEET_TRACEBACK"):
             raise
         message = " ".join(str(err).split())  # one line

@@ -386,7 +386,9 @@ class Checkpoint:
     def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
         path = Path(path)
         if not path.is_file():
-            raise FileNotFoundError(f"checkpoint {path} does not exist; train one with `python train/ppo.py`.")
+            raise FileNotFoundError(
+                f"checkpoint {path} does not exist; train one with uamfleet-train (or python train/ppo.py)."
+            )
         return cls.from_bytes(path.read_bytes(), str(path), map_location)
 
     @classmethod
