@@ -86,7 +86,7 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
             try:
                 super().__post_init__()
             except (ValueError, FileNotFoundError) as err:
-                self._cli_error = err
+                object.__setattr__(self, "_cli_error", err)  # also for a frozen dataclass
 
     return dataclasses.dataclass(Checked)
 
