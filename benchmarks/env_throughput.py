@@ -13,10 +13,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import tyro
 
 import uamfleet
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
-from uamfleet.cli._common import run
 
 
 @dataclass
@@ -86,4 +86,4 @@ def main(args: Args) -> None:
 
 
 if __name__ == "__main__":
-    raise SystemExit(run(main, Args, None, "benchmarks/env_throughput.py", __doc__))
+    main(tyro.cli(Args))
