@@ -18,9 +18,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import tyro
 
 import uamfleet
+from uamfleet.cli._common import run
 
 
 @dataclass
@@ -107,4 +107,4 @@ def main(args: Args) -> dict[int, tuple[float, float]]:
 
 
 if __name__ == "__main__":
-    main(tyro.cli(Args))
+    raise SystemExit(run(main, Args, None, "benchmarks/pettingzoo_vs_mpe2.py", __doc__))

@@ -9,9 +9,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import tyro
 
 from uamfleet.radio import packaged, read_winprop
+from uamfleet.cli._common import run
 
 
 @dataclass
@@ -43,4 +43,4 @@ def main(args: Args) -> None:
 
 
 if __name__ == "__main__":
-    main(tyro.cli(Args))
+    raise SystemExit(run(main, Args, None, "benchmarks/radio_load.py", __doc__))

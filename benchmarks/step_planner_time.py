@@ -12,11 +12,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import tyro
 
 from uamfleet.baselines.step_planner import CLAIRVOYANT_SETTINGS, StepPlannerPolicy, StepSearch
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import TEST_SEEDS, make_instance
+from uamfleet.cli._common import run
 
 
 @dataclass
@@ -55,4 +55,4 @@ def main(args: Args) -> None:
 
 
 if __name__ == "__main__":
-    main(tyro.cli(Args))
+    raise SystemExit(run(main, Args, None, "benchmarks/step_planner_time.py", __doc__))

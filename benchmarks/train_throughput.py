@@ -21,10 +21,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import tyro
 
 from uamfleet.rl.distributed import launch_local
 from uamfleet.rl.trainer import TrainArgs, train
+from uamfleet.cli._common import run
 
 
 @dataclass
@@ -97,4 +97,4 @@ def main(args: Args) -> list[dict[str, float | str | int]]:
 
 
 if __name__ == "__main__":
-    main(tyro.cli(Args))
+    raise SystemExit(run(main, Args, None, "benchmarks/train_throughput.py", __doc__))

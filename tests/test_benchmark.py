@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from eval.benchmark import Args, markdown, summary, tasks
+from uamfleet.cli.benchmark import Args, markdown, summary, tasks
 
 
 def _row(instance: str, method: str, td: float, pr: float = 100.0) -> dict[str, object]:

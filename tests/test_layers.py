@@ -1,4 +1,4 @@
-"""Imports point one way: radio -> paths -> env -> {baselines, rl} -> rollout/metrics -> viz -> CLIs.
+"""Imports point one way: radio -> paths -> env -> {baselines, rl} -> rollout/metrics -> viz -> CLIs (uamfleet.cli).
 
 Every module of ``uamfleet/``, ``eval/``, ``train/`` and ``benchmarks/`` is parsed (``ast``, so imports inside
 functions count too) and each import of a project module becomes an edge. An edge may point down or sideways
@@ -40,7 +40,9 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (7, ("uamfleet.rl.trainer",)),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
-    (10, ("eval", "train", "benchmarks")),
+    # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
+    # eval/ and train/.
+    (10, ("uamfleet.cli", "eval", "train", "benchmarks")),
 )
 # Packages of one layer that must not import each other (siblings, not a stack).
 SIBLINGS = ("uamfleet.baselines", "uamfleet.rl")

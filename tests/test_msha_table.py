@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from eval.msha_table import Args, experiments, first_reaching, main
+from uamfleet.cli.msha_table import Args, experiments, first_reaching, main
 from uamfleet.rl.trainer import TrainArgs, train
 
 

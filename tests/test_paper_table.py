@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from eval.paper_table import Args, main
+from uamfleet.cli.paper_table import Args, main
 from uamfleet.rl.trainer import TrainArgs, train
 
 

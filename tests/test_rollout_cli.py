@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from eval.rollout import Args, main
+from uamfleet.cli.rollout import Args, main
 
 
 def test_straight_line_is_scored_against_the_scenario_threshold():

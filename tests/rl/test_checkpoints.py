@@ -4,7 +4,6 @@ silently overwritten, Ctrl-C and resume that neither lose nor double-count steps
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import io
 import os
 from pathlib import Path
@@ -167,10 +166,8 @@ def test_resuming_a_finished_run_says_so_and_keeps_its_last_point(tmp_path, caps
 
 
 def test_the_command_line_exits_130_after_ctrl_c(tmp_path, monkeypatch):
-    spec = importlib.util.spec_from_file_location("train_ppo", Path(__file__).parents[2] / "train" / "ppo.py")
-    assert spec is not None and spec.loader is not None
-    cli = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cli)
+    import uamfleet.cli.train as cli  # what train/ppo.py and uamfleet-train run
+
     monkeypatch.setattr(cli, "train", lambda a: train(a, env_config=ONE_PASSENGER))
     interrupt_in_rollout(monkeypatch, after_calls=20)
     assert cli.main(args(tmp_path)) == 130

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from eval.render import Args, main
+from uamfleet.cli.render import Args, main
 
 
 def test_planner_on_berlin_p4_writes_page_and_figures(tmp_path: Path) -> None:

@@ -25,13 +25,22 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
 from torch.distributions import Categorical
 
-from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
+from uamfleet.config import (
+    FEASIBILITY_RULES,
+    REWARD_TERMS,
+    SCENARIOS,
+    ConfigError,
+    EnvConfig,
+    check_integer,
+    check_number,
+    make_config,
+)
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.io import write_bytes_atomic, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
@@ -41,19 +50,27 @@ from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_to
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
 from uamfleet.rollout import fly
 
+# The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
+if TYPE_CHECKING:
+    ScenarioName = str
+    FeasibilityRule = str
+    VariantName = str
+else:
+    ScenarioName, FeasibilityRule, VariantName = Literal[SCENARIOS], Literal[FEASIBILITY_RULES], Literal[VARIANTS]
+
 
 @dataclass
 class TrainArgs:
     """PPO training of the shared MSHA policy (every option is a command-line flag of ``train/ppo.py``)."""
 
     # environment
-    scenario: str = "berlin_p4"
-    """scenario name (uamfleet.SCENARIOS)"""
+    scenario: ScenarioName = "berlin_p4"
+    """scenario name"""
     sinr_min_db: float | None = None
-    """SINR threshold in dB (default: the scenario's)"""
+    """SINR threshold in dB; None: the scenario's"""
     num_taxis: int | None = None
-    """fleet size (default: the scenario's)"""
-    feasibility: Literal["endpoint_block", "segment_raster"] = "endpoint_block"
+    """fleet size; None: the scenario's"""
+    feasibility: FeasibilityRule = "endpoint_block"
     """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
     time_limit_steps: int = 200
     """episode time limit while training (steps)"""
@@ -64,14 +81,14 @@ class TrainArgs:
     shaping_metric: Literal["path", "path_exact", "euclidean"] = "path"
     """distance in the shaping potential: along feasible paths, or straight line"""
     shaping_gamma: float | None = None
-    """discount inside the shaping term gamma * Phi(s') - Phi(s) (default: the trainer's gamma, which keeps it
+    """discount inside the shaping term gamma * Phi(s') - Phi(s); None: the trainer's gamma (which keeps it
     potential-based; 1.0 removes the per-step bonus w (1 - gamma) |Phi| for staying away from the stop)"""
     shaping_anneal_frac: float = 0.5
     """decay the shaping weight linearly to 0 over the LAST this fraction of training (0: constant). Shaping is
     potential-based, so the optimum is unchanged: it helps find every passenger early, and annealing it leaves
     the end of training to the true reward (shorter tours)"""
     # network
-    variant: Literal["le", "de", "de_msfea", "full"] = "de_msfea"
+    variant: VariantName = "de_msfea"
     """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
     Default de_msfea: on Berlin P4 it came within 5 % of the optimum in 40-140k agent-steps in 8 of 10 runs, at
     3x the full model's speed per step; the full model learned slower per step too (docs/results.md)"""
@@ -89,7 +106,8 @@ class TrainArgs:
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
     total_timesteps: int = 200_000
-    """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together)"""
+    """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together); rounded down to whole
+    iterations of num_steps x num_envs x taxis, at least one"""
     num_envs: int = 32
     """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
     split evenly among the ranks"""
@@ -133,7 +151,7 @@ class TrainArgs:
     eval_every: int = 5
     """greedy evaluation every this many iterations (0: only at the end)"""
     eval_time_limit_steps: int | None = None
-    """time limit of the greedy evaluation episodes (default: the training one; the observation's time
+    """time limit of the greedy evaluation episodes; None: the training one (the observation's time
     features are fractions of the time limit, so a different one shifts them)"""
     checkpoint_every: int = 5
     """iterations between checkpoints"""
@@ -142,9 +160,9 @@ class TrainArgs:
     max_wall_s: float | None = None
     """stop (after a final evaluation and checkpoint) once training has run this many seconds"""
     run_dir: Path = Path("runs")
-    """folder of all runs"""
+    """folder of all runs (relative to the current folder)"""
     run_name: str | None = None
-    """default: {scenario}_{sinr}dB_{variant}_s{seed}"""
+    """None: {scenario}_{sinr}dB_{variant}_s{seed}"""
     resume: bool = False
     """continue from run_dir/run_name/last.pt"""
     overwrite: bool = False
@@ -160,6 +178,27 @@ class TrainArgs:
     """show a progress bar"""
     tensorboard: bool = True
     """write TensorBoard events to run_dir/name/tb"""
+
+    def __post_init__(self) -> None:
+        """Every numeric option in its range (:class:`~uamfleet.config.ConfigError` naming the flag otherwise),
+        so a typo fails before any env is built, not after training (``checkpoint_every=0``)."""
+        for name, minimum in _COUNTS.items():
+            check_integer(_flag(name), getattr(self, name), minimum)
+        for name in ("num_taxis", "eval_time_limit_steps"):
+            if getattr(self, name) is not None:
+                check_integer(_flag(name), getattr(self, name), 1)
+        for name, (low, high, low_open) in _RANGES.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            check_number(_flag(name), value)
+            if (value <= low if low_open else value < low) or (high is not None and value > high):
+                interval = f"{'(' if low_open else '['}{low:g}, {'inf)' if high is None else f'{high:g}]'}"
+                raise ConfigError(f"{_flag(name)}={value!r} is out of range: it must lie in {interval}.")
+        for name in ("scenario", "run_name"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, str):
+                raise ConfigError(f"{_flag(name)}={value!r} must be a string.")
 
     @property
     def name(self) -> str:
@@ -177,6 +216,26 @@ class TrainArgs:
         limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
         overrides["time_limit_steps"] = limit
         return overrides
+
+
+# Lower bounds of TrainArgs' integer options.
+_COUNTS: dict[str, int] = {
+    "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
+    "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
+    "checkpoint_every": 1, "threads": 0,
+}  # fmt: skip
+# (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
+_RANGES: dict[str, tuple[float, float | None, bool]] = {
+    "sinr_min_db": (-math.inf, None, True), "shaping": (0.0, None, False), "shaping_gamma": (0.0, 1.0, True),
+    "shaping_anneal_frac": (0.0, 1.0, False), "learning_rate": (0.0, None, True), "gamma": (0.0, 1.0, True),
+    "gae_lambda": (0.0, 1.0, False), "clip_coef": (0.0, None, True), "ent_coef": (0.0, None, False),
+    "vf_coef": (0.0, None, False), "max_grad_norm": (0.0, None, True), "target_kl": (0.0, None, True),
+    "stop_at_td_m": (0.0, None, False), "max_wall_s": (0.0, None, True),
+}  # fmt: skip
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
 
 
 @dataclass
@@ -213,13 +272,43 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
 
 
 class GreedyPolicy:
-    """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs."""
+    """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
 
-    def __init__(self, net: MSHAActorCritic, normalizer: ObservationNormalizer | None, device: torch.device) -> None:
+    ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
+    training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout."""
+
+    def __init__(
+        self,
+        net: MSHAActorCritic,
+        normalizer: ObservationNormalizer | None,
+        device: torch.device,
+        obs_shapes: dict[str, tuple[int, ...]] | None = None,
+        num_taxis: int | None = None,
+        passenger_slots: int | None = None,
+    ) -> None:
         self.net, self.normalizer, self.device = net, normalizer, device
+        self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
+
+    def check_layout(self, obs: dict[str, np.ndarray]) -> None:
+        """ValueError naming every observation field whose shape differs from the training env's."""
+        if self.obs_shapes is None:
+            return
+        diffs = [
+            f"{k!r} {tuple(v.shape[2:])} (trained on {self.obs_shapes.get(k)})"
+            for k, v in obs.items()
+            if tuple(v.shape[2:]) != tuple(self.obs_shapes.get(k, ()))
+        ]
+        if diffs:
+            raise ValueError(
+                f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
+                f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
+                f"num_taxis={self.num_taxis} and max_passengers={self.passenger_slots} (a smaller instance is padded "
+                "by max_passengers), or train a policy for this one."
+            )
 
     @torch.no_grad()
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        self.check_layout(obs)
         E, A = obs["action_mask"].shape[:2]
         flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items()}
         if self.normalizer is not None:
@@ -297,7 +386,9 @@ class Checkpoint:
     def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
         path = Path(path)
         if not path.is_file():
-            raise FileNotFoundError(f"checkpoint {path} does not exist; train one with `python train/ppo.py`.")
+            raise FileNotFoundError(
+                f"checkpoint {path} does not exist; train one with uamfleet-train (or python train/ppo.py)."
+            )
         return cls.from_bytes(path.read_bytes(), str(path), map_location)
 
     @classmethod
@@ -474,11 +565,6 @@ class Run:
 
 
 def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device: torch.device) -> Run:
-    if args.num_envs < 1 or args.num_steps < 1 or args.num_minibatches < 1:
-        raise ValueError(
-            f"num_envs={args.num_envs}, num_steps={args.num_steps}, num_minibatches={args.num_minibatches} "
-            "must all be >= 1."
-        )
     if args.variant not in VARIANTS:
         raise ValueError(f"variant={args.variant!r} is unknown; use one of {VARIANTS}.")
     env_offset, local_envs = world.shard(args.num_envs)
@@ -489,6 +575,13 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     state_dim = int(venv.state_space.shape[0]) if args.centralised_critic else 0
     batch = args.num_steps * args.num_envs * taxis
+    if args.total_timesteps < batch or args.num_minibatches > batch:
+        raise ConfigError(
+            f"--total-timesteps={args.total_timesteps} and --num-minibatches={args.num_minibatches} need at least "
+            f"one iteration's batch of {batch} agent-steps (--num-steps {args.num_steps} x --num-envs "
+            f"{args.num_envs} x {taxis} taxi(s)) to split; raise --total-timesteps to >= {batch} or lower "
+            "--num-envs / --num-steps."
+        )
     return Run(
         args=args, world=world, device=device, folder=args.run_dir / args.name, cfg=cfg,
         eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes,
@@ -930,7 +1023,8 @@ def load_policy(
     ckpt = Checkpoint.load(path, map_location=device)
     args = ckpt.train_args()
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    venv = VectorEnv(make_env_config(base, args, training=False), num_envs=1)
+    cfg = make_env_config(base, args, training=False)
+    venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     ckpt.check_matches(None, shapes)
     net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt.net_config)).to(device)
@@ -940,7 +1034,7 @@ def load_policy(
     if ckpt.obs_normalizer is not None:
         normalizer = ObservationNormalizer(shapes)
         normalizer.load_state_dict(ckpt.obs_normalizer)
-    return GreedyPolicy(net, normalizer, torch.device(device)), args
+    return GreedyPolicy(net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers), args
 
 
 __all__ = [

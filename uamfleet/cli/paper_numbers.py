@@ -58,5 +58,5 @@ PAPER_TABLE_II: dict[str, dict[str, dict[float, PaperRow]]] = {
     },
 }
 
-PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT = {"berlin": {-3: 86.0}, "detroit": {-17: 95.0}}
+PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT: dict[str, dict[float, float]] = {"berlin": {-3: 86.0}, "detroit": {-17: 95.0}}
 """Connectivity of straight-line flight along the RL task order (paper §V); MSHA-RL keeps 100 %."""

@@ -1,0 +1,148 @@
+"""What every command line shares: parsing with tyro, one-line errors with exit status 2, choices, "–" for
+undefined figures."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import io
+import math
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
+
+import tyro
+
+from uamfleet.baselines import POLICIES
+from uamfleet.config import FEASIBILITY_RULES, SCENARIOS
+from uamfleet.instances import FAMILIES, SPLITS
+from uamfleet.rl.networks import VARIANTS
+
+T = TypeVar("T")
+
+# The known sets as Literal types built from the package's tuples, so tyro lists them as {a,b,...} choices and
+# rejects a typo with a usage message (exit 2). mypy sees plain strings.
+if TYPE_CHECKING:
+    Scenario = str
+    Policy = str
+    Variant = str
+    Feasibility = str
+    Family = str
+    Split = str
+else:
+    Scenario = Literal[SCENARIOS]
+    Policy = Literal[POLICIES]
+    Variant = Literal[VARIANTS]
+    Feasibility = Literal[FEASIBILITY_RULES]
+    Family = Literal[tuple(FAMILIES)]
+    Split = Literal[tuple(SPLITS)]
+
+SCENARIO_DEFAULT = tyro.conf.arg(help_behavior_hint="(default: the scenario's)")
+"""``Annotated[float | None, SCENARIO_DEFAULT]``: an option whose unset value means the scenario's own."""
+
+UNDEFINED = "–"
+"""How a figure that is undefined for an episode prints (no ride finished: ATT NaN; no step flown: min SINR -inf)."""
+
+
+def fmt(value: float | None, spec: str = ".1f", unit: str = "") -> str:
+    """``value`` formatted with ``spec`` and a unit, or "–" when it is None, NaN or infinite."""
+    if value is None or not math.isfinite(value):
+        return UNDEFINED
+    return f"{value:{spec}}{unit}"
+
+
+class UsageError(ValueError):
+    """A command-line value that makes no sense (printed as one line, exit status 2)."""
+
+
+def output_path(path: Path, flag: str) -> Path:
+    """An output file's path, relative to the current folder. Its folder must exist, or be one new folder inside
+    an existing one (created here): a typo such as ``/nonexistent/sub/x.html`` fails instead of making a tree."""
+    parent = path.parent
+    if not parent.is_dir():
+        if not parent.parent.is_dir():
+            raise UsageError(
+                f"{flag} {path}: neither its folder {parent} nor that folder's parent exists; create the folders "
+                "first or write to an existing one."
+            )
+        parent.mkdir()
+    if path.is_dir():
+        raise UsageError(f"{flag} {path} is a folder; give a file name.")
+    return path
+
+
+def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
+    """A subclass of a dataclass whose ``__post_init__`` keeps its ValueError for :func:`run` to report as one
+    line (tyro would wrap it in a box of its own)."""
+    if not (dataclasses.is_dataclass(args_type) and hasattr(args_type, "__post_init__")):
+        return args_type
+
+    @functools.wraps(args_type, updated=())
+    class Checked(args_type):  # type: ignore[misc,valid-type]
+        def __post_init__(self) -> None:
+            try:
+                super().__post_init__()
+            except (ValueError, FileNotFoundError) as err:
+                object.__setattr__(self, "_cli_error", err)  # also for a frozen dataclass
+
+    return dataclasses.dataclass(Checked)
+
+
+_RULE = set("─━-=+╭╮╰╯│| ")
+
+
+def _box_message(text: str) -> str:
+    """The message of tyro's error box as one line. rich draws it framed (title bar, message, rule, "For full
+    helptext ...") or plain (title, rule, message, rule, ...): the message is the text after the first rule
+    (a title bar counts as one) up to the next."""
+    blocks: list[list[str]] = [[]]
+    for line in text.splitlines():
+        inner = line.strip().strip("│|").strip()
+        if inner and (set(inner) <= _RULE or (inner[0] in _RULE and inner[-1] in _RULE)):  # a rule or title bar
+            blocks.append([])
+        elif inner:
+            blocks[-1].append(inner)
+    words = blocks[1] if len(blocks) > 2 else [line for block in blocks for line in block]
+    return " ".join(" ".join(words).split())
+
+
+def _parse(args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, description: str) -> T:
+    """tyro's parse, its usage errors (unknown choice or option, unparsable number) turned into one line and
+    exit status 2 like every other error (tyro draws them as a box)."""
+    captured = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(captured):
+            args = tyro.cli(args_type, args=argv, prog=prog, description=description)
+    except SystemExit as done:
+        if done.code in (0, None):
+            raise
+        message = _box_message(captured.getvalue()) or " ".join(captured.getvalue().split())
+        print(f"{prog}: error: {message} (see {prog} --help)", file=sys.stderr)
+        raise SystemExit(2) from None
+    sys.stderr.write(captured.getvalue())
+    return args
+
+
+def run(
+    main: Callable[[T], Any], args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, doc: str | None
+) -> int:
+    """Parse ``argv`` into ``args_type`` and call ``main``; the exit status. Bad input (any ``ValueError``, the
+    type of every documented input error of the package, or a missing input file) prints ``prog: error:
+    <message>`` on stderr and returns 2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1``
+    re-raises instead, for debugging."""
+    description = (doc or "").strip()
+    try:
+        args = _parse(_deferring_checks(args_type), argv, prog, description)
+        if (error := getattr(args, "_cli_error", None)) is not None:
+            raise error
+        status = main(args)
+    except (ValueError, FileNotFoundError) as err:
+        if os.environ.get("UAMFLEET_TRACEBACK"):
+            raise
+        message = " ".join(str(err).split())  # one line
+        print(f"{prog}: error: {message}", file=sys.stderr)
+        return 2
+    return status if isinstance(status, int) else 0

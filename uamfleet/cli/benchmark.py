@@ -1,0 +1,353 @@
+"""Every planner over many seeded instances (and the paper's fixed ones), in parallel: the yardstick table.
+
+    uamfleet-benchmark --count 200 --jobs 2                  # 200 Berlin test instances
+    uamfleet-benchmark --fixed --count 0 --jobs 2             # Berlin P4 / Detroit P5 only
+    uamfleet-benchmark --count 20 --checkpoint runs/x/best.pt # a learned policy beside them
+
+Instances come from :func:`uamfleet.instances.make_instance` (``--split test`` by default: never tune on it).
+Every policy is flown through the same env and scored by :mod:`uamfleet.metrics`. Per set it writes PR, TD,
+ATT, AWT and connectivity as means with 95 % intervals (normal approximation, 1.96 standard errors), TD /
+best-known per instance (mean, p95, worst; instances where both delivered everyone), the mean lower bound
+(:func:`uamfleet.baselines.step_planner.lower_bound_m`) and ``replan``'s decision latency. Outputs: a CSV of
+every (instance, policy) row and the marked section ``benchmark`` (or ``--section``) of ``docs/results.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import csv
+import io
+import math
+import multiprocessing as mp
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import uamfleet
+from uamfleet.cli._common import Family, Feasibility, Scenario, Split, UsageError, fmt, run
+from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.baselines.step_planner import (
+    STEP_PLANNERS,
+    SearchSettings,
+    StepPlannerPolicy,
+    instance_lower_bound_m,
+)
+from uamfleet.config import EnvConfig
+from uamfleet.env.generator import InfeasibleInstanceError, validate_instance
+from uamfleet.env.world import World
+from uamfleet.instances import make_instance, split_seeds
+from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.metrics import episode_metrics
+from uamfleet.rollout import fly
+
+METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
+FIXED: tuple[tuple[str, tuple[float, ...]], ...] = (
+    ("berlin_p4", (-7.0, -6.0, -5.0, -4.0, -3.0)),
+    ("detroit_p5", (-17.0,)),
+    ("detroit3gpp_p5", (-21.0, -20.0, -19.0, -18.0, -17.0)),
+)
+COLUMNS = ("set", "instance", "threshold_db", "feasibility", "num_requests", "method", "pr_pct", "td_m", "att_s",
+           "awt_s", "connectivity_pct", "lower_bound_m", "steps", "policy_s", "decision_p50_ms",
+           "decision_max_ms")  # fmt: skip
+
+
+@dataclass
+class Args:
+    family: Family = "berlin"
+    """instance family"""
+    split: Split = "test"
+    count: int = 200
+    """instances of the split (0: only --fixed)"""
+    first: int = 0
+    """index of the first seed in the split"""
+    feasibility: Feasibility = "endpoint_block"
+    fixed: bool = False
+    """also the paper's fixed scenarios (Berlin P4 -7..-3 dB, Detroit P5) under both feasibility rules"""
+    fixed_rules: tuple[Feasibility, ...] = ("endpoint_block", "segment_raster")
+    fixed_scenarios: tuple[Scenario, ...] = tuple(s for s, _ in FIXED)
+    fixed_thresholds: tuple[float, ...] = ()
+    """only these thresholds of the fixed scenarios (empty: all)"""
+    methods: tuple[str, ...] = METHODS
+    checkpoint: Path | None = None
+    """a learned policy (runs/<name>/best.pt) flown beside the planners"""
+    best_known_beams: tuple[int, ...] = (256,)
+    """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
+    replan_beam: int = 64
+    """beam width of replan's search at each release"""
+    jobs: int = 2
+    out_csv: Path = Path("docs/results/benchmark.csv")
+    out_md: Path = Path("docs/results.md")
+    """Markdown file whose marked section is (re)written (paths are relative to the current folder: run it from the
+    repository root to update the repository's docs)"""
+    section: str = "benchmark"
+    from_csv: Path | None = None
+    """re-render the table from the CSV of an earlier run (lower bounds recomputed), flying nothing"""
+    wall_min: float = math.nan
+    """with --from-csv: the wall-clock minutes of that run, for the table's note"""
+    command: str = ""
+    """the command line to print above the table (empty: this one, reconstructed)"""
+
+
+Task = tuple[str, str, Any, float | None, str]  # (set label, family or scenario, seed, threshold, feasibility)
+
+
+def _config(task: Task) -> EnvConfig:
+    label, source, seed, threshold, rule = task
+    if label == "fixed":
+        return uamfleet.make_config(source, sinr_min_db=threshold, feasibility=rule)
+    return make_instance(source, int(seed), feasibility=rule)  # type: ignore[arg-type]
+
+
+def _policy(method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int) -> Any:
+    if method in PLANNERS:
+        return PlannerPolicy(method)
+    if method == "best_known":
+        slack = (1.0, 0.0)
+        return StepPlannerPolicy(method, [SearchSettings(b, rank_slack=slack[i % 2]) for i, b in enumerate(beams)])
+    if method == "replan":
+        return StepPlannerPolicy(method, [SearchSettings(replan_beam, rank_slack=1.0)])
+    from uamfleet.rl.trainer import load_policy
+
+    assert checkpoint is not None
+    return load_policy(checkpoint)[0]
+
+
+def check_checkpoint(path: Path) -> None:
+    """The benchmark's instances have one taxi: refuse a fleet policy (or an unreadable file) before flying."""
+    from uamfleet.rl.trainer import load_policy
+
+    policy = load_policy(path)[0]
+    if policy.num_taxis != 1:
+        raise UsageError(
+            f"--checkpoint {path} was trained with {policy.num_taxis} taxis; the benchmark's instances have one "
+            "taxi: give a policy trained with --num-taxis 1."
+        )
+
+
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int]
+
+
+def run_instance(job: Job) -> list[dict[str, Any]]:
+    """Every method on one instance (one worker process)."""
+    task, methods, checkpoint, beams, replan_beam = job
+    try:
+        cfg = _config(task)
+        validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
+    except InfeasibleInstanceError as err:  # e.g. a paper stop below the threshold under the strict rule
+        print(f"skipped {task[1]} at {task[3]} dB ({task[4]}): {err}", flush=True)
+        return []
+    label, source, seed, _, rule = task
+    name = f"{source}@{cfg.sinr_min_db:g}dB" if label == "fixed" else str(seed)
+    bound = instance_lower_bound_m(cfg)
+    rows = []
+    for method in methods:
+        overrides = planner_env_overrides(method) if method in PLANNERS else {}
+        run_cfg = cfg.replace(**overrides) if overrides else cfg
+        policy = _policy(method, checkpoint, beams, replan_beam)
+        if method == "learned":  # the policy's passenger axis: pad the instance's to it
+            if run_cfg.num_passengers > policy.passenger_slots:
+                print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
+                      f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
+                continue
+            run_cfg = run_cfg.replace(max_passengers=policy.passenger_slots)
+        start = time.perf_counter()
+        traj = fly(run_cfg, policy)
+        elapsed = time.perf_counter() - start
+        m = episode_metrics(traj, cfg.radio, threshold_db=cfg.sinr_min_db)
+        decisions = np.asarray(traj.decision_s) * 1000.0
+        rows.append({
+            "set": label if label == "fixed" else f"{source} {label}", "instance": name,
+            "threshold_db": cfg.sinr_min_db, "feasibility": rule, "num_requests": m.num_requests, "method": method,
+            "pr_pct": m.pr_pct, "td_m": m.td_m, "att_s": m.att_s, "awt_s": m.awt_s,
+            "connectivity_pct": m.connectivity_pct, "lower_bound_m": bound, "steps": m.steps, "policy_s": elapsed,
+            "decision_p50_ms": float(np.median(decisions)), "decision_max_ms": float(decisions.max()),
+        })  # fmt: skip
+    return rows
+
+
+def _mean(values: np.ndarray) -> float:
+    """The mean, NaN (printed "–") for no values."""
+    return float(values.mean()) if len(values) else math.nan
+
+
+def _ci(values: np.ndarray) -> str:
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return "–"
+    half = 1.96 * values.std(ddof=1) / math.sqrt(len(values)) if len(values) > 1 else 0.0
+    return f"{values.mean():,.1f} ± {half:,.1f}"
+
+
+def summary(rows: list[dict[str, Any]], group: tuple[str, ...]) -> list[dict[str, Any]]:
+    """One line per (group..., method): means with 95 % intervals and TD / best-known per instance."""
+    best = {(r["set"], r["instance"], r["feasibility"]): r for r in rows if r["method"] == "best_known"}
+    out = []
+    keys = dict.fromkeys((*tuple(r[g] for g in group), r["method"]) for r in rows)
+    for key in keys:
+        sel = [r for r in rows if (*tuple(r[g] for g in group), r["method"]) == key]
+        arr = {c: np.array([float(r[c]) for r in sel]) for c in ("pr_pct", "td_m", "att_s", "awt_s",
+                                                                  "connectivity_pct", "lower_bound_m")}  # fmt: skip
+        ratios = []
+        for r in sel:
+            b = best.get((r["set"], r["instance"], r["feasibility"]))
+            if b is not None and r["pr_pct"] >= 100.0 and b["pr_pct"] >= 100.0:
+                ratios.append(r["td_m"] / b["td_m"])
+        ratio = np.array(ratios)
+        p50 = [r["decision_p50_ms"] for r in sel]
+        out.append({
+            **dict(zip((*group, "method"), key, strict=True)), "n": len(sel),
+            "all_delivered_pct": 100.0 * float(np.mean(arr["pr_pct"] >= 100.0)),
+            "pr": _ci(arr["pr_pct"]), "td": _ci(arr["td_m"]), "att": _ci(arr["att_s"]), "awt": _ci(arr["awt_s"]),
+            "conn": _ci(arr["connectivity_pct"]), "lb": float(arr["lower_bound_m"].mean()),
+            "over_lb": _mean((arr["td_m"] / arr["lower_bound_m"])[arr["pr_pct"] >= 100.0]),
+            "ratio_mean": float(ratio.mean()) if len(ratio) else math.nan,
+            "ratio_p95": float(np.percentile(ratio, 95)) if len(ratio) else math.nan,
+            "ratio_max": float(ratio.max()) if len(ratio) else math.nan,
+            "decision_p50_ms": float(np.median(p50)), "decision_max_ms": max(r["decision_max_ms"] for r in sel),
+            "policy_s": float(np.mean([r["policy_s"] for r in sel])),
+        })  # fmt: skip
+    return out
+
+
+def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str = "") -> str:
+    lines = ["```bash", command, "```", ""]
+    if math.isfinite(wall_s):
+        lines += [f"Wall-clock: {wall_s / 60:.1f} min{note}.", ""]
+    random_rows = [r for r in rows if r["set"] != "fixed"]
+    if random_rows:
+        lines += [
+            f"### {random_rows[0]['set']} instances ({len({r['instance'] for r in random_rows})}, "
+            f"{random_rows[0]['feasibility']} rule)",
+            "",
+            "| method | all delivered % | PR % | TD m | ATT s | AWT s | conn. % | TD / best-known mean | p95 | worst "
+            "| lower bound m (mean) | TD / lower bound mean | decision p50 / max ms | s per instance |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        ]
+        for s in summary(random_rows, ("set", "feasibility")):
+            lines.append(
+                f"| {s['method']} | {s['all_delivered_pct']:.1f} | {s['pr']} | {s['td']} | {s['att']} | {s['awt']} | "
+                f"{s['conn']} | {fmt(s['ratio_mean'], '.3f')} | {fmt(s['ratio_p95'], '.3f')} | "
+                f"{fmt(s['ratio_max'], '.3f')} | {fmt(s['lb'], ',.0f')} | {fmt(s['over_lb'], '.3f')} | "
+                f"{s['decision_p50_ms']:.1f} / {s['decision_max_ms']:,.0f} | "
+                f"{s['policy_s']:.1f} |"
+            )
+        lines.append("")
+    fixed = [r for r in rows if r["set"] == "fixed"]
+    if fixed:
+        methods = list(dict.fromkeys(r["method"] for r in fixed))
+        lines += [
+            "### The paper's fixed instances: TD m (PR % where below 100)",
+            "",
+            "| instance | rule | lower bound | " + " | ".join(methods) + " |",
+            "|---|---|---:|" + "---:|" * len(methods),
+        ]
+        for inst in dict.fromkeys((r["instance"], r["feasibility"]) for r in fixed):
+            cells = {r["method"]: r for r in fixed if (r["instance"], r["feasibility"]) == inst}
+            bound = next(iter(cells.values()))["lower_bound_m"]
+            tds = [
+                f"{c['td_m']:,.0f}" + ("" if c["pr_pct"] >= 100 else f" (PR {c['pr_pct']:.0f})")
+                for c in (cells[m] for m in methods)
+            ]
+            lines.append(f"| {inst[0]} | {inst[1]} | {bound:,.0f} | " + " | ".join(tds) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def tasks(args: Args) -> list[Task]:
+    out: list[Task] = [
+        (args.split, args.family, seed, None, args.feasibility)
+        for seed in split_seeds(args.split, args.count, args.first)
+    ]
+    if args.fixed:
+        for rule in args.fixed_rules:
+            for scenario, thresholds in FIXED:
+                if scenario in args.fixed_scenarios:
+                    chosen = [t for t in thresholds if not args.fixed_thresholds or t in args.fixed_thresholds]
+                    out += [("fixed", scenario, None, t, rule) for t in chosen]
+    return out
+
+
+def _instance_config(row: dict[str, Any]) -> EnvConfig:
+    """The config of a CSV row's instance (``scenario@-3dB`` for fixed ones, the seed for generated ones)."""
+    if row["set"] == "fixed":
+        scenario, threshold = str(row["instance"]).split("@")
+        return uamfleet.make_config(scenario, sinr_min_db=float(threshold[:-2]), feasibility=row["feasibility"])
+    return make_instance(str(row["set"]).split()[0], int(row["instance"]), feasibility=row["feasibility"])
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """Rows of a benchmark CSV with numbers as floats and lower bounds recomputed (the bound may have improved)."""
+    with path.open(encoding="utf-8") as f:
+        rows: list[dict[str, Any]] = [
+            {k: (v if k in ("set", "instance", "feasibility", "method") else float(v)) for k, v in r.items()}
+            for r in csv.DictReader(f)
+        ]
+    bounds: dict[tuple[str, str, str], float] = {}
+    for r in rows:
+        key = (r["set"], r["instance"], r["feasibility"])
+        if key not in bounds:
+            bounds[key] = instance_lower_bound_m(_instance_config(r))
+        r["lower_bound_m"] = bounds[key]
+    return rows
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    if args.from_csv is not None:
+        earlier = read_rows(args.from_csv)
+        write_outputs(args, earlier, 60.0 * args.wall_min)
+        return earlier
+    unknown = [m for m in args.methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"unknown --methods {unknown}; choose from {METHODS}.")
+    if args.checkpoint is not None:
+        check_checkpoint(args.checkpoint)
+    methods = tuple(args.methods) + (("learned",) if args.checkpoint is not None else ())
+    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam) for t in tasks(args)]
+    start = time.perf_counter()
+    rows: list[dict[str, Any]] = []
+    with mp.get_context("spawn").Pool(args.jobs) as pool:
+        for i, result in enumerate(pool.imap(run_instance, jobs)):
+            rows += result
+            if not result:
+                continue
+            best = next((r for r in result if r["method"] == "best_known"), None)
+            print(f"[{i + 1}/{len(jobs)}] {result[0]['instance']} {result[0]['feasibility']}: "
+                  + "  ".join(f"{r['method']} {r['td_m']:.0f}" for r in result)
+                  + (f"  (LB {best['lower_bound_m']:.0f})" if best else ""), flush=True)  # fmt: skip
+            if ((i + 1) % 10 == 0 or len(jobs) < 50) and i + 1 < len(
+                jobs
+            ):  # partial results survive an interrupted run
+                write_outputs(args, rows, time.perf_counter() - start, f" (partial: {i + 1} of {len(jobs)} instances)")
+    write_outputs(args, rows, time.perf_counter() - start)
+    return rows
+
+
+def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(args.out_csv, buffer.getvalue())
+    command = args.command or (
+        f"uamfleet-benchmark --family {args.family} --split {args.split} --count {args.count} "
+        f"--first {args.first} --feasibility {args.feasibility} --jobs {args.jobs} "
+        f"--best-known-beams {' '.join(map(str, args.best_known_beams))} --replan-beam {args.replan_beam}"
+        + (" --fixed" if args.fixed else "")
+        + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
+        + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
+    )
+    replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
+    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
+
+
+def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-benchmark") -> int:
+    """The ``uamfleet-benchmark`` command (``python -m eval.benchmark``)."""
+    return run(main, Args, argv, prog, __doc__)
+
+
+if __name__ == "__main__":
+    raise SystemExit(cli(prog="python -m uamfleet.cli.benchmark"))

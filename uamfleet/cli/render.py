@@ -1,0 +1,122 @@
+"""Fly one episode and write it as a 3-D page (meshcat, one offline HTML file), optionally with PNG figures.
+
+    uamfleet-render --scenario berlin_p4 --policy raster_replan --out berlin.html --png
+    .venv/bin/python -m eval.render --scenario berlin_random --policy greedy --num-taxis 4 --out fleet.html
+
+``--policy``: a planner (single taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known),
+``greedy`` (a simple fleet dispatcher, below) or ``random``. ``--png`` also writes ``<out stem>_routes.png``
+(the route over the radio map, stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along the path over time, with
+the threshold). Screenshot the page with ``scripts/screenshot.sh``. ``--out`` is relative to the current folder;
+its folder must exist or be one new folder inside an existing one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import matplotlib
+from cycler import cycler
+
+import uamfleet
+from uamfleet.baselines import make_policy, planner_configs
+from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, fmt, output_path, run
+from uamfleet.metrics import episode_metrics
+from uamfleet.rl.trainer import load_policy
+from uamfleet.rollout import Trajectory
+from uamfleet.rollout import fly as fly_episode
+from uamfleet.viz.figures import plot_routes
+from uamfleet.viz.meshcat_view import FleetViewer
+from uamfleet.viz.colours import TAXI_HEX
+from uamfleet.viz.strip import plot_sinr_strip
+
+
+@dataclass
+class Args:
+    scenario: Scenario = "berlin_p4"
+    """scenario name"""
+    policy: Policy = "raster_replan"
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
+    (fleet dispatcher) or random"""
+    out: Path = Path("render.html")
+    """HTML file to write (relative to the current folder; its folder must exist, or be one new folder in an
+    existing one)"""
+    png: bool = False
+    """also write <stem>_routes.png and <stem>_sinr.png next to the HTML"""
+    sinr_min_db: Annotated[float | None, SCENARIO_DEFAULT] = None
+    """SINR threshold in dB"""
+    num_taxis: Annotated[int | None, SCENARIO_DEFAULT] = None
+    """fleet size"""
+    seed: int = 0
+    """episode seed (random demand and starts, the random policy)"""
+    seconds_per_step: float = 0.25
+    """playback time of one env step in the page"""
+    checkpoint: Path | None = None
+    """a policy trained by train/ppo.py (runs/<name>/best.pt); flies it greedily instead of --policy, on its
+    training scenario and threshold unless --scenario / --sinr-min-db say otherwise"""
+
+
+def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
+    """One episode of ``args.policy``; returns it with the config whose threshold the picture shows (a planner
+    may be flown under other rules, e.g. the straight line with the threshold off)."""
+    overrides: dict[str, Any] = {
+        k: v for k, v in (("sinr_min_db", args.sinr_min_db), ("num_taxis", args.num_taxis)) if v is not None
+    }
+    if args.checkpoint is not None:
+        policy, trained = load_policy(args.checkpoint)
+        overrides = {"feasibility": trained.feasibility, **trained.env_overrides(training=False), **overrides}
+        shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
+        return fly_episode(shown, policy, seed=args.seed), shown
+    flown, shown = planner_configs(args.scenario, args.policy, **overrides)
+    policy = make_policy(args.policy, args.seed, shown.num_taxis)
+    return fly_episode(flown, policy, seed=args.seed), shown
+
+
+def main(args: Args) -> dict[str, Path]:
+    if args.seed < 0:
+        raise UsageError(f"--seed {args.seed}: seeds are integers >= 0 (e.g. --seed 0).")
+    if not args.seconds_per_step > 0:
+        raise UsageError(f"--seconds-per-step {args.seconds_per_step}: give a positive playback time (e.g. 0.25).")
+    output_path(args.out, "--out")
+    if args.checkpoint is not None:
+        args.policy = "msha"
+    traj, cfg = fly(args)
+    radio, threshold = cfg.radio, cfg.sinr_min_db
+    m = episode_metrics(traj, radio, threshold_db=threshold)
+    fleet = f"{cfg.num_taxis} taxis" if cfg.num_taxis > 1 else "1 taxi"
+    title = f"{cfg.scenario} · {args.policy} · {fleet} · γ_T = {threshold:g} dB · map: {radio.label}"
+    written: dict[str, Path] = {}
+    with FleetViewer(radio, threshold, seconds_per_step=args.seconds_per_step, title=title) as viewer:
+        viewer.show_trajectory(traj)
+        written["html"] = viewer.export_html(args.out)
+    if args.png:
+        stem = args.out.with_suffix("")
+        routes = {f"taxi {a}" if cfg.num_taxis > 1 else args.policy: traj.positions_m[a] for a in range(cfg.num_taxis)}
+        exists = traj.pax_exists
+        written["routes"] = stem.with_name(stem.name + "_routes.png")
+        # Fleet routes take the taxis' colours of the 3-D page (plot_routes colours unnamed routes by the cycle).
+        with matplotlib.rc_context({"axes.prop_cycle": cycler(color=list(TAXI_HEX))}):
+            plot_routes(radio, threshold, routes, traj.origin_m[exists], traj.destination_m[exists],
+                        traj.start_pos_m[0], f"{title}\n{m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
+                        f"connectivity {m.connectivity_pct:.1f} %", written["routes"])  # fmt: skip
+        written["sinr"] = stem.with_name(stem.name + "_sinr.png")
+        plot_sinr_strip(traj, radio, threshold, written["sinr"])
+    end = "all delivered" if traj.terminated else "truncated"
+    print(
+        f"{title}: {traj.num_steps} steps ({end}), {m.delivered}/{m.num_requests} delivered, "
+        f"TD {fmt(m.td_m, '.0f', ' m')}, connectivity {fmt(m.connectivity_pct, '.1f', ' %')}"
+    )
+    for kind, path in written.items():
+        print(f"wrote {kind}: {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    return written
+
+
+def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-render") -> int:
+    """The ``uamfleet-render`` command (``python -m eval.render``)."""
+    return run(main, Args, argv, prog, __doc__)
+
+
+if __name__ == "__main__":
+    raise SystemExit(cli(prog="python -m uamfleet.cli.render"))

@@ -1,0 +1,89 @@
+"""Fly a policy (a planner, a fleet dispatcher or random) for a few episodes of a scenario and print each
+episode's metrics.
+
+    uamfleet-rollout --scenario berlin_p4 --policy raster_replan --episodes 3
+    .venv/bin/python -m eval.rollout --scenario berlin_random --policy greedy --num-taxis 4
+
+Undefined figures print as "–" (ATT when no ride finished, the minimum SINR of an episode without a step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Annotated
+
+import numpy as np
+
+import uamfleet
+from uamfleet.baselines import make_policy, planner_configs
+from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, fmt, run
+from uamfleet.metrics import episode_metrics
+from uamfleet.rollout import run_episode
+
+
+@dataclass
+class Args:
+    scenario: Scenario = "berlin_p4"
+    """scenario name"""
+    sinr_min_db: Annotated[float | None, SCENARIO_DEFAULT] = None
+    """SINR threshold in dB"""
+    num_taxis: Annotated[int | None, SCENARIO_DEFAULT] = None
+    """fleet size"""
+    policy: Policy = "random"
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
+    (fleet dispatcher) or random"""
+    episodes: int = 3
+    """number of episodes (>= 1)"""
+    seed: int = 0
+    """seed of the first episode (episode i uses seed + i; >= 0)"""
+    time_limit_steps: Annotated[int | None, SCENARIO_DEFAULT] = None
+    """episode time limit in steps"""
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1:
+            raise UsageError(f"--episodes {self.episodes}: fly at least one episode (e.g. --episodes 3).")
+        if self.seed < 0:
+            raise UsageError(f"--seed {self.seed}: seeds are integers >= 0 (e.g. --seed 0).")
+
+
+def main(args: Args) -> list[dict[str, float]]:
+    overrides = {
+        k: v
+        for k, v in (
+            ("sinr_min_db", args.sinr_min_db),
+            ("num_taxis", args.num_taxis),
+            ("time_limit_steps", args.time_limit_steps),
+        )
+        if v is not None
+    }
+    flown, cfg = planner_configs(args.scenario, args.policy, **overrides)  # cfg: the rules it is scored against
+    env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
+    policy = make_policy(args.policy, args.seed, cfg.num_taxis)
+    print(
+        f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
+        f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"
+    )
+    rows = []
+    for i in range(args.episodes):
+        traj = run_episode(env, policy, seed=args.seed + i)
+        m = episode_metrics(traj, cfg.radio, threshold_db=cfg.sinr_min_db)
+        rows.append(m.as_dict())
+        end = "terminated" if traj.terminated else "truncated"
+        print(
+            f"  episode {i}: {end} after {m.steps} steps, PR {m.pr_pct:.0f} % ({m.delivered}/{m.num_requests}), "
+            f"TD {fmt(m.td_m, '.0f', ' m')}, ATT {fmt(m.att_s, '.1f', ' s')}, AWT {fmt(m.awt_s, '.1f', ' s')}, "
+            f"ELR {fmt(m.elr_pct, '.1f', ' %')}, connectivity {fmt(m.connectivity_pct, '.1f', ' %')} "
+            f"(min {fmt(m.min_sinr_db, '.2f', ' dB')}), "
+            f"return {float(np.sum(traj.episode['return'])):.1f}"
+        )
+    return rows
+
+
+def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-rollout") -> int:
+    """The ``uamfleet-rollout`` command (``python -m eval.rollout``)."""
+    return run(main, Args, argv, prog, __doc__)
+
+
+if __name__ == "__main__":
+    raise SystemExit(cli(prog="python -m uamfleet.cli.rollout"))
