@@ -111,7 +111,7 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
         all_delivered = 100.0 * float(np.mean(col("service_pct") >= 100.0))
         lines.append(
             f"| {key[0]} | {key[1]} | {key[2]} | {len(sel)} | {all_delivered:.0f} | {_ci(col('service_pct'))} | "
-            f"{_ci(col('wait_p50_s'))} | {_ci(col('wait_p95_s'))} | {_ci(col('detour') * 100) } % | "
+            f"{_ci(col('wait_p50_s'))} | {_ci(col('wait_p95_s'))} | {_ci(col('detour') * 100)} % | "
             f"{_ci(col('td_per_delivered_m'))} | {_ci(col('occupancy') * 100)} % | "
             f"{_ci(col('separation_violations'))} | {_ci(col('connectivity_pct'))} | "
             f"{np.median(col('decision_p50_ms')):.1f} / {col('decision_max_ms').max():,.0f} |"

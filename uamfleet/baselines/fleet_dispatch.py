@@ -70,7 +70,7 @@ class ScheduleFleetPolicy:
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
         self._to_stop: dict[tuple[int, str], np.ndarray] = {}  # distance from every stop to this stop
         self.routes: list[list[Stop]] = [[] for _ in range(self.num_taxis)]
-        self._seen = s.pax_status[0] != HIDDEN
+        self._seen = np.zeros(len(s.pax_status[0]), dtype=bool)  # the first call dispatches step-0 requests
         self.stats = {"dp_solves": 0, "heuristic_inserts": 0, "assignments": 0}
 
     # ---- distances -------------------------------------------------------------------------------------
