@@ -41,6 +41,41 @@ from uamfleet.types import HIDDEN, ON_BOARD, WAITING
 DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
 
+# The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
+# fleet benchmark) share its per-stop Dijkstra fields instead of recomputing them. One entry, so memory stays flat.
+_LAST_FIELDS: dict[tuple[int, bytes], DistanceFields] = {}
+
+
+def shared_fields(env: VectorEnv, warm: bool = False) -> DistanceFields:
+    """The :class:`DistanceFields` of the env's world, shared with the previous dispatcher on the same instance;
+    ``warm`` computes the field of every stop now (so that policies' decision times leave it out)."""
+    s = env.state
+    fields = DistanceFields(env.world)
+    stops = np.concatenate([s.pos_m[0], s.pax_origin_m[0], s.pax_dest_m[0]])
+    key = (id(fields.graph), stops.tobytes())
+    if key not in _LAST_FIELDS:
+        _LAST_FIELDS.clear()
+        _LAST_FIELDS[key] = fields
+    fields = _LAST_FIELDS[key]
+    if warm:
+        for stop in stops[env.num_taxis :]:
+            fields.remaining_m(stop, stop[None])
+    return fields
+
+
+def goal_or_hover(
+    idle_at: list[np.ndarray | None], taxi: int, pos: np.ndarray, target: np.ndarray | None
+) -> np.ndarray:
+    """The taxi's goal: its target, or, with nothing to do, the point where it became idle (it hovers about it;
+    ``idle_at`` keeps those points per taxi)."""
+    if target is not None:
+        idle_at[taxi] = None
+        return target
+    idle = idle_at[taxi]
+    if idle is None:
+        idle = idle_at[taxi] = pos.copy()
+    return idle
+
 
 class ScheduleFleetPolicy:
     """Base of the dispatchers: per-taxi schedules, repaired every step and flown along feasible paths.
@@ -60,9 +95,10 @@ class ScheduleFleetPolicy:
         if env.num_envs != 1:
             raise ValueError(f"{type(self).__name__} drives a one-env core, got num_envs={env.num_envs}")
         self.env = env
-        self.fields = DistanceFields(env.world)
+        self.fields = shared_fields(env)
         s = env.state
         self.num_taxis = env.num_taxis
+        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis  # where a taxi with nothing to do hovers
         self.pax = np.flatnonzero(s.pax_exists[0])
         self.release_s = s.pax_release[0].astype(float) * env.cfg.slot_s
         self.speed_mps = env.cfg.step_m / env.cfg.slot_s
@@ -202,7 +238,8 @@ class ScheduleFleetPolicy:
         for a in range(self.num_taxis):
             pos = s.pos_m[0, a]
             target = self.target(a)
-            actions[0, a] = self.fields.heading(pos, s.action_mask[0, a], pos if target is None else target)
+            goal = goal_or_hover(self._idle_at, a, pos, target)
+            actions[0, a] = self.fields.heading(pos, s.action_mask[0, a], goal)
         return actions
 
     def target(self, taxi: int) -> np.ndarray | None:
