@@ -65,6 +65,8 @@ class Args:
     """re-render the table from the CSV of an earlier run, flying nothing"""
     command: str = ""
     """the command line to print above the table (default: reconstructed)"""
+    note: str = ""
+    """with --from-csv: a line printed under the command (e.g. what ran and its wall-clock)"""
 
 
 Job = tuple[str, str, int, tuple[str, ...]]  # (family, setting, seed, dispatchers)
@@ -151,7 +153,10 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
     )
-    replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
+    body = markdown(rows, command, wall, note)
+    if args.note:
+        body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
+    replace_section(args.out_md, args.section, body)
     print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
 
 

@@ -81,6 +81,8 @@ def test_fleet_instances_are_deterministic_valid_and_differ_from_single_taxi_one
         assert world.point_feasible(stops).all() and world.point_feasible(np.array(cfg.starts_m)).all()
         assert np.isfinite(DistanceFields(world).remaining_m(np.array(cfg.starts_m[0]), stops)).all()
         assert all(np.linalg.norm(np.subtract(r.destination_m, r.origin_m)) >= fam.min_trip_m for r in cfg.requests)
+    padded = make_fleet_instance("berlin", seeds[0], 4, 24, max_passengers=32)
+    assert padded.num_passengers == 32 and _summary(padded) == _summary(first[0])
     ports = make_fleet_instance("berlin", seeds[0], 2, 12, num_vertiports=4)
     assert len({p for r in ports.requests for p in (r.origin_m, r.destination_m)}) <= 4
     with pytest.raises(ValueError, match="num_vertiports"):

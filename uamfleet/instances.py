@@ -130,12 +130,14 @@ def make_fleet_instance(
     feasibility: FeasibilityRule = "endpoint_block",
     num_vertiports: int = 0,
     arrival_window_s: float = 600.0,
+    max_passengers: int | None = None,
 ) -> EnvConfig:
     """The fleet instance of ``seed`` in ``family`` (:data:`FAMILIES`): ``num_taxis`` fixed starts,
     ``num_requests`` fixed requests released by Poisson arrivals over ``arrival_window_s`` and a fixed threshold
     (module docstring). ``num_vertiports`` > 0 draws that many vertiport sites per instance and puts every origin
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
-    every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn."""
+    every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
+    ``max_passengers`` pads the passenger axis (a learned policy's observation size)."""
     if family not in FAMILIES:
         raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
     if int(seed) != seed or seed < 0:
@@ -179,6 +181,7 @@ def make_fleet_instance(
             starts_m=tuple(map(tuple, starts)),
             requests=tuple(requests),
             time_limit_steps=max(base.time_limit_steps, 3 * window_steps),
+            max_passengers=max_passengers,
             scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
