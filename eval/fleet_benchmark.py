@@ -157,7 +157,8 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     if args.note:
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
     replace_section(args.out_md, args.section, body)
-    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
+    written = "" if args.from_csv is not None else f"{args.out_csv} and "
+    print(f"wrote {written}the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
 
 
 def main(args: Args) -> list[dict[str, Any]]:
