@@ -80,7 +80,7 @@ class _Checked:
         return actions
 
 
-@pytest.mark.parametrize("name", DISPATCHERS)
+@pytest.mark.parametrize("name", [*DISPATCHERS, "insertion_heuristic"])
 @pytest.mark.parametrize("seats", [1, 2])
 def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
     cfg = small_config(
@@ -95,7 +95,9 @@ def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, sea
             Request(9, (550.0, 650.0), (350.0, 150.0)),
         ),
     )
-    policy = _Checked(make_policy(name, num_taxis=2))
+    # insertion with exact_limit=1: every schedule beyond one passenger is repaired by cheapest insertion
+    inner = InsertionPolicy(exact_limit=1) if name == "insertion_heuristic" else make_policy(name, num_taxis=2)
+    policy = _Checked(inner)
     traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), policy, seed=0)
     assert traj.terminated and not traj.truncated  # everyone delivered
     on_board = np.cumsum(traj.stacked("pickups") - traj.stacked("dropoffs"), axis=0)
@@ -104,6 +106,8 @@ def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, sea
     dropped = traj.stacked("dropped_off").argmax(0)
     assert (picked < dropped).all()
     assert policy.inner.stats["dp_solves"] > 0
+    if name == "insertion_heuristic":
+        assert policy.inner.stats["heuristic_inserts"] > 0
 
 
 def _brute_force(trips, num_taxis, penalty):
@@ -147,3 +151,26 @@ def test_dispatchers_are_registered_and_validate_their_settings():
         BatchAssignmentPolicy(period=0)
     with pytest.raises(ValueError, match="exact_limit"):
         InsertionPolicy(exact_limit=9)
+
+
+@pytest.mark.parametrize("exact_limit", [1, 6])
+def test_a_taxi_that_boards_unplanned_passengers_drops_them_before_its_planned_pick_ups(exact_limit):
+    env = _env(
+        starts_m=((150.0, 150.0), (850.0, 850.0)),
+        requests=(
+            Request(0, (200.0, 150.0), (200.0, 850.0)),
+            Request(0, (200.0, 150.0), (250.0, 850.0)),
+            Request(0, (750.0, 150.0), (750.0, 850.0)),
+        ),
+    )
+    policy = InsertionPolicy(exact_limit=exact_limit)
+    policy.reset(env)
+    policy._seen[:] = True  # nothing left to dispatch: the schedules below are the plan
+    policy.routes = [[(2, "pickup"), (2, "dropoff")], [(0, "pickup"), (0, "dropoff"), (1, "pickup"), (1, "dropoff")]]
+    env.step(np.array([[0, 8]]))  # taxi 0 flies east past passengers 0 and 1 and boards both (taxi 1's plan)
+    assert env.state.free_seats[0, 0] == 0
+    policy(None)
+    policy.check_schedules()
+    assert policy.routes[1] == []
+    assert sorted(policy.routes[0][:2]) == [(0, "dropoff"), (1, "dropoff")]  # both seats freed before pick-up 2
+    policy.schedule_cost(0, policy.routes[0])  # a feasible route: no capacity error

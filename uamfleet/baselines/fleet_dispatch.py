@@ -22,7 +22,7 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
 
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
-re-sequences its schedule with the new drop-off).
+re-sequences its schedule with the new drop-off; above ``exact_limit`` passengers it drops them first).
 """
 
 from __future__ import annotations
@@ -220,8 +220,8 @@ class ScheduleFleetPolicy:
                 waiting = self.waiting_of(a)
                 if len(waiting) + len(self.on_board(a)) <= self.exact_limit:
                     self.routes[a] = self.sequence(a, waiting)[1]
-                else:
-                    self.routes[a] = kept + [(p, DROPOFF) for p in missing]
+                else:  # drop the unplanned passengers first: the rest of the route then fits the seats again
+                    self.routes[a] = [(p, DROPOFF) for p in missing] + kept
 
     # ---- acting ----------------------------------------------------------------------------------------
     def dispatch(self, released: list[int]) -> None:
