@@ -174,7 +174,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
-    start = time.perf_counter()
+    start = last = time.perf_counter()
     rows: list[dict[str, Any]] = []
     with mp.get_context("spawn").Pool(args.jobs) as pool:
         for i, result in enumerate(pool.imap(run_episode_set, jobs)):
@@ -182,7 +182,8 @@ def main(args: Args) -> list[dict[str, Any]]:
             print(f"[{i + 1}/{len(jobs)}] {result[0]['setting']} seed {result[0]['seed']}: "
                   + "  ".join(f"{r['dispatcher']} PR {r['service_pct']:.0f} wait {r['awt_s']:.0f}s "
                               f"TD/pax {r['td_per_delivered_m']:.0f}" for r in result), flush=True)  # fmt: skip
-            if (i + 1) % 8 == 0 and i + 1 < len(jobs):  # partial results survive an interrupted run
+            if time.perf_counter() - last > 60.0 and i + 1 < len(jobs):  # partial results survive an interruption
+                last = time.perf_counter()
                 done = (i + 1) // len(args.settings)
                 write_outputs(args, rows, time.perf_counter() - start,
                               f" (partial: {done} of {args.count} episodes per setting)")  # fmt: skip
