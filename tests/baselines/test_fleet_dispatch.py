@@ -154,7 +154,10 @@ def test_dispatchers_are_registered_and_validate_their_settings():
 
 
 @pytest.mark.parametrize("exact_limit", [1, 6])
-def test_a_taxi_that_boards_unplanned_passengers_drops_them_before_its_planned_pick_ups(exact_limit):
+@pytest.mark.parametrize("planned_by", [0, 1])
+def test_a_taxi_that_boards_passengers_early_or_unplanned_drops_them_before_its_planned_pick_ups(
+    exact_limit, planned_by
+):
     env = _env(
         starts_m=((150.0, 150.0), (850.0, 850.0)),
         requests=(
@@ -166,8 +169,11 @@ def test_a_taxi_that_boards_unplanned_passengers_drops_them_before_its_planned_p
     policy = InsertionPolicy(exact_limit=exact_limit)
     policy.reset(env)
     policy._seen[:] = True  # nothing left to dispatch: the schedules below are the plan
-    policy.routes = [[(2, "pickup"), (2, "dropoff")], [(0, "pickup"), (0, "dropoff"), (1, "pickup"), (1, "dropoff")]]
-    env.step(np.array([[0, 8]]))  # taxi 0 flies east past passengers 0 and 1 and boards both (taxi 1's plan)
+    both = [(0, "pickup"), (0, "dropoff"), (1, "pickup"), (1, "dropoff")]
+    policy.routes = (
+        [[(2, "pickup"), (2, "dropoff")], both] if planned_by == 1 else [[(2, "pickup"), (2, "dropoff"), *both], []]
+    )
+    env.step(np.array([[0, 8]]))  # taxi 0 flies east past passengers 0 and 1 and boards both (unplanned or early)
     assert env.state.free_seats[0, 0] == 0
     policy(None)
     policy.check_schedules()

@@ -22,7 +22,8 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
 
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
-re-sequences its schedule with the new drop-off; above ``exact_limit`` passengers it drops them first).
+re-sequences its schedule with the new drop-off; above ``exact_limit`` passengers it drops them first). So does a
+taxi whose route no longer fits its seats because it boarded a planned passenger early.
 """
 
 from __future__ import annotations
@@ -215,13 +216,26 @@ class ScheduleFleetPolicy:
             picks = {p for p, kind in kept if kind == PICKUP}
             kept = [(p, k) for p, k in kept if k == PICKUP or p in picks or status[p] == ON_BOARD]
             self.routes[a] = kept
-            missing = [p for p in self.on_board(a) if (p, DROPOFF) not in kept]
-            if missing:
+            riding = self.on_board(a)
+            missing = [p for p in riding if (p, DROPOFF) not in kept]
+            if missing or not self._fits(riding, kept):  # boarded someone unplanned, or a planned one early
                 waiting = self.waiting_of(a)
-                if len(waiting) + len(self.on_board(a)) <= self.exact_limit:
+                if len(waiting) + len(riding) <= self.exact_limit:
                     self.routes[a] = self.sequence(a, waiting)[1]
-                else:  # drop the unplanned passengers first: the rest of the route then fits the seats again
-                    self.routes[a] = [(p, DROPOFF) for p in missing] + kept
+                else:  # drop everyone on board first: the pick-ups after that fit the seats
+                    first = [(p, DROPOFF) for p in missing] + [
+                        st for st in kept if st[1] == DROPOFF and st[0] in riding
+                    ]
+                    self.routes[a] = first + [st for st in kept if st not in first]
+
+    def _fits(self, riding: list[int], route: Sequence[Stop]) -> bool:
+        """True if the route never has more than ``seats`` on board, starting with ``riding``."""
+        on = len(riding)
+        for _, kind in route:
+            on += 1 if kind == PICKUP else -1
+            if on > self.seats:
+                return False
+        return True
 
     # ---- acting ----------------------------------------------------------------------------------------
     def dispatch(self, released: list[int]) -> None:
