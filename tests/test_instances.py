@@ -58,3 +58,32 @@ def test_bad_family_and_seed_are_named():
 def test_detroit_like_instances_use_its_thresholds():
     cfg = make_instance("detroit3gpp", TEST_SEEDS[0])
     assert cfg.sinr_min_db in FAMILIES["detroit3gpp"].thresholds_db and cfg.step_m == 320.0
+
+
+def test_fleet_instances_are_deterministic_valid_and_differ_from_single_taxi_ones():
+    from uamfleet.instances import FLEET_SETTINGS, make_fleet_instance
+    from uamfleet.paths import DistanceFields
+
+    assert FLEET_SETTINGS["4x24"] == (4, 24) and FLEET_SETTINGS["8x48"] == (8, 48)
+    seeds = split_seeds("test", 3)
+    first = [make_fleet_instance("berlin", s, 4, 24) for s in seeds]
+    assert [_summary(c) for c in first] == [_summary(make_fleet_instance("berlin", s, 4, 24)) for s in seeds]
+    assert len({_summary(c) for c in first}) == len(seeds)
+    assert make_fleet_instance("berlin", seeds[0], 4, 24).requests != make_instance("berlin", seeds[0]).requests
+    fam = FAMILIES["berlin"]
+    for cfg in first:
+        assert cfg.num_taxis == 4 and len(cfg.requests) == 24 and len(set(cfg.starts_m)) == 4
+        assert cfg.sinr_min_db in fam.thresholds_db
+        releases = [r.release_step for r in cfg.requests]
+        assert releases == sorted(releases) and max(releases) * cfg.slot_s < 600.0
+        world = World(cfg)
+        stops = np.array([p for r in cfg.requests for p in (r.origin_m, r.destination_m)])
+        assert world.point_feasible(stops).all() and world.point_feasible(np.array(cfg.starts_m)).all()
+        assert np.isfinite(DistanceFields(world).remaining_m(np.array(cfg.starts_m[0]), stops)).all()
+        assert all(np.linalg.norm(np.subtract(r.destination_m, r.origin_m)) >= fam.min_trip_m for r in cfg.requests)
+    padded = make_fleet_instance("berlin", seeds[0], 4, 24, max_passengers=32)
+    assert padded.num_passengers == 32 and _summary(padded) == _summary(first[0])
+    ports = make_fleet_instance("berlin", seeds[0], 2, 12, num_vertiports=4)
+    assert len({p for r in ports.requests for p in (r.origin_m, r.destination_m)}) <= 4
+    with pytest.raises(ValueError, match="num_vertiports"):
+        make_fleet_instance("berlin", seeds[0], 2, 12, num_vertiports=1)

@@ -12,6 +12,15 @@ this order from ``np.random.default_rng(SeedSequence([seed, family id]))``:
    (2 minutes: 40 steps of 3 s in Berlin, 12 of 9.6 s in Detroit), sorted;
 5. each request's origin and destination: two flyable block centres at least ``min_trip_m`` apart.
 
+Fleet instances (:func:`make_fleet_instance`: ``num_taxis`` taxis, ``num_requests`` requests) are drawn from
+``SeedSequence([seed, family id, FLEET_TAG])`` (so fleet seed s is not the single-taxi instance of seed s, but
+the same split ranges keep train / validation / test disjoint), in this order: the threshold; ``num_vertiports``
+vertiport sites when asked (else every flyable block centre is a site); the taxis' starts (distinct flyable
+block centres); Poisson arrivals over the first ``arrival_window_s`` (10 minutes): ``num_requests`` arrival
+times uniform over the window (a Poisson process conditioned on its count), as release steps, sorted; each
+request's origin and destination among the sites, at least ``min_trip_m`` apart. :data:`FLEET_SETTINGS` names
+the settings of the fleet table (1 taxi / 6 requests, 2 / 12, 4 / 24, 8 / 48).
+
 Every start and stop is then checked (in the block under the threshold, in the start's flyable component, and
 reachable on the raster graph the planners use); an instance that fails is redrawn from the same generator, so
 the result stays a function of the seed. Seeds: :data:`TRAIN_SEEDS`, :data:`VALIDATION_SEEDS` and
@@ -36,6 +45,9 @@ VALIDATION_SEEDS = range(1_000_000, 1_010_000)
 TEST_SEEDS = range(2_000_000, 2_010_000)
 SPLITS: dict[str, range] = {"train": TRAIN_SEEDS, "validation": VALIDATION_SEEDS, "test": TEST_SEEDS}
 MAX_ATTEMPTS = 1000
+FLEET_TAG = 13  # mixed into fleet instance seeds so they differ from the single-taxi instances of equal seed
+FLEET_SETTINGS: dict[str, tuple[int, int]] = {"1x6": (1, 6), "2x12": (2, 12), "4x24": (4, 24), "8x48": (8, 48)}
+"""Fleet table settings: name -> (taxis, requests per episode)."""
 
 
 @dataclass(frozen=True)
@@ -110,13 +122,80 @@ def make_instance(
     raise RuntimeError(f"no valid instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
 
 
+def make_fleet_instance(
+    family: str,
+    seed: int,
+    num_taxis: int = 4,
+    num_requests: int = 24,
+    feasibility: FeasibilityRule = "endpoint_block",
+    num_vertiports: int = 0,
+    arrival_window_s: float = 600.0,
+    max_passengers: int | None = None,
+) -> EnvConfig:
+    """The fleet instance of ``seed`` in ``family`` (:data:`FAMILIES`): ``num_taxis`` fixed starts,
+    ``num_requests`` fixed requests released by Poisson arrivals over ``arrival_window_s`` and a fixed threshold
+    (module docstring). ``num_vertiports`` > 0 draws that many vertiport sites per instance and puts every origin
+    and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
+    every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
+    ``max_passengers`` pads the passenger axis (a learned policy's observation size)."""
+    if family not in FAMILIES:
+        raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
+    if int(seed) != seed or seed < 0:
+        raise ValueError(f"seed={seed!r} must be an integer >= 0.")
+    if num_taxis < 1 or num_requests < 1:
+        raise ValueError(f"num_taxis={num_taxis} and num_requests={num_requests} must both be >= 1.")
+    if num_vertiports == 1 or num_vertiports < 0:
+        raise ValueError(f"num_vertiports={num_vertiports} must be 0 (random sites) or >= 2.")
+    fam = FAMILIES[family]
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
+    threshold = float(rng.choice(fam.thresholds_db))
+    base = make_config(fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility)
+    world = World(base)
+    flyable = flyable_sites(world)
+    if len(flyable) < num_taxis:
+        raise RuntimeError(f"{family!r} at {threshold} dB has {len(flyable)} flyable sites for {num_taxis} taxis.")
+    fields = DistanceFields(world)
+    window_steps = max(int(arrival_window_s // base.slot_s), 1)
+    for _ in range(MAX_ATTEMPTS):
+        sites = flyable[rng.choice(len(flyable), num_vertiports, replace=False)] if num_vertiports else flyable
+        starts = flyable[rng.choice(len(flyable), num_taxis, replace=False)]
+        release = np.sort(rng.integers(0, window_steps, size=num_requests))
+        requests = []
+        for step in release:
+            o = int(rng.integers(len(sites)))
+            far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= fam.min_trip_m)
+            if not len(far):
+                break
+            d = int(far[rng.integers(len(far))])
+            requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
+        if len(requests) < num_requests:
+            continue
+        try:
+            validate_instance(world, starts, requests)
+        except InfeasibleInstanceError:
+            continue
+        stops = np.array([p for r in requests for p in (r.origin_m, r.destination_m)])
+        if not all(np.isfinite(fields.remaining_m(start, stops)).all() for start in starts[:1]):
+            continue
+        return base.replace(
+            starts_m=tuple(map(tuple, starts)),
+            requests=tuple(requests),
+            time_limit_steps=max(base.time_limit_steps, 3 * window_steps),
+            max_passengers=max_passengers,
+            scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
+        )
+    raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
 __all__ = [
     "FAMILIES",
+    "FLEET_SETTINGS",
     "SPLITS",
     "TEST_SEEDS",
     "TRAIN_SEEDS",
     "VALIDATION_SEEDS",
     "InstanceFamily",
+    "make_fleet_instance",
     "make_instance",
     "split_seeds",
 ]

@@ -61,7 +61,7 @@ def _check_feasible(plan: Plan, kwargs: dict) -> None:
     assert list(plan.arrival_s) == sorted(plan.arrival_s)
 
 
-@pytest.mark.parametrize("objective", ["makespan", "distance"])
+@pytest.mark.parametrize("objective", ["makespan", "distance", "ride"])
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 5])
 def test_dp_matches_brute_force(n: int, objective: str) -> None:
     rng = np.random.default_rng(100 * n + len(objective))

@@ -4,40 +4,48 @@ from __future__ import annotations
 
 from typing import Any
 
+from uamfleet.baselines.fleet_dispatch import DISPATCHERS, BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import STEP_PLANNERS, StepPlannerPolicy
 
-POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", "random")
+POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", *DISPATCHERS, "random")
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
 
 
 def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
-    """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), the greedy fleet
-    dispatcher, or random.
+    """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), a fleet dispatcher
+    (``greedy``, ``insertion``, ``batch_assignment``), or random.
 
     Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
     straight line) and score it against the ``scored`` one."""
     if name in PLANNERS or name in STEP_PLANNERS:
         if num_taxis != 1:
             raise ValueError(
-                f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use --policy greedy "
-                "or --policy random for a fleet, or --num-taxis 1."
+                f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
+                f"dispatcher (greedy, {', '.join(DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
             )
         return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
     if name == "greedy":
         return GreedyFleetPolicy()
+    if name == "insertion":
+        return InsertionPolicy()
+    if name == "batch_assignment":
+        return BatchAssignmentPolicy()
     if name == "random":
         return RandomPolicy(seed=seed)
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
 
 
 __all__ = [
+    "DISPATCHERS",
     "PLANNERS",
     "POLICIES",
     "STEP_PLANNERS",
+    "BatchAssignmentPolicy",
     "GreedyFleetPolicy",
+    "InsertionPolicy",
     "PlannerPolicy",
     "RandomPolicy",
     "StepPlannerPolicy",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uamfleet.paths import DistanceFields
+from uamfleet.baselines.fleet_dispatch import goal_or_hover, shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 
@@ -14,22 +14,24 @@ class GreedyFleetPolicy:
 
     Each taxi heads for its nearest stop: a drop-off of a passenger it carries, or, while it has a free seat, the
     origin of a waiting passenger no nearer taxi has claimed this step (taxi-passenger pairs are claimed nearest
-    first). It steers along feasible paths (:class:`DistanceFields`), so taxis go round no-fly areas instead of
-    getting stuck at their edges.
+    first). It steers along feasible paths (:class:`~uamfleet.paths.DistanceFields`), so taxis go round no-fly
+    areas instead of getting stuck at their edges. A taxi with nothing to do hovers about the point where it became
+    idle (as the other fleet dispatchers do), instead of chasing its own position.
     """
 
     def reset(self, env: VectorEnv) -> None:
         if env.num_envs != 1:
             raise ValueError(f"GreedyFleetPolicy drives a one-env core, got num_envs={env.num_envs}")
         self.env = env
-        self.fields = DistanceFields(env.world)
+        self.fields = shared_fields(env)
+        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         s = self.env.state
         pos = s.pos_m[0]  # [A, 2]
         actions = np.zeros((1, len(pos)), dtype=np.int64)
         for a, target in enumerate(self._targets()):
-            goal = pos[a] if target is None else target
+            goal = goal_or_hover(self._idle_at, a, pos[a], target)
             actions[0, a] = self.fields.heading(pos[a], s.action_mask[0, a], goal)
         return actions
 

@@ -1,0 +1,182 @@
+"""Fleet dispatchers (insertion, batch_assignment) on small drawn scenes: hand-checked assignments, schedules that
+keep capacity and precedence, and the milp trip assignment against brute-force enumeration."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from conftest import small_config
+from uamfleet.baselines import POLICIES, make_policy
+from uamfleet.baselines.fleet_dispatch import DISPATCHERS, BatchAssignmentPolicy, InsertionPolicy, assign_trips
+from uamfleet.config import Request
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.rollout import run_episode
+
+OPEN_10 = "\n".join(["." * 10] * 10)
+WALLED_10 = "\n".join([".........."] * 4 + ["#######..."] + [".........."] * 5)  # a wall with a gap in the east
+
+
+def _env(**overrides):
+    cfg = small_config(OPEN_10, time_limit_steps=200, **overrides)
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    env.reset(seed=0)
+    return env
+
+
+def _first_decision(policy, env):
+    policy.reset(env)
+    policy(None)
+    return policy.routes
+
+
+@pytest.mark.parametrize("cls", [InsertionPolicy, BatchAssignmentPolicy])
+def test_two_taxis_each_next_to_one_request_each_take_their_own(cls):
+    env = _env(
+        starts_m=((150.0, 150.0), (850.0, 850.0)),
+        requests=(Request(0, (850.0, 550.0), (350.0, 550.0)), Request(0, (450.0, 150.0), (450.0, 650.0))),
+    )
+    routes = _first_decision(cls(), env)
+    assert routes[0] == [(1, "pickup"), (1, "dropoff")]
+    assert routes[1] == [(0, "pickup"), (0, "dropoff")]
+
+
+@pytest.mark.parametrize("cls", [InsertionPolicy, BatchAssignmentPolicy])
+@pytest.mark.parametrize("seats", [1, 2])
+def test_two_requests_at_one_place_share_a_taxi_only_when_it_has_the_seats(cls, seats):
+    # Taxi 0 is 300 m from the shared origin, taxi 1 about 806 m; the ride is 700 m. Total ride distance:
+    # both in taxi 0 with 2 seats 1000 + 1000 = 2000 m < split 1000 + 1506 = 2506 m; with 1 seat taxi 0 would need
+    # 1000 + 2400 = 3400 m, so the requests split.
+    env = _env(
+        seats=seats,
+        starts_m=((150.0, 150.0), (850.0, 850.0)),
+        requests=(Request(0, (450.0, 150.0), (450.0, 850.0)), Request(0, (450.0, 150.0), (450.0, 850.0))),
+    )
+    routes = _first_decision(cls(), env)
+    if seats == 2:
+        assert sorted(routes[0]) == [(0, "dropoff"), (0, "pickup"), (1, "dropoff"), (1, "pickup")]
+        assert routes[1] == []
+    else:
+        assert len(routes[0]) == len(routes[1]) == 2
+        assert {routes[0][0][0], routes[1][0][0]} == {0, 1}
+
+
+class _Checked:
+    """A dispatcher whose schedules are checked before every move."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.steps = 0
+
+    def reset(self, env):
+        self.inner.reset(env)
+
+    def __call__(self, obs):
+        actions = self.inner(obs)
+        self.inner.check_schedules()
+        self.steps += 1
+        return actions
+
+
+@pytest.mark.parametrize("name", [*DISPATCHERS, "insertion_heuristic"])
+@pytest.mark.parametrize("seats", [1, 2])
+def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
+    cfg = small_config(
+        WALLED_10,
+        seats=seats,
+        time_limit_steps=200,
+        starts_m=((150.0, 150.0), (150.0, 850.0)),
+        requests=(
+            Request(0, (350.0, 250.0), (250.0, 850.0)),
+            Request(0, (450.0, 150.0), (150.0, 750.0)),
+            Request(4, (750.0, 850.0), (850.0, 150.0)),
+            Request(9, (550.0, 650.0), (350.0, 150.0)),
+        ),
+    )
+    # insertion with exact_limit=1: every schedule beyond one passenger is repaired by cheapest insertion
+    inner = InsertionPolicy(exact_limit=1) if name == "insertion_heuristic" else make_policy(name, num_taxis=2)
+    policy = _Checked(inner)
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), policy, seed=0)
+    assert traj.terminated and not traj.truncated  # everyone delivered
+    on_board = np.cumsum(traj.stacked("pickups") - traj.stacked("dropoffs"), axis=0)
+    assert on_board.max() <= seats
+    picked = traj.stacked("picked_up").argmax(0)
+    dropped = traj.stacked("dropped_off").argmax(0)
+    assert (picked < dropped).all()
+    assert policy.inner.stats["dp_solves"] > 0
+    if name == "insertion_heuristic":
+        assert policy.inner.stats["heuristic_inserts"] > 0
+
+
+def _brute_force(trips, num_taxis, penalty):
+    by_taxi = [[k for k, t in enumerate(trips) if t[0] == a] for a in range(num_taxis)]
+    best = (np.inf, None)
+    for choice in itertools.product(*[[None, *ks] for ks in by_taxi]):
+        chosen = [k for k in choice if k is not None]
+        served = [r for k in chosen for r in trips[k][1]]
+        if len(served) != len(set(served)):
+            continue
+        value = sum(trips[k][2] for k in chosen) - penalty * len(served)
+        if value < best[0]:
+            best = (value, sorted(chosen))
+    return best
+
+
+def test_milp_assignment_equals_brute_force_enumeration():
+    rng = np.random.default_rng(13)
+    for _ in range(20):
+        num_taxis, requests = 3, [2, 5, 7, 8]
+        trips = []
+        for a in range(num_taxis):
+            for size in (1, 2):
+                for combo in itertools.combinations(requests, size):
+                    if rng.random() < 0.7:
+                        trips.append((a, combo, float(rng.uniform(0, 100) * size)))
+        penalty = float(rng.choice([30.0, 1e6]))  # small: leaving a request out can be cheapest
+        chosen = assign_trips(trips, num_taxis, requests, penalty)
+        value, expected = _brute_force(trips, num_taxis, penalty)
+        assert sorted(chosen) == expected
+        assert sum(trips[k][2] for k in chosen) - penalty * sum(len(trips[k][1]) for k in chosen) == pytest.approx(
+            value
+        )
+
+
+def test_dispatchers_are_registered_and_validate_their_settings():
+    assert set(DISPATCHERS) <= set(POLICIES)
+    assert isinstance(make_policy("insertion", num_taxis=4), InsertionPolicy)
+    assert isinstance(make_policy("batch_assignment", num_taxis=4), BatchAssignmentPolicy)
+    with pytest.raises(ValueError, match="period"):
+        BatchAssignmentPolicy(period=0)
+    with pytest.raises(ValueError, match="exact_limit"):
+        InsertionPolicy(exact_limit=9)
+
+
+@pytest.mark.parametrize("exact_limit", [1, 6])
+@pytest.mark.parametrize("planned_by", [0, 1])
+def test_a_taxi_that_boards_passengers_early_or_unplanned_drops_them_before_its_planned_pick_ups(
+    exact_limit, planned_by
+):
+    env = _env(
+        starts_m=((150.0, 150.0), (850.0, 850.0)),
+        requests=(
+            Request(0, (200.0, 150.0), (200.0, 850.0)),
+            Request(0, (200.0, 150.0), (250.0, 850.0)),
+            Request(0, (750.0, 150.0), (750.0, 850.0)),
+        ),
+    )
+    policy = InsertionPolicy(exact_limit=exact_limit)
+    policy.reset(env)
+    policy._seen[:] = True  # nothing left to dispatch: the schedules below are the plan
+    both = [(0, "pickup"), (0, "dropoff"), (1, "pickup"), (1, "dropoff")]
+    policy.routes = (
+        [[(2, "pickup"), (2, "dropoff")], both] if planned_by == 1 else [[(2, "pickup"), (2, "dropoff"), *both], []]
+    )
+    env.step(np.array([[0, 8]]))  # taxi 0 flies east past passengers 0 and 1 and boards both (unplanned or early)
+    assert env.state.free_seats[0, 0] == 0
+    policy(None)
+    policy.check_schedules()
+    assert policy.routes[1] == []
+    assert sorted(policy.routes[0][:2]) == [(0, "dropoff"), (1, "dropoff")]  # both seats freed before pick-up 2
+    policy.schedule_cost(0, policy.routes[0])  # a feasible route: no capacity error

@@ -1,0 +1,36 @@
+"""eval.fleet_benchmark's table: per setting and dispatcher, means with 95 % intervals, by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from eval.fleet_benchmark import COLUMNS, Args, main, markdown
+
+
+def _row(seed: int, dispatcher: str, service: float, wait_p95: float) -> dict[str, object]:
+    row: dict[str, object] = {c: 1.0 for c in COLUMNS}
+    row.update({"family": "berlin", "setting": "2x12", "taxis": 2, "seed": seed, "dispatcher": dispatcher,
+                "service_pct": service, "wait_p95_s": wait_p95, "detour": 1.25, "occupancy": 0.5,
+                "decision_p50_ms": 0.2 * seed, "decision_max_ms": 3.0 * seed})  # fmt: skip
+    return row
+
+
+def test_markdown_by_hand():
+    rows = [_row(1, "insertion", 100.0, 60.0), _row(2, "insertion", 50.0, 80.0), _row(1, "greedy", 100.0, 50.0)]
+    text = markdown(rows, "cmd", math.nan)
+    half = 1.96 * math.sqrt(((60 - 70) ** 2 + (80 - 70) ** 2) / 1) / math.sqrt(2)
+    line = next(x for x in text.splitlines() if "| insertion |" in x)
+    cells = [c.strip() for c in line.split("|")[1:-1]]
+    assert cells[:5] == ["berlin", "2x12", "insertion", "2", "50"]  # one of two episodes delivered everyone
+    assert cells[5] == f"75.0 ± {1.96 * 25.0 * math.sqrt(2) / math.sqrt(2):,.1f}"
+    assert cells[7] == f"70.0 ± {half:,.1f}"
+    assert cells[8] == "125.0 ± 0.0 %" and cells[10] == "50.0 ± 0.0 %"
+    assert cells[-1] == "0.3 / 6"  # median of the episodes' p50 (0.2, 0.4), max of their maxima
+    assert text.index("| greedy |") < text.index("| insertion |")  # dispatchers in their fixed order
+
+
+def test_unknown_setting_is_named():
+    with pytest.raises(ValueError, match="unknown --settings"):
+        main(Args(settings=("3x7",)))

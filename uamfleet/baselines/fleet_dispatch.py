@@ -1,0 +1,409 @@
+"""Fleet dispatchers over the batched core: request insertion and batch (taxi, trip) assignment.
+
+Both keep a stop schedule per taxi and fly it like :class:`~uamfleet.baselines.planner_policy.PlannerPolicy`: each
+taxi heads, along feasible paths (:class:`DistanceFields`), for the first stop of its schedule it can act on (a
+pick-up while it has a free seat, a drop-off of a passenger it carries). Schedules are sequenced exactly by
+:func:`~uamfleet.baselines.sequencing.solve_pdp` with the ``"ride"`` objective: the **total ride time** (drop-off −
+request, summed over the taxi's passengers, on board ones included) from the current step, over a stop distance
+matrix of feasible-path distances (the distance fields the taxis steer by) at the env's speed. A schedule's cost is
+that total ride time; "how much a schedule grows" is the increase of it (seconds), so wait and detour both count.
+
+- :class:`InsertionPolicy` (``insertion``): each request, when released, goes to the taxi whose schedule cost grows
+  least when the request is added and the taxi's stops are re-sequenced exactly (ties: lowest taxi index). A
+  taxi with more than ``exact_limit`` passengers to serve keeps its order and gets the request's pick-up and
+  drop-off at their cheapest positions instead (classic insertion; counted in ``stats["heuristic_inserts"]``).
+- :class:`BatchAssignmentPolicy` (``batch_assignment``), in the style of Alonso-Mora et al. (PNAS 2017): every
+  ``period`` steps, the released requests nobody has picked up yet are re-assigned. For each taxi, trips of up to
+  ``seats`` such requests are built (from its ``max_requests_per_taxi`` cheapest single requests; every trip is
+  feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
+  taxi's schedule cost when the trip joins its passengers on board. An integer programme
+  (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
+  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch).
+
+Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
+even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
+re-sequences its schedule with the new drop-off; above ``exact_limit`` passengers it drops them first). So does a
+taxi whose route no longer fits its seats because it boarded a planned passenger early.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import Bounds, LinearConstraint, milp
+
+from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.paths import DistanceFields
+from uamfleet.types import HIDDEN, ON_BOARD, WAITING
+
+DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
+Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
+
+# The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
+# fleet benchmark) share its per-stop Dijkstra fields instead of recomputing them. One entry, so memory stays flat.
+_LAST_FIELDS: dict[tuple[int, bytes], DistanceFields] = {}
+
+
+def shared_fields(env: VectorEnv, warm: bool = False) -> DistanceFields:
+    """The :class:`DistanceFields` of the env's world, shared with the previous dispatcher on the same instance;
+    ``warm`` computes the field of every stop now (so that policies' decision times leave it out)."""
+    s = env.state
+    fields = DistanceFields(env.world)
+    stops = np.concatenate([s.pos_m[0], s.pax_origin_m[0], s.pax_dest_m[0]])
+    key = (id(fields.graph), stops.tobytes())
+    if key not in _LAST_FIELDS:
+        _LAST_FIELDS.clear()
+        _LAST_FIELDS[key] = fields
+    fields = _LAST_FIELDS[key]
+    if warm:
+        for stop in stops[env.num_taxis :]:
+            fields.remaining_m(stop, stop[None])
+    return fields
+
+
+def goal_or_hover(
+    idle_at: list[np.ndarray | None], taxi: int, pos: np.ndarray, target: np.ndarray | None
+) -> np.ndarray:
+    """The taxi's goal: its target, or, with nothing to do, the point where it became idle (it hovers about it;
+    ``idle_at`` keeps those points per taxi)."""
+    if target is not None:
+        idle_at[taxi] = None
+        return target
+    idle = idle_at[taxi]
+    if idle is None:
+        idle = idle_at[taxi] = pos.copy()
+    return idle
+
+
+class ScheduleFleetPolicy:
+    """Base of the dispatchers: per-taxi schedules, repaired every step and flown along feasible paths.
+
+    Subclasses implement :meth:`dispatch` (called every step with the passengers released since the last call).
+    ``stats`` counts the DP solves, heuristic insertions and assignment programmes of the episode.
+    """
+
+    def __init__(self, exact_limit: int = 6) -> None:
+        if not 1 <= exact_limit <= MAX_PASSENGERS:
+            raise ValueError(f"exact_limit={exact_limit} must lie in [1, {MAX_PASSENGERS}] (solve_pdp's limit).")
+        self.exact_limit = exact_limit
+        self.env: VectorEnv | None = None
+
+    # ---- episode start -------------------------------------------------------------------------------
+    def reset(self, env: VectorEnv) -> None:
+        if env.num_envs != 1:
+            raise ValueError(f"{type(self).__name__} drives a one-env core, got num_envs={env.num_envs}")
+        self.env = env
+        self.fields = shared_fields(env)
+        s = env.state
+        self.num_taxis = env.num_taxis
+        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis  # where a taxi with nothing to do hovers
+        self.pax = np.flatnonzero(s.pax_exists[0])
+        self.release_s = s.pax_release[0].astype(float) * env.cfg.slot_s
+        self.speed_mps = env.cfg.step_m / env.cfg.slot_s
+        self.seats = env.cfg.seats
+        self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
+        self._to_stop: dict[tuple[int, str], np.ndarray] = {}  # distance from every stop to this stop
+        self.routes: list[list[Stop]] = [[] for _ in range(self.num_taxis)]
+        self._seen = np.zeros(len(s.pax_status[0]), dtype=bool)  # the first call dispatches step-0 requests
+        self.stats = {"dp_solves": 0, "heuristic_inserts": 0, "assignments": 0}
+
+    # ---- distances -------------------------------------------------------------------------------------
+    def _point(self, stop: Stop) -> np.ndarray:
+        p, kind = stop
+        return self.origin_m[p] if kind == PICKUP else self.dest_m[p]
+
+    def _column(self, stop: Stop) -> np.ndarray:
+        """[2P] feasible-path distance from every stop (origin of p at 2p, destination at 2p + 1) to ``stop``."""
+        if stop not in self._to_stop:
+            every = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
+            self._to_stop[stop] = self.fields.remaining_m(self._point(stop), every)
+        return self._to_stop[stop]
+
+    def stop_matrix(self, taxi: int, passengers: Sequence[int]) -> np.ndarray:
+        """[1 + 2N, 1 + 2N] distances in :mod:`~uamfleet.baselines.sequencing`'s node order: the taxi's position,
+        then origin / destination of each passenger."""
+        assert self.env is not None
+        stops = [(p, kind) for p in passengers for kind in (PICKUP, DROPOFF)]
+        rows = [2 * p + (kind == DROPOFF) for p, kind in stops]
+        pos = self.env.state.pos_m[0, taxi]
+        dist = np.zeros((1 + len(stops), 1 + len(stops)))
+        for j, stop in enumerate(stops):
+            dist[0, 1 + j] = self.fields.remaining_m(self._point(stop), pos[None])[0]
+            dist[1:, 1 + j] = self._column(stop)[rows]
+        dist[1:, 0] = np.linalg.norm(np.array([self._point(st) for st in stops]) - pos, axis=-1)  # never used
+        np.fill_diagonal(dist, 0.0)
+        return dist
+
+    # ---- schedules -------------------------------------------------------------------------------------
+    def on_board(self, taxi: int) -> list[int]:
+        assert self.env is not None
+        s = self.env.state
+        return [int(p) for p in self.pax if s.pax_status[0, p] == ON_BOARD and s.pax_taxi[0, p] == taxi]
+
+    def waiting_of(self, taxi: int) -> list[int]:
+        """Waiting passengers whose pick-up is on the taxi's schedule."""
+        return [p for p, kind in self.routes[taxi] if kind == PICKUP]
+
+    def sequence(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
+        """The exact best schedule (least total ride time) of the taxi's passengers on board plus ``waiting``."""
+        assert self.env is not None
+        riding = self.on_board(taxi)
+        passengers = riding + [p for p in waiting if p not in riding]
+        now = float(self.env.state.t[0]) * self.env.cfg.slot_s
+        plan = solve_pdp(
+            self.stop_matrix(taxi, passengers),
+            self.speed_mps,
+            [float(self.release_s[p]) for p in passengers],
+            capacity=self.seats,
+            on_board=[p in riding for p in passengers],
+            start_s=now,
+            objective="ride",
+        )
+        self.stats["dp_solves"] += 1
+        return plan, [(passengers[i], kind) for i, kind in plan.stops]
+
+    def schedule_cost(self, taxi: int, route: Sequence[Stop]) -> float:
+        """Total ride time (s) of the taxi's passengers when it flies ``route`` from now."""
+        assert self.env is not None
+        riding = self.on_board(taxi)
+        passengers = riding + [p for p, kind in route if kind == PICKUP]
+        index = {p: i for i, p in enumerate(passengers)}
+        plan = solve_in_order(
+            self.stop_matrix(taxi, passengers),
+            self.speed_mps,
+            [float(self.release_s[p]) for p in passengers],
+            [(index[p], kind) for p, kind in route],
+            start_s=float(self.env.state.t[0]) * self.env.cfg.slot_s,
+            on_board=[p in riding for p in passengers],
+            capacity=self.seats,
+        )
+        return plan.total_ride_s
+
+    def cheapest_insertion(self, taxi: int, passenger: int) -> tuple[float, list[Stop]]:
+        """(schedule cost, route) with the passenger's pick-up and drop-off at their cheapest positions of the
+        taxi's current route (its order kept); for taxis with more than ``exact_limit`` passengers."""
+        route = self.routes[taxi]
+        best: tuple[float, list[Stop]] | None = None
+        for i in range(len(route) + 1):
+            for j in range(i, len(route) + 1):
+                cand = [*route[:i], (passenger, PICKUP), *route[i:j], (passenger, DROPOFF), *route[j:]]
+                try:
+                    cost = self.schedule_cost(taxi, cand)
+                except ValueError:  # over capacity somewhere
+                    continue
+                if best is None or cost < best[0] - 1e-9:
+                    best = (cost, cand)
+        assert best is not None, "appending pick-up and drop-off at the end is always feasible"
+        self.stats["heuristic_inserts"] += 1
+        return best
+
+    def _repair(self) -> None:
+        """Drop served stops; a taxi that boarded someone not on its schedule re-sequences with the drop-off."""
+        assert self.env is not None
+        s = self.env.state
+        status, carrier = s.pax_status[0], s.pax_taxi[0]
+        for a in range(self.num_taxis):
+            kept = [
+                (p, kind)
+                for p, kind in self.routes[a]
+                if (kind == PICKUP and status[p] == WAITING)
+                or (kind == DROPOFF and (status[p] == WAITING or (status[p] == ON_BOARD and carrier[p] == a)))
+            ]
+            # a drop-off stays only with its pick-up or its passenger on board this taxi
+            picks = {p for p, kind in kept if kind == PICKUP}
+            kept = [(p, k) for p, k in kept if k == PICKUP or p in picks or status[p] == ON_BOARD]
+            self.routes[a] = kept
+            riding = self.on_board(a)
+            missing = [p for p in riding if (p, DROPOFF) not in kept]
+            if missing or not self._fits(riding, kept):  # boarded someone unplanned, or a planned one early
+                waiting = self.waiting_of(a)
+                if len(waiting) + len(riding) <= self.exact_limit:
+                    self.routes[a] = self.sequence(a, waiting)[1]
+                else:  # drop everyone on board first: the pick-ups after that fit the seats
+                    first = [(p, DROPOFF) for p in missing] + [
+                        st for st in kept if st[1] == DROPOFF and st[0] in riding
+                    ]
+                    self.routes[a] = first + [st for st in kept if st not in first]
+
+    def _fits(self, riding: list[int], route: Sequence[Stop]) -> bool:
+        """True if the route never has more than ``seats`` on board, starting with ``riding``."""
+        on = len(riding)
+        for _, kind in route:
+            on += 1 if kind == PICKUP else -1
+            if on > self.seats:
+                return False
+        return True
+
+    # ---- acting ----------------------------------------------------------------------------------------
+    def dispatch(self, released: list[int]) -> None:
+        raise NotImplementedError
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.env is not None, "call reset(env) first (run_episode does)"
+        s = self.env.state
+        newly = (s.pax_status[0] != HIDDEN) & ~self._seen
+        self._seen |= newly
+        self._repair()
+        self.dispatch([int(p) for p in np.flatnonzero(newly)])
+        actions = np.zeros((1, self.num_taxis), dtype=np.int64)
+        for a in range(self.num_taxis):
+            pos = s.pos_m[0, a]
+            target = self.target(a)
+            goal = goal_or_hover(self._idle_at, a, pos, target)
+            actions[0, a] = self.fields.heading(pos, s.action_mask[0, a], goal)
+        return actions
+
+    def target(self, taxi: int) -> np.ndarray | None:
+        """The first stop of the taxi's schedule it can act on now."""
+        assert self.env is not None
+        s = self.env.state
+        free = int(s.free_seats[0, taxi])
+        for p, kind in self.routes[taxi]:
+            if kind == PICKUP and s.pax_status[0, p] == WAITING and free > 0:
+                return self.origin_m[p]
+            if kind == DROPOFF and s.pax_status[0, p] == ON_BOARD and s.pax_taxi[0, p] == taxi:
+                return self.dest_m[p]
+        return None
+
+    def check_schedules(self) -> None:
+        """Raise AssertionError if a schedule breaks precedence or capacity or two taxis share a request."""
+        assert self.env is not None
+        owners: dict[int, int] = {}
+        for a, route in enumerate(self.routes):
+            riding = set(self.on_board(a))
+            for p, kind in route:
+                if kind == PICKUP:
+                    assert p not in owners, f"passenger {p} on the schedules of taxis {owners[p]} and {a}"
+                    owners[p] = a
+                    riding.add(p)
+                    assert len(riding) <= self.seats, f"taxi {a}'s schedule exceeds {self.seats} seats"
+                else:
+                    assert p in riding, f"taxi {a} drops passenger {p} before picking them up"
+                    riding.discard(p)
+            assert not riding, f"taxi {a}'s schedule never drops {sorted(riding)}"
+
+
+class InsertionPolicy(ScheduleFleetPolicy):
+    """``insertion``: each released request goes to the taxi whose schedule cost (total ride time) grows least
+    with it, the taxi's stops re-sequenced exactly (module docstring)."""
+
+    def dispatch(self, released: list[int]) -> None:
+        for p in released:
+            best: tuple[float, int, list[Stop]] | None = None
+            for a in range(self.num_taxis):
+                grow, route = self.insertion_cost(a, p)
+                if best is None or grow < best[0] - 1e-9:
+                    best = (grow, a, route)
+            assert best is not None
+            self.routes[best[1]] = best[2]
+
+    def insertion_cost(self, taxi: int, passenger: int) -> tuple[float, list[Stop]]:
+        """(increase of the taxi's schedule cost in seconds, new route) when ``passenger`` joins it."""
+        waiting = self.waiting_of(taxi)
+        old = self.schedule_cost(taxi, self.routes[taxi]) if self.routes[taxi] else self._riding_cost(taxi)
+        if len(waiting) + len(self.on_board(taxi)) + 1 <= self.exact_limit:
+            plan, route = self.sequence(taxi, [*waiting, passenger])
+            return plan.total_ride_s - old, route
+        cost, route = self.cheapest_insertion(taxi, passenger)
+        return cost - old, route
+
+    def _riding_cost(self, taxi: int) -> float:
+        return self.sequence(taxi, [])[0].total_ride_s if self.on_board(taxi) else 0.0
+
+
+def assign_trips(
+    trips: Sequence[tuple[int, tuple[int, ...], float]], num_taxis: int, requests: Sequence[int], penalty_s: float
+) -> list[int]:
+    """Indices of the chosen ``(taxi, requests of the trip, cost)`` rows: the exact optimum of
+
+    minimise sum(cost · x) + penalty_s · (requests not served), each taxi at most one trip, each request at most
+    once, x binary; solved by ``scipy.optimize.milp`` (HiGHS). Ties are HiGHS's choice."""
+    if not trips:
+        return []
+    index = {r: i for i, r in enumerate(requests)}
+    n = len(trips)
+    c = np.array([cost - penalty_s * len(reqs) for _, reqs, cost in trips])
+    a_taxi = np.zeros((num_taxis, n))
+    a_req = np.zeros((len(requests), n))
+    for k, (taxi, reqs, _) in enumerate(trips):
+        a_taxi[taxi, k] = 1.0
+        for r in reqs:
+            a_req[index[r], k] = 1.0
+    result = milp(
+        c,
+        integrality=np.ones(n),
+        bounds=Bounds(0.0, 1.0),
+        constraints=[LinearConstraint(a_taxi, -np.inf, 1.0), LinearConstraint(a_req, -np.inf, 1.0)],
+    )
+    if not result.success or result.x is None:
+        raise RuntimeError(f"the trip assignment programme failed: {result.message}")
+    return [k for k in range(n) if result.x[k] > 0.5]
+
+
+class BatchAssignmentPolicy(ScheduleFleetPolicy):
+    """``batch_assignment``: every ``period`` steps, the requests not yet picked up are re-assigned to taxis by an
+    exact (taxi, trip) assignment (module docstring; Alonso-Mora et al., PNAS 2017)."""
+
+    def __init__(
+        self, period: int = 3, max_requests_per_taxi: int = 6, penalty_s: float = 1e6, exact_limit: int = 6
+    ) -> None:
+        super().__init__(exact_limit)
+        if period < 1 or max_requests_per_taxi < 1 or penalty_s <= 0:
+            raise ValueError(
+                f"period={period}, max_requests_per_taxi={max_requests_per_taxi} must be >= 1 and "
+                f"penalty_s={penalty_s} > 0."
+            )
+        self.period = period
+        self.max_requests_per_taxi = max_requests_per_taxi
+        self.penalty_s = penalty_s
+
+    def dispatch(self, released: list[int]) -> None:
+        assert self.env is not None
+        if int(self.env.state.t[0]) % self.period:
+            return
+        s = self.env.state
+        waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]
+        trips, routes = self.candidate_trips(waiting)
+        for a in range(self.num_taxis):
+            self.routes[a] = self.sequence(a, [])[1] if self.on_board(a) else []
+        if not waiting:
+            return
+        for k in assign_trips(trips, self.num_taxis, waiting, self.penalty_s):
+            self.routes[trips[k][0]] = routes[k]
+        self.stats["assignments"] += 1
+
+    def candidate_trips(self, waiting: list[int]) -> tuple[list[tuple[int, tuple[int, ...], float]], list[list[Stop]]]:
+        """Every taxi's feasible trips of up to ``seats`` waiting requests, with their cost increase and route."""
+        trips: list[tuple[int, tuple[int, ...], float]] = []
+        routes: list[list[Stop]] = []
+        for a in range(self.num_taxis):
+            base = self.sequence(a, [])[0].total_ride_s if self.on_board(a) else 0.0
+            singles = []
+            for r in waiting:
+                plan, route = self.sequence(a, [r])
+                singles.append((plan.total_ride_s - base, r, route))
+            singles.sort()
+            chosen = sorted(r for _, r, _ in singles[: self.max_requests_per_taxi])
+            for cost, r, route in singles[: self.max_requests_per_taxi]:
+                trips.append((a, (r,), cost))
+                routes.append(route)
+            for size in range(2, self.seats + 1):
+                if len(self.on_board(a)) + size > self.exact_limit:
+                    break
+                for combo in itertools.combinations(chosen, size):
+                    plan, route = self.sequence(a, list(combo))
+                    trips.append((a, combo, plan.total_ride_s - base))
+                    routes.append(route)
+        return trips, routes
+
+
+__all__ = [
+    "DISPATCHERS",
+    "BatchAssignmentPolicy",
+    "InsertionPolicy",
+    "ScheduleFleetPolicy",
+    "assign_trips",
+]
