@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from eval.fleet_benchmark import COLUMNS, Args, main, markdown
+from uamfleet.cli.fleet_benchmark import COLUMNS, Args, main, markdown
 
 
 def _row(seed: int, dispatcher: str, service: float, wait_p95: float) -> dict[str, object]:

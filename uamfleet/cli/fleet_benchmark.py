@@ -1,0 +1,201 @@
+"""Every fleet dispatcher over seeded held-out fleet instances, in parallel: the fleet table.
+
+    .venv/bin/python -m eval.fleet_benchmark --count 100 --jobs 2                       # Berlin, 1 / 2 / 4 / 8 taxis
+    .venv/bin/python -m eval.fleet_benchmark --family detroit3gpp --settings 4x24 --count 100 --jobs 2
+
+Instances come from :func:`uamfleet.instances.make_fleet_instance` (``--split test`` by default; settings
+:data:`uamfleet.instances.FLEET_SETTINGS`: taxis x requests per episode). Every dispatcher is flown through the same
+env and scored by :mod:`uamfleet.metrics`. Episodes run seed by seed across the settings, so an interrupted run
+still covers every setting. Per setting and dispatcher the table gives means with 95 % intervals (normal
+approximation, 1.96 standard errors over episodes) of the service rate, the episode's wait p50 and p95, the ride
+detour, TD per delivered passenger, occupancy, separation violations and connectivity, and the decision time per
+taxi per step (policy wall time of a step ÷ taxis; median and maximum over all steps; the feasible-path distance
+field of every stop, which all dispatchers share, is computed once per instance before they fly and is not in it:
+``fields_s`` in the CSV). Outputs: a CSV of every
+(episode, dispatcher) row and the marked section ``fleet`` (or ``--section``) of ``docs/results.md``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import multiprocessing as mp
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from collections.abc import Sequence
+
+import numpy as np
+
+from uamfleet.cli._common import run
+from uamfleet.cli.benchmark import _ci
+from uamfleet.baselines import make_policy
+from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import FLEET_SETTINGS, make_fleet_instance, split_seeds
+from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.metrics import episode_metrics
+from uamfleet.rollout import fly
+
+DISPATCHERS: tuple[str, ...] = ("greedy", "insertion", "batch_assignment")
+COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
+           "service_pct", "wait_p50_s", "wait_p95_s", "awt_s", "detour", "td_m", "td_per_delivered_m", "occupancy",
+           "separation_violations", "connectivity_pct", "steps", "decision_p50_ms", "decision_max_ms",
+           "policy_s", "fields_s")  # fmt: skip
+
+
+@dataclass
+class Args:
+    family: str = "berlin"
+    """instance family (uamfleet.instances.FAMILIES)"""
+    settings: tuple[str, ...] = tuple(FLEET_SETTINGS)
+    """fleet settings (taxis x requests): uamfleet.instances.FLEET_SETTINGS"""
+    split: str = "test"
+    count: int = 100
+    """episodes per setting"""
+    first: int = 0
+    """index of the first seed in the split"""
+    dispatchers: tuple[str, ...] = DISPATCHERS
+    jobs: int = 2
+    out_csv: Path = Path("docs/results/fleet_benchmark.csv")
+    out_md: Path = Path("docs/results.md")
+    section: str = "fleet"
+    from_csv: Path | None = None
+    """re-render the table from the CSV of an earlier run, flying nothing"""
+    command: str = ""
+    """the command line to print above the table (default: reconstructed)"""
+    note: str = ""
+    """with --from-csv: a line printed under the command (e.g. what ran and its wall-clock)"""
+
+
+Job = tuple[str, str, int, tuple[str, ...]]  # (family, setting, seed, dispatchers)
+
+
+def run_episode_set(job: Job) -> list[dict[str, Any]]:
+    """Every dispatcher on one fleet instance (one worker process)."""
+    family, setting, seed, dispatchers = job
+    taxis, requests = FLEET_SETTINGS[setting]
+    cfg = make_fleet_instance(family, seed, taxis, requests)
+    start = time.perf_counter()
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    env.reset(seed=0)
+    shared_fields(env, warm=True)  # every dispatcher steers by the same per-stop fields: computed once, untimed
+    fields_s = time.perf_counter() - start
+    rows = []
+    for name in dispatchers:
+        start = time.perf_counter()
+        traj = fly(cfg, make_policy(name, num_taxis=taxis))
+        elapsed = time.perf_counter() - start
+        m = episode_metrics(traj, cfg.radio)
+        per_taxi_ms = np.asarray(traj.decision_s) * 1000.0 / taxis
+        rows.append({
+            "family": family, "setting": setting, "taxis": taxis, "seed": seed, "threshold_db": cfg.sinr_min_db,
+            "dispatcher": name, "num_requests": m.num_requests, "delivered": m.delivered, "service_pct": m.pr_pct,
+            "wait_p50_s": m.wait_p50_s, "wait_p95_s": m.wait_p95_s, "awt_s": m.awt_s, "detour": m.detour_ratio,
+            "td_m": m.td_m, "td_per_delivered_m": m.td_m / max(m.delivered, 1), "occupancy": m.occupancy,
+            "separation_violations": m.separation_violations, "connectivity_pct": m.connectivity_pct,
+            "steps": m.steps, "decision_p50_ms": float(np.median(per_taxi_ms)),
+            "decision_max_ms": float(per_taxi_ms.max()), "policy_s": elapsed, "fields_s": fields_s,
+        })  # fmt: skip
+    return rows
+
+
+def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str = "") -> str:
+    lines = ["```bash", command, "```", ""]
+    if math.isfinite(wall_s):
+        lines += [f"Wall-clock: {wall_s / 60:.1f} min{note}.", ""]
+    lines += [
+        "| family | setting (taxis x requests) | dispatcher | episodes | all delivered % | service % | wait p50 s "
+        "| wait p95 s | ride detour | TD / delivered m | occupancy | separation viol. | conn. % "
+        "| decision / taxi / step p50 / max ms |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    keys = dict.fromkeys((r["family"], r["setting"], r["dispatcher"]) for r in rows)
+    for key in sorted(keys, key=lambda k: (k[0], FLEET_SETTINGS.get(k[1], (0, 0)), DISPATCHERS.index(k[2])
+                                           if k[2] in DISPATCHERS else 99)):  # fmt: skip
+        sel = [r for r in rows if (r["family"], r["setting"], r["dispatcher"]) == key]
+
+        def col(name: str, sel: list[dict[str, Any]] = sel) -> np.ndarray:
+            return np.array([float(r[name]) for r in sel])
+
+        all_delivered = 100.0 * float(np.mean(col("service_pct") >= 100.0))
+        lines.append(
+            f"| {key[0]} | {key[1]} | {key[2]} | {len(sel)} | {all_delivered:.0f} | {_ci(col('service_pct'))} | "
+            f"{_ci(col('wait_p50_s'))} | {_ci(col('wait_p95_s'))} | {_ci(col('detour') * 100)} % | "
+            f"{_ci(col('td_per_delivered_m'))} | {_ci(col('occupancy') * 100)} % | "
+            f"{_ci(col('separation_violations'))} | {_ci(col('connectivity_pct'))} | "
+            f"{np.median(col('decision_p50_ms')):.1f} / {col('decision_max_ms').max():,.0f} |"
+        )
+    lines += [
+        "",
+        "Ride detour: in-vehicle time ÷ direct straight-line flight time, in % (100 % = direct). Occupancy: mean "
+        "passengers on board per taxi-step ÷ seats, in %. Intervals: 95 % over episodes.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    text = ("family", "setting", "dispatcher")
+    with path.open(encoding="utf-8") as f:
+        return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    if args.from_csv is None:
+        write_text_atomic(args.out_csv, buffer.getvalue())
+    command = args.command or (
+        f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
+        f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
+    )
+    body = markdown(rows, command, wall, note)
+    if args.note:
+        body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
+    replace_section(args.out_md, args.section, body)
+    written = "" if args.from_csv is not None else f"{args.out_csv} and "
+    print(f"wrote {written}the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    unknown = [s for s in args.settings if s not in FLEET_SETTINGS]
+    if unknown:
+        raise ValueError(f"unknown --settings {unknown}; choose from {tuple(FLEET_SETTINGS)}.")
+    if args.from_csv is not None:
+        earlier = read_rows(args.from_csv)
+        write_outputs(args, earlier, math.nan)
+        return earlier
+    jobs = [
+        (args.family, setting, seed, tuple(args.dispatchers))
+        for seed in split_seeds(args.split, args.count, args.first)
+        for setting in args.settings
+    ]
+    start = last = time.perf_counter()
+    rows: list[dict[str, Any]] = []
+    with mp.get_context("spawn").Pool(args.jobs) as pool:
+        for i, result in enumerate(pool.imap(run_episode_set, jobs)):
+            rows += result
+            print(f"[{i + 1}/{len(jobs)}] {result[0]['setting']} seed {result[0]['seed']}: "
+                  + "  ".join(f"{r['dispatcher']} PR {r['service_pct']:.0f} wait {r['awt_s']:.0f}s "
+                              f"TD/pax {r['td_per_delivered_m']:.0f}" for r in result), flush=True)  # fmt: skip
+            if time.perf_counter() - last > 60.0 and i + 1 < len(jobs):  # partial results survive an interruption
+                last = time.perf_counter()
+                done = (i + 1) // len(args.settings)
+                write_outputs(args, rows, time.perf_counter() - start,
+                              f" (partial: {done} of {args.count} episodes per setting)")  # fmt: skip
+    write_outputs(args, rows, time.perf_counter() - start)
+    return rows
+
+
+def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-fleet-benchmark") -> int:
+    """The ``uamfleet-fleet-benchmark`` command (``python -m eval.fleet_benchmark``)."""
+    return run(main, Args, argv, prog, __doc__)
+
+
+if __name__ == "__main__":
+    raise SystemExit(cli(prog="python -m uamfleet.cli.fleet_benchmark"))
