@@ -1,4 +1,5 @@
-"""Shaping and stuck-truncation recomputed by hand; the paper presets against SPEC §3."""
+"""Shaping and stuck-truncation recomputed by hand; the paper presets against the paper's scenario table
+(as its authors coded it)."""
 
 from __future__ import annotations
 

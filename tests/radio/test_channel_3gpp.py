@@ -1,4 +1,5 @@
-"""TR 36.777 UMi-AV: SPEC §2 check values, and the expected SINR of paper Eq. 6 computed by hand."""
+"""TR 36.777 UMi-AV: the check values of its Annex B at h = 100 m, f_c = 2 GHz, and the expected SINR of paper
+Eq. 6 computed by hand."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The packaged maps: SPEC §2 facts, equality with the source files, the Detroit estimate's conventions."""
+"""The packaged maps: facts of the Berlin WinProp file (size, antennas, N.C. cells), equality with the source
+files, the Detroit estimate's conventions."""
 
 from __future__ import annotations
 
