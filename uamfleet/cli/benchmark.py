@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import csv
-import io
 import math
 import multiprocessing as mp
 import time
@@ -40,7 +39,7 @@ from uamfleet.config import EnvConfig
 from uamfleet.env.generator import InfeasibleInstanceError, validate_instance
 from uamfleet.env.world import World
 from uamfleet.instances import make_instance, split_seeds
-from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
@@ -213,10 +212,16 @@ def summary(rows: list[dict[str, Any]], group: tuple[str, ...]) -> list[dict[str
     return out
 
 
-def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str = "") -> str:
+def command_header(command: str, wall_s: float, note: str = "") -> list[str]:
+    """The lines that open a results section: the command in a code block, then its wall-clock time if known."""
     lines = ["```bash", command, "```", ""]
     if math.isfinite(wall_s):
         lines += [f"Wall-clock: {wall_s / 60:.1f} min{note}.", ""]
+    return lines
+
+
+def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str = "") -> str:
+    lines = command_header(command, wall_s, note)
     random_rows = [r for r in rows if r["set"] != "fixed"]
     if random_rows:
         lines += [
@@ -327,11 +332,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    write_text_atomic(args.out_csv, buffer.getvalue())
+    write_csv_atomic(args.out_csv, rows, COLUMNS)
     command = args.command or (
         f"uamfleet-benchmark --family {args.family} --split {args.split} --count {args.count} "
         f"--first {args.first} --feasibility {args.feasibility} --jobs {args.jobs} "

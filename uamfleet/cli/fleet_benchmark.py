@@ -18,7 +18,6 @@ field of every stop, which all dispatchers share, is computed once per instance 
 from __future__ import annotations
 
 import csv
-import io
 import math
 import multiprocessing as mp
 import time
@@ -30,12 +29,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from uamfleet.cli._common import run
-from uamfleet.cli.benchmark import _ci
+from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.baselines import make_policy
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_SETTINGS, make_fleet_instance, split_seeds
-from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
@@ -103,9 +102,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
 
 
 def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str = "") -> str:
-    lines = ["```bash", command, "```", ""]
-    if math.isfinite(wall_s):
-        lines += [f"Wall-clock: {wall_s / 60:.1f} min{note}.", ""]
+    lines = command_header(command, wall_s, note)
     lines += [
         "| family | setting (taxis x requests) | dispatcher | episodes | all delivered % | service % | wait p50 s "
         "| wait p95 s | ride detour | TD / delivered m | occupancy | separation viol. | conn. % "
@@ -144,12 +141,8 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
     if args.from_csv is None:
-        write_text_atomic(args.out_csv, buffer.getvalue())
+        write_csv_atomic(args.out_csv, rows, COLUMNS)
     command = args.command or (
         f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import csv
-import io
 import math
 import subprocess
 import sys
@@ -37,7 +35,7 @@ from uamfleet.cli._common import Variant, run
 from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
-from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.networks import VARIANTS
 from uamfleet.rl.trainer import load_policy, read_progress
@@ -287,11 +285,7 @@ def main(args: Args) -> list[dict[str, object]]:
               f"to paper TD: {steps_s(row['steps_to_paper_td'], row['wall_to_paper_td_s'])}")  # fmt: skip
     if not rows:
         raise SystemExit(f"no trained runs under {args.run_dir}; nothing to tabulate.")
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    write_text_atomic(args.out_csv, buffer.getvalue())
+    write_csv_atomic(args.out_csv, rows, list(rows[0]))
     replace_section(args.out_md, args.section, markdown(rows, planners))
     print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md}")
     return rows

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import csv
-import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +30,7 @@ from uamfleet.baselines.planner_policy import (
     planner_configs,
     service_order,
 )
-from uamfleet.io import replace_section, write_text_atomic
+from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
 from uamfleet.rollout import Trajectory
@@ -187,11 +185,7 @@ def main(args: Args) -> list[dict[str, object]]:
         if len(thresholds) > 1:
             plot_connectivity(list(thresholds), connectivity, f"{label}: connectivity along the flown path",
                               args.figures / f"connectivity_{scenario}.png")  # fmt: skip
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    write_text_atomic(args.out_csv, buffer.getvalue())
+    write_csv_atomic(args.out_csv, rows, COLUMNS)
     replace_section(args.out_md, "paper_table", markdown(rows))
     print(f"wrote {args.out_csv}, the paper_table section of {args.out_md}, figures in {args.figures}/")
     return rows
