@@ -342,7 +342,8 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
     )
     replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
-    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
+    minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
+    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({minutes}){note}")
 
 
 def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-benchmark") -> int:

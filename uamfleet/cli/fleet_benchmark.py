@@ -28,7 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from uamfleet.cli._common import run
+from uamfleet.cli._common import fmt, run
 from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.baselines import make_policy
 from uamfleet.baselines.fleet_dispatch import shared_fields
@@ -152,7 +152,8 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
     replace_section(args.out_md, args.section, body)
     written = "" if args.from_csv is not None else f"{args.out_csv} and "
-    print(f"wrote {written}the {args.section} section of {args.out_md} ({wall / 60:.1f} min){note}")
+    minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
+    print(f"wrote {written}the {args.section} section of {args.out_md} ({minutes}){note}")
 
 
 def main(args: Args) -> list[dict[str, Any]]:
