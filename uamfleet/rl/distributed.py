@@ -26,8 +26,11 @@ What makes 2 ranks x E/2 envs the same run as 1 rank x E envs (``tests/rl/test_d
 
 from __future__ import annotations
 
+import faulthandler
+import logging
 import os
 import socket
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import timedelta
@@ -191,13 +194,33 @@ def free_port() -> int:
 
 
 def _launched(local_rank: int, world_size: int, port: int, fn: Callable[..., None], args: tuple[Any, ...]) -> None:
+    """One rank: ``fn(*args)``, then a teardown that never runs the interpreter's exit with gloo threads alive.
+
+    A 2-rank run could end with a rank killed by SIGABRT ("terminate called without an active exception",
+    raised while the interpreter was finalising: docs/benchmarks.md). After ``train()``,
+    ``destroy_process_group()`` does not free the gloo group (its threads ``gloo_tcp_loop``, ``pt_gloo_runloop``
+    and rank 0's ``pt_tcpstore_uv`` still run: some object still holds it), so the C++ group was torn down
+    during interpreter finalisation, possibly after the other rank, which hosts the store, had gone. So on success
+    every rank waits for all (no rank leaves while another still uses the group), destroys the group and leaves
+    with ``os._exit(0)`` once its output is flushed; a rank whose ``fn`` raises exits the usual way, so the
+    launcher still reports its traceback (atexit handlers of a successful rank do not run). ``faulthandler``
+    prints every thread's stack if a rank crashes."""
     os.environ.update(RANK=str(local_rank), WORLD_SIZE=str(world_size), LOCAL_RANK=str(local_rank),
                       LOCAL_WORLD_SIZE=str(world_size), MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port))  # fmt: skip
+    faulthandler.enable(file=sys.stderr, all_threads=True)
     try:
         fn(*args)
-    finally:
+    except BaseException:
         if dist.is_initialized():
             dist.destroy_process_group()
+        raise
+    if dist.is_initialized():
+        dist.barrier()
+        dist.destroy_process_group()
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
 
 
 def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
