@@ -12,6 +12,11 @@ fill time is printed: a training run pays it once per map and threshold, spread 
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/env_throughput.py \
         --num-envs 64 --num-taxis 4 --shaping-metrics none path path_exact euclidean --no-pettingzoo --cpu-time
+
+``--stop-features`` times the step with path shaping and the stop features (the generalist's observation):
+
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/env_throughput.py \
+        --num-envs 64 --num-taxis 1 4 --stop-features --shaping-metrics none path --no-pettingzoo --cpu-time
 """
 
 from __future__ import annotations
@@ -39,6 +44,9 @@ class Args:
     shaping_metrics: tuple[str, ...] = ()
     """also time the step with shaping (weight 50) under each of these metrics ("none": shaping off), at every
     (E, A) above"""
+    stop_features: bool = False
+    """also time the step with path shaping AND the stop features (EnvConfig.stop_features: per stop the
+    feasible-path distance and progress heading), at every (E, A) above"""
     pettingzoo: bool = True
     """also time the PettingZoo face"""
     cpu_time: bool = False
@@ -52,14 +60,17 @@ def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def bench_core(
-    scenario: str, num_envs: int, num_taxis: int, seconds: float, cpu_time: bool = False, shaping: str = "none"
-) -> float:
+    scenario: str, num_envs: int, num_taxis: int, seconds: float, cpu_time: bool = False, shaping: str = "none",
+    stop_features: bool = False,
+) -> float:  # fmt: skip
     clock = time.thread_time if cpu_time else time.perf_counter
     reward = uamfleet.RewardConfig(shaping=0.0 if shaping == "none" else 50.0)
     if shaping != "none":
         reward = dataclasses.replace(reward, shaping_metric=shaping)
-    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, reward=reward)
-    if shaping == "path":
+    env = uamfleet.vector_env(
+        scenario, num_envs=num_envs, num_taxis=num_taxis, reward=reward, stop_features=stop_features
+    )
+    if shaping == "path" or stop_features:
         start = time.perf_counter()
         table = table_for(env.world).fill()
         took = time.perf_counter() - start
@@ -110,6 +121,13 @@ def main(args: Args) -> None:
             for metric in args.shaping_metrics:
                 rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, metric)
                 print(f"{num_envs:>5} {num_taxis:>4} {metric:>15} {rate:>15,.0f}")
+    if args.stop_features:
+        print(f"\ncore with path shaping (weight 50) and the stop features, {args.scenario} ({clock})")
+        print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15}")
+        for num_envs in args.num_envs:
+            for num_taxis in args.num_taxis:
+                rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True)
+                print(f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f}")
     if not args.pettingzoo:
         return
     print(f"\nPettingZoo face: {args.pettingzoo_scenario} (E = 1)")

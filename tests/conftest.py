@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -9,6 +10,10 @@ import pytest
 
 from uamfleet.config import EnvConfig, Request
 from uamfleet.radio import RadioMap
+
+# Distance tables are computed in each test, never read from (or written to) the user's disk cache: tests must not
+# depend on what an earlier run left there. tests/paths/test_table_cache.py turns it on in a temporary folder.
+os.environ["UAMFLEET_CACHE"] = "off"
 
 GOOD_DB = 0.0
 BAD_DB = -10.0

@@ -187,13 +187,20 @@ _REWARD_DEFAULTS = {f.name: f.default for f in dataclasses.fields(RewardConfig)}
 assert set(REWARD_TERMS) <= set(_REWARD_DEFAULTS), "every reward term needs a RewardConfig weight of its name"
 
 
+ARRIVALS: tuple[str, ...] = ("poisson", "uniform")
+"""Values of ``DemandConfig.arrivals``."""
+
+
 @dataclass(frozen=True)
 class DemandConfig:
     """Random demand: Poisson arrivals of ride requests.
 
-    ``num_initial`` requests are released at step 0; afterwards requests arrive with ``rate_per_step`` until
-    ``horizon_steps`` (at most ``max_requests`` in all). Origins and destinations are drawn on feasible blocks
-    (or from ``vertiports`` when given), at least ``min_trip_m`` apart.
+    ``arrivals="poisson"``: ``num_initial`` requests are released at step 0; afterwards requests arrive with
+    ``rate_per_step`` until ``horizon_steps`` (at most ``max_requests`` in all). ``arrivals="uniform"``: the
+    number of requests is drawn uniformly from ``min_requests`` ... ``max_requests``; ``num_initial`` of them
+    (at least one) are released at step 0 and the others at steps drawn uniformly from 0 ... ``horizon_steps``
+    (the held-out instances of :mod:`uamfleet.instances` are drawn this way). Origins and destinations are drawn
+    on feasible blocks (or from ``vertiports`` when given), at least ``min_trip_m`` apart.
     """
 
     num_initial: int = 3
@@ -202,6 +209,8 @@ class DemandConfig:
     max_requests: int = 8
     min_trip_m: float = 500.0
     vertiports: tuple[tuple[float, float], ...] = ()
+    arrivals: str = "poisson"
+    min_requests: int = 1  # arrivals="uniform" only
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -212,6 +221,9 @@ class DemandConfig:
         put("rate_per_step", check_number("DemandConfig.rate_per_step", self.rate_per_step, minimum=0))
         put("horizon_steps", check_integer("DemandConfig.horizon_steps", self.horizon_steps, 0))
         put("min_trip_m", check_number("DemandConfig.min_trip_m", self.min_trip_m, minimum=0))
+        if self.arrivals not in ARRIVALS:
+            raise ConfigError(f"DemandConfig.arrivals={self.arrivals!r} is unknown; use one of {ARRIVALS}.")
+        put("min_requests", check_integer("DemandConfig.min_requests", self.min_requests, 1, self.max_requests))
         ports = tuple(
             check_point(f"DemandConfig.vertiports[{i}]", p)
             for i, p in enumerate(_sequence("DemandConfig.vertiports", self.vertiports))
@@ -264,6 +276,7 @@ class EnvConfig:
     patch_size: int = 10
     min_separation_m: float = 50.0
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
+    stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -334,6 +347,8 @@ class EnvConfig:
             raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
+        if not isinstance(self.stop_features, bool):
+            raise ConfigError(f"stop_features={self.stop_features!r} must be True or False.")
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
 
@@ -471,6 +486,67 @@ def _detroit3gpp_random(**overrides: Any) -> EnvConfig:
     return _with_overrides(base, overrides)
 
 
+INSTANCE_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, pickup=20.0, dropoff=30.0)
+"""The *_instances scenarios' reward: the distance flown (``step`` per step) is what is scored, so no
+exploration bonus (it pays for detours into new blocks) and pick-up / drop-off bonuses a tenth of the authors'
+(enough to learn to serve, small against the steps a better order saves)."""
+
+
+def _berlin_instances(**overrides: Any) -> EnvConfig:
+    """One taxi on the Berlin map with the demand of the held-out instances (:mod:`uamfleet.instances`): 2-6
+    requests, the first at step 0 and the others over the first 2 minutes (40 steps), trips >= 500 m, a padded
+    passenger axis of 6 and the feasible-path stop features; what a generalist policy trains on (one threshold
+    per env: the trainer's ``--thresholds`` mixes several)."""
+    demand = DemandConfig(
+        arrivals="uniform", num_initial=1, min_requests=2, max_requests=6, horizon_steps=40, min_trip_m=500.0
+    )
+    base = _fields(_berlin_random(num_taxis=1, demand=demand))
+    base.update(max_passengers=6, stop_features=True, reward=INSTANCE_REWARD, scenario="berlin_instances")
+    return _with_overrides(base, overrides)
+
+
+def _detroit3gpp_instances(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_instances` on the synthetic TR 36.777 Detroit-like map (320 m steps, releases over the
+    first 12 steps, trips >= 2 km)."""
+    demand = DemandConfig(
+        arrivals="uniform", num_initial=1, min_requests=2, max_requests=6, horizon_steps=12, min_trip_m=2000.0
+    )
+    base = _fields(_detroit3gpp_random(num_taxis=1, demand=demand))
+    base.update(max_passengers=6, stop_features=True, reward=INSTANCE_REWARD, scenario="detroit3gpp_instances")
+    return _with_overrides(base, overrides)
+
+
+FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0)
+"""The *_fleet scenarios' reward: the authors' pick-up / drop-off bonuses (200 / 300, so that a passenger left
+waiting costs about as much per step, through the discount, as a taxi's step) without the exploration bonus."""
+
+
+def _fleet(random_preset: Callable[..., EnvConfig], scenario: str, slot_s: float, overrides: dict[str, Any]) -> EnvConfig:
+    """A fleet with the demand of the held-out fleet instances (:func:`uamfleet.instances.make_fleet_instance`):
+    6 requests per taxi, released uniformly over the first 10 minutes, on flyable block centres."""
+    taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)
+    min_trip = 2000.0 if scenario.startswith("detroit") else 500.0
+    demand = DemandConfig(
+        arrivals="uniform", num_initial=0, min_requests=6 * taxis, max_requests=6 * taxis,
+        horizon_steps=max(int(600.0 // slot_s) - 1, 0), min_trip_m=min_trip,
+    )  # fmt: skip
+    base = _fields(random_preset(num_taxis=taxis, demand=demand))
+    base.update(max_passengers=6 * taxis, stop_features=True, reward=FLEET_REWARD, scenario=scenario)
+    base["time_limit_steps"] = max(base["time_limit_steps"], 3 * (demand.horizon_steps + 1))
+    return _with_overrides(base, {k: v for k, v in overrides.items() if k != "num_taxis"})
+
+
+def _berlin_fleet(**overrides: Any) -> EnvConfig:
+    """A Berlin fleet (default 4 taxis) with 6 requests per taxi over the first 10 minutes: what a learned fleet
+    trains on (the fleet table's settings 1x6 ... 8x48)."""
+    return _fleet(_berlin_random, "berlin_fleet", 3.0, overrides)
+
+
+def _detroit3gpp_fleet(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_fleet` on the synthetic TR 36.777 Detroit-like map."""
+    return _fleet(_detroit3gpp_random, "detroit3gpp_fleet", 320.0 / (120.0 / 3.6), overrides)
+
+
 def _with_overrides(base: dict[str, Any], overrides: dict[str, Any]) -> EnvConfig:
     known = {f.name for f in dataclasses.fields(EnvConfig)}
     unknown = sorted(set(overrides) - known)
@@ -496,6 +572,10 @@ PRESETS: dict[str, Callable[..., EnvConfig]] = {
     "detroit3gpp_p5": _detroit3gpp_p5,
     "berlin_random": _berlin_random,
     "detroit3gpp_random": _detroit3gpp_random,
+    "berlin_instances": _berlin_instances,
+    "detroit3gpp_instances": _detroit3gpp_instances,
+    "berlin_fleet": _berlin_fleet,
+    "detroit3gpp_fleet": _detroit3gpp_fleet,
 }
 SCENARIOS: tuple[str, ...] = tuple(PRESETS)
 

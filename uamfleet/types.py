@@ -50,6 +50,14 @@ PAX_ON_BOARD_OTHER = PASSENGER_FEATURES.index("on_board_other")
 PAX_DELIVERED = PASSENGER_FEATURES.index("delivered")
 PAX_AGE = PASSENGER_FEATURES.index("age")
 NUM_PASSENGER_FEATURES = len(PASSENGER_FEATURES)
+STOP_PATH_FEATURES: tuple[str, ...] = (
+    "path_to_stop",  # feasible-path distance from the taxi to the row's stop / side (0: no actionable stop)
+    "ride_path",  # feasible-path distance from the row's origin to its destination / side
+)  # the "stop_paths" field, only with EnvConfig.stop_features
+STOP_RIVAL_FEATURES: tuple[str, ...] = (
+    "rival_path",  # feasible-path distance from a waiting row's origin to the nearest other taxi with a seat / side
+    "rivals_nearer",  # share of the other taxis with a seat that are nearer to it than this taxi
+)  # the "stop_rivals" field, with EnvConfig.stop_features and more than one taxi
 STATE_TAXI_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "index")  # rows of state(), per taxi
 STATE_PASSENGER_FEATURES: tuple[str, ...] = (
     "origin_x",

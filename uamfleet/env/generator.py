@@ -111,17 +111,25 @@ class TripEnds:
 def sample_requests(
     world: World, rng: np.random.Generator, sites: np.ndarray, trip_ends: TripEnds | None = None
 ) -> list[Request]:
-    """Poisson arrivals: ``num_initial`` at step 0, then rate ``rate_per_step`` until ``horizon_steps``.
+    """Release steps by ``DemandConfig.arrivals`` (Poisson: ``num_initial`` at step 0, then rate
+    ``rate_per_step`` until ``horizon_steps``; uniform: see :class:`~uamfleet.config.DemandConfig`), then
+    each request's origin and destination.
 
     ``trip_ends`` (for the same points: the vertiports if any, else ``sites``) only saves time."""
     demand = world.cfg.demand
-    release = [0] * demand.num_initial
-    t = 0.0
-    while demand.rate_per_step > 0 and len(release) < demand.max_requests:
-        t += rng.exponential(1.0 / demand.rate_per_step)
-        if t > demand.horizon_steps:
-            break
-        release.append(max(1, int(np.ceil(t))))
+    if demand.arrivals == "uniform":
+        count = int(rng.integers(demand.min_requests, demand.max_requests + 1))
+        initial = min(demand.num_initial, count)
+        later = rng.integers(0, demand.horizon_steps + 1, size=count - initial)
+        release = [0] * initial + sorted(int(t) for t in later)
+    else:
+        release = [0] * demand.num_initial
+        t = 0.0
+        while demand.rate_per_step > 0 and len(release) < demand.max_requests:
+            t += rng.exponential(1.0 / demand.rate_per_step)
+            if t > demand.horizon_steps:
+                break
+            release.append(max(1, int(np.ceil(t))))
     if not release:  # an episode needs at least one request
         release = [0]
     points = np.asarray(demand.vertiports, dtype=float) if demand.vertiports else sites

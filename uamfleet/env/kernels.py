@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
+from uamfleet.paths.distance_table import table_distance
 from uamfleet.radio._sampling import segment_min
 from uamfleet.types import (
     DELIVERED,
@@ -308,3 +309,124 @@ def separation(pos: np.ndarray, min_separation_m: float, out: np.ndarray) -> Non
                 if math.sqrt(dx * dx + dy * dy) < min_separation_m:
                     out[e, a] = True
                     out[e, b] = True
+
+
+STOP_PATH_CLIP = 4.0
+"""Upper bound of the ``stop_paths`` distances (map sides): an unreachable stop (``inf``) reads as this."""
+
+
+@njit(cache=True)
+def stop_features(
+    s: FleetState,
+    w: WorldArrays,
+    table: np.ndarray,  # DistanceTable.distance_m
+    nbx: int,
+    nby: int,
+    o_paths: np.ndarray,  # [E, A, P, 2] float32 out
+    o_heading: np.ndarray,  # [E, A, P, NUM_HEADINGS] int8 out
+) -> bool:
+    """Each taxi's feasible-path view of its stops (docs/rules.md "Observation", ``stop_features``).
+
+    Row p of taxi a is *actionable* when p waits and a has a free seat (stop: p's origin) or p rides in a
+    (stop: p's destination). ``o_paths[..., 0]``: the feasible-path distance from the taxi to that stop;
+    ``o_paths[..., 1]``: from p's origin to p's destination (the ride still to fly once p is aboard); both in map
+    sides, clipped to :data:`STOP_PATH_CLIP`. ``o_heading``: one-hot, the allowed heading that makes most
+    progress along the feasible path to the stop (the move plus the distance left after it; a move ending
+    within the pick-up radius costs the move only); all zero for a row that is not actionable. Distances are
+    the table's (:func:`uamfleet.paths.distance_table.table_distance`). Returns False, leaving the outputs
+    incomplete, when a table row is not computed yet (the caller fills the rows and calls again).
+    """
+    num_envs, num_taxis = s.free_seats.shape
+    num_pax = s.pax_status.shape[1]
+    side, step, radius, block_m = w.side_m, w.step_m, w.radius_m, w.block_m
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            for p in range(num_pax):
+                for h in range(NUM_HEADINGS):
+                    o_heading[e, a, p, h] = 0
+                o_paths[e, a, p, 0] = 0.0
+                o_paths[e, a, p, 1] = 0.0
+                status = s.pax_status[e, p]
+                if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
+                    continue
+                ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+                dx, dy = s.pax_dest_m[e, p, 0], s.pax_dest_m[e, p, 1]
+                trip = table_distance(table, block_m, nbx, nby, ox, oy, dx, dy)
+                if math.isnan(trip):
+                    return False
+                o_paths[e, a, p, 1] = min(trip / side, STOP_PATH_CLIP)
+                if status == ON_BOARD and s.pax_taxi[e, p] == a:
+                    gx, gy = dx, dy
+                elif status == WAITING and s.free_seats[e, a] > 0:
+                    gx, gy = ox, oy
+                else:
+                    continue
+                here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
+                if math.isnan(here):
+                    return False
+                o_paths[e, a, p, 0] = min(here / side, STOP_PATH_CLIP)
+                best, best_cost = -1, math.inf
+                for h in range(NUM_HEADINGS):
+                    if not s.action_mask[e, a, h]:
+                        continue
+                    qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+                    if (qx - gx) ** 2 + (qy - gy) ** 2 <= radius * radius:
+                        cost = step
+                    else:
+                        cost = step + table_distance(table, block_m, nbx, nby, qx, qy, gx, gy)
+                        if math.isnan(cost):
+                            return False
+                    if cost < best_cost:
+                        best, best_cost = h, cost
+                if best >= 0:
+                    o_heading[e, a, p, best] = 1
+    return True
+
+
+@njit(cache=True)
+def stop_rivals(
+    s: FleetState,
+    w: WorldArrays,
+    table: np.ndarray,  # DistanceTable.distance_m
+    nbx: int,
+    nby: int,
+    o_rivals: np.ndarray,  # [E, A, P, 2] float32 out
+) -> bool:
+    """What the other taxis of a fleet offer for each waiting passenger (docs/rules.md "Observation").
+
+    For taxi a and a ``WAITING`` row p: ``o_rivals[..., 0]`` is the feasible-path distance from p's origin to the
+    nearest *other* taxi with a free seat (map sides, :data:`STOP_PATH_CLIP` when there is none);
+    ``o_rivals[..., 1]`` the share of the other taxis with a free seat that are nearer to it than a (0: a is the
+    nearest, or the only one). Zero for rows that are not waiting. Returns False when a table row is missing.
+    """
+    num_envs, num_taxis = s.free_seats.shape
+    num_pax = s.pax_status.shape[1]
+    side, block_m = w.side_m, w.block_m
+    dist = np.empty(num_taxis)
+    for e in range(num_envs):
+        for p in range(num_pax):
+            waiting = s.pax_exists[e, p] and s.pax_status[e, p] == WAITING
+            if waiting:
+                ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+                for b in range(num_taxis):
+                    d = table_distance(table, block_m, nbx, nby, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                    if math.isnan(d):
+                        return False
+                    dist[b] = d
+            for a in range(num_taxis):
+                if not waiting:
+                    o_rivals[e, a, p, 0] = 0.0
+                    o_rivals[e, a, p, 1] = 0.0
+                    continue
+                nearest, nearer, free_others = math.inf, 0, 0
+                for b in range(num_taxis):
+                    if b == a or s.free_seats[e, b] <= 0:
+                        continue
+                    free_others += 1
+                    nearest = min(nearest, dist[b])
+                    if dist[b] < dist[a]:
+                        nearer += 1
+                o_rivals[e, a, p, 0] = min(nearest / side, STOP_PATH_CLIP)
+                o_rivals[e, a, p, 1] = nearer / free_others if free_others > 0 else 0.0
+    return True

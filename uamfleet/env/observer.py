@@ -13,6 +13,7 @@ from gymnasium import spaces
 
 from uamfleet.env import kernels
 from uamfleet.env.world import PATCH_CLIP_DB, PATCH_PAD_DB, World
+from uamfleet.paths import table_for
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -24,6 +25,8 @@ from uamfleet.types import (
     SELF_FEATURES,
     STATE_PASSENGER_FEATURES,
     STATE_TAXI_FEATURES,
+    STOP_PATH_FEATURES,
+    STOP_RIVAL_FEATURES,
     WAITING,
     FleetState,
 )
@@ -52,13 +55,24 @@ class Observer:
         taxi_size, pax_size = len(STATE_TAXI_FEATURES), len(STATE_PASSENGER_FEATURES)
         self.state_size = cfg.num_taxis * taxi_size + cfg.num_passengers * pax_size + 1  # + time
         self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
+        # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
+        self.table = table_for(world) if cfg.stop_features else None
 
     def _observation_space(self) -> spaces.Dict:
         cfg = self.cfg
         k, P, H = cfg.patch_size, cfg.num_passengers, cfg.history_len
         f32 = np.float32
+        stop_fields = {}
+        if cfg.stop_features:
+            stop_fields = {
+                "stop_paths": spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_PATH_FEATURES)), f32),
+                "stop_heading_mask": spaces.Box(0, 1, (P, NUM_HEADINGS), np.int8),
+            }
+            if cfg.num_taxis > 1:
+                stop_fields["stop_rivals"] = spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_RIVAL_FEATURES)), f32)
         return spaces.Dict(
             {
+                **stop_fields,
                 "self": spaces.Box(-1.0, 1.0, (len(SELF_FEATURES),), f32),
                 "history": spaces.Box(-2.0, 2.0, (H, len(HISTORY_FEATURES)), f32),
                 "passengers": spaces.Box(-2.0, 2.0, (P, len(PASSENGER_FEATURES)), f32),
@@ -92,6 +106,22 @@ class Observer:
             state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
+        if self.table is not None:
+            obs["stop_paths"] = np.empty((E, A, P, len(STOP_PATH_FEATURES)), f32)
+            obs["stop_heading_mask"] = np.empty((E, A, P, NUM_HEADINGS), np.int8)
+            table, (nbx, nby) = self.table, self.table.shape
+            args = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_paths"], obs["stop_heading_mask"])
+            rivals = None
+            if A > 1:
+                obs["stop_rivals"] = np.empty((E, A, P, len(STOP_RIVAL_FEATURES)), f32)
+                rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"])
+            if not kernels.stop_features(*args) or (rivals is not None and not kernels.stop_rivals(*rivals)):
+                # a stop whose table rows are not computed yet (a new instance): compute them, then again
+                exists = state.pax_exists
+                table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
+                kernels.stop_features(*args)
+                if rivals is not None:
+                    kernels.stop_rivals(*rivals)
         return obs
 
     def state(self, state: FleetState) -> np.ndarray:

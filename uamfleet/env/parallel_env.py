@@ -102,6 +102,10 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     ``action_mask``     (16,)             int8     --    1 = heading allowed
     ==================  ================  =======  ====  =====================================================
 
+    With ``stop_features=True`` also ``stop_paths`` (P, 2) float32: feasible-path distance taxi -> the row's
+    stop and origin -> destination (/ side), and ``stop_heading_mask`` (P, 16) int8: the heading that makes
+    most progress toward the row's stop (one-hot; zero where the row has no stop for this taxi).
+
     ``state()``: float32 [4 A + 9 P + 1], in this order:
 
     ==========  ======  =======  ====  ==========================================================================

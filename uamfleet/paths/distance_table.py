@@ -19,6 +19,11 @@ the step and the lookup into numba:
   :meth:`DistanceTable.fill` computes every row at once). Entries never change once computed, so the same
   state always gets the same distance, whenever its rows were filled. Tables are cached per (map, threshold,
   rule, block size), like the graphs.
+- **On disk**: a table completed by :meth:`DistanceTable.fill` is saved under :func:`cache_dir`
+  (``$UAMFLEET_CACHE``, default ``~/.cache/uamfleet``; ``UAMFLEET_CACHE=off`` disables it), named by a hash of
+  everything its entries depend on (the graph's flyable cells, resolution and origin, the blocks); a later
+  process with the same table loads it whole instead of running its Dijkstras again (training on random demand
+  at five thresholds otherwise spends its first minutes filling tables).
 - **Lookup** (:func:`table_distance`, compiled): from a point a to a stop b, the entries ``distance_m[j, i]``
   between the 4 block centres j around b (their rows) and the 4 around a, interpolated bilinearly in both
   points (16 entries), and at least ``|a - b|``. Bilinear interpolation is exact where the distance varies
@@ -33,18 +38,32 @@ difference (docs/rules.md "Rewards").
 
 from __future__ import annotations
 
+import hashlib
+import io
 import math
+import os
 import weakref
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 from scipy.sparse import csgraph
 
+from uamfleet.io import write_bytes_atomic
 from uamfleet.paths.distance_fields import FlightGeometry, graph_for
 from uamfleet.paths.grid_graph import GridGraph, feasible_raster
 from uamfleet.radio import RadioMap
 
 _CHUNK = 32  # Dijkstra sources per scipy call: [chunk, nx * ny] float64 rows (~27 MB on Berlin)
+CACHE_FORMAT = 1  # raise when the entries' definition changes: older files then no longer match
+
+
+def cache_dir() -> Path | None:
+    """Where filled tables are kept: ``$UAMFLEET_CACHE`` (``off`` or empty: nowhere), else ``~/.cache/uamfleet``."""
+    value = os.environ.get("UAMFLEET_CACHE")
+    if value is not None:
+        return None if value.strip().lower() in ("", "off", "0", "none") else Path(value)
+    return Path.home() / ".cache" / "uamfleet"
 
 
 class DistanceTable:
@@ -74,6 +93,32 @@ class DistanceTable:
         # NaN marks rows not computed yet; the lookup refuses to read one.
         self.distance_m = np.full((len(centres), len(centres)), np.nan, dtype=np.float32)
         self.filled = np.zeros(len(centres), dtype=bool)
+        self._load_cached()
+
+    @property
+    def cache_key(self) -> str:
+        """Hash of everything the entries depend on (the file name of the table on disk)."""
+        g = self.graph
+        digest = hashlib.sha1(np.packbits(g.feasible).tobytes())
+        digest.update(repr((CACHE_FORMAT, g.shape, g.resolution_m, g.origin_m, g.connectivity, g.snap_m,
+                            self.block_m, self.shape)).encode())  # fmt: skip
+        return digest.hexdigest()
+
+    def _cache_file(self) -> Path | None:
+        folder = cache_dir()
+        return None if folder is None else folder / f"table-{self.cache_key}.npy"
+
+    def _load_cached(self) -> None:
+        path = self._cache_file()
+        if path is None or not path.is_file():
+            return
+        try:
+            table = np.load(path, allow_pickle=False)
+        except (OSError, ValueError):
+            return  # unreadable (e.g. a partial copy): compute rows as usual
+        if table.shape == self.distance_m.shape and table.dtype == np.float32 and not np.isnan(table).any():
+            self.distance_m[:] = table
+            self.filled[:] = True
 
     def __repr__(self) -> str:
         return (
@@ -90,8 +135,18 @@ class DistanceTable:
         self._compute(rows[~self.filled[rows]])
 
     def fill(self) -> DistanceTable:
-        """Compute every row now (e.g. before timing steps); returns self."""
-        self._compute(np.flatnonzero(~self.filled))
+        """Compute every row now (e.g. before timing steps or training on random demand) and save the table to
+        the disk cache (module docstring); returns self."""
+        missing = np.flatnonzero(~self.filled)
+        self._compute(missing)
+        path = self._cache_file()
+        if missing.size and path is not None:
+            buffer = io.BytesIO()
+            np.save(buffer, self.distance_m, allow_pickle=False)
+            try:
+                write_bytes_atomic(path, buffer.getvalue())
+            except OSError:
+                pass  # a read-only home: the table is still complete in memory
         return self
 
     def _compute(self, rows: np.ndarray) -> None:

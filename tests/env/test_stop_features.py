@@ -1,0 +1,188 @@
+"""The stop features (``EnvConfig.stop_features``): per stop, the feasible-path distance and the heading that
+makes most progress along it, against a Python recomputation from the same table and hand-checked drawn maps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import drawn_map, small_config
+from uamfleet.config import ConfigError, DemandConfig, Request, make_config
+from uamfleet.env.generator import sample_requests
+from uamfleet.env.mixture import MixtureVectorEnv
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.world import World
+from uamfleet.paths import table_for
+from uamfleet.types import NUM_HEADINGS
+
+# A wall at x = 300-400 m from y = 100 m to 500 m: from the west side, the stop on the east side is reached over the
+# wall's north end (the gap at y = 500-700 m), never straight east and never round the south (there is no gap).
+WALL = """
+.......
+.......
+...#...
+...#...
+...#...
+...#...
+...#...
+"""
+
+
+def expected_heading(world: World, pos: np.ndarray, goal: np.ndarray, mask: np.ndarray) -> int:
+    """Argmin over allowed headings of move + table distance left (the move alone when it ends in the radius)."""
+    table = table_for(world)
+    costs = []
+    for h in range(NUM_HEADINGS):
+        q = pos + world.moves_m[h]
+        if not mask[h]:
+            costs.append(np.inf)
+        elif np.linalg.norm(q - goal) <= world.cfg.radius_m:
+            costs.append(world.step_m)
+        else:
+            costs.append(world.step_m + float(table.distance(q, goal)))
+    return int(np.argmin(costs))
+
+
+def test_heading_goes_round_the_wall_and_matches_a_python_recomputation() -> None:
+    cfg = small_config(
+        WALL, starts_m=((150.0, 350.0),), requests=(Request(0, (550.0, 350.0), (650.0, 50.0)),), stop_features=True,
+        time_limit_steps=40, patch_size=4,
+    )  # fmt: skip
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=0)
+    world, table = env.world, table_for(env.world)
+    onehot = obs["stop_heading_mask"][0, 0, 0]
+    assert onehot.sum() == 1
+    heading = int(onehot.argmax())
+    assert heading in (1, 2, 3), f"heading {heading}: the path goes north-east over the wall"
+    pos, goal = env.state.pos_m[0, 0], np.array([550.0, 350.0])
+    assert heading == expected_heading(world, pos, goal, env.state.action_mask[0, 0])
+    side = world.side_m
+    assert obs["stop_paths"][0, 0, 0, 0] == pytest.approx(float(table.distance(pos, goal)) / side, rel=1e-6)
+    ride = float(table.distance(np.array([550.0, 350.0]), np.array([650.0, 50.0])))
+    assert obs["stop_paths"][0, 0, 0, 1] == pytest.approx(ride / side, rel=1e-6)
+    # the path round the wall is longer than the straight line (the wall is in the way)
+    assert obs["stop_paths"][0, 0, 0, 0] * side > 400.0 + 100.0
+
+    # Follow the marked heading: the taxi picks the passenger up and delivers her, never blocked.
+    for _ in range(40):
+        action = obs["stop_heading_mask"][0, 0].max(0).argmax()
+        obs, _, terminated, _, info = env.step(np.array([[action]]))
+        assert info["events"].moved.all()
+        if terminated[0]:
+            break
+    assert terminated[0]
+
+
+def test_rows_without_an_actionable_stop_are_zero() -> None:
+    """Hidden rows, delivered rows and waiting rows of a full taxi have no stop: zero distance and no heading;
+    the ride distance is still given for a visible row."""
+    reqs = (
+        Request(0, (150.0, 250.0), (450.0, 450.0)),  # picked up at the first step (taxi moves next to it)
+        Request(0, (450.0, 50.0), (50.0, 450.0)),  # waits; the taxi has one seat
+        Request(30, (250.0, 450.0), (50.0, 50.0)),  # hidden until step 30
+    )
+    cfg = small_config(starts_m=((150.0, 150.0),), requests=reqs, seats=1, stop_features=True, patch_size=4)
+    env = VectorEnv(cfg, num_envs=1)
+    env.reset(seed=0)
+    obs, *_ = env.step(np.array([[4]]))  # heading 4 = north: onto passenger 0's origin
+    assert env.state.pax_status[0, 0] == 2  # on board
+    paths, heading = obs["stop_paths"][0, 0], obs["stop_heading_mask"][0, 0]
+    assert heading[0].sum() == 1 and paths[0, 0] > 0  # her destination
+    assert heading[1].sum() == 0 and paths[1, 0] == 0.0 and paths[1, 1] > 0  # waiting, but no free seat
+    assert heading[2].sum() == 0 and np.all(paths[2] == 0.0)  # not released
+
+
+def test_observation_space_and_kernel_fill_table_rows_on_demand() -> None:
+    cfg = make_config("berlin_instances", sinr_min_db=-4.0)
+    env = VectorEnv(cfg, num_envs=3)
+    assert env.single_observation_space["stop_paths"].shape == (6, 2)
+    assert env.single_observation_space["stop_heading_mask"].shape == (6, NUM_HEADINGS)
+    obs, _ = env.reset(seed=5)
+    assert env.single_observation_space.contains({k: v[0, 0] for k, v in obs.items()})
+    actionable = obs["stop_heading_mask"].any(-1)  # [E, A, P]
+    released = obs["passenger_mask"].astype(bool)
+    assert np.all(actionable <= released)
+    assert actionable.any(-1).all()  # the first request is released at step 0 and the taxi is empty
+
+
+def test_uniform_arrivals_draw_counts_and_releases_in_range() -> None:
+    demand = DemandConfig(arrivals="uniform", num_initial=1, min_requests=2, max_requests=5, horizon_steps=40)
+    world = World(make_config("berlin_random", num_taxis=1, demand=demand))
+    sites = np.array([[x, y] for x in (550.0, 1550.0, 2550.0) for y in (550.0, 1550.0, 2550.0)])
+    rng = np.random.default_rng(0)
+    counts = []
+    for _ in range(200):
+        reqs = sample_requests(world, rng, sites)
+        steps = [r.release_step for r in reqs]
+        counts.append(len(reqs))
+        assert steps[0] == 0 and steps == sorted(steps) and max(steps) <= 40
+    assert set(counts) == {2, 3, 4, 5}
+    with pytest.raises(ConfigError, match="arrivals"):
+        DemandConfig(arrivals="bursty")
+
+
+def test_mixture_concatenates_groups_as_separate_cores() -> None:
+    cfgs = [make_config("berlin_instances", sinr_min_db=t) for t in (-7.0, -3.0)]
+    mix = MixtureVectorEnv(cfgs, num_envs=5)  # groups of 3 and 2 envs
+    assert mix.bounds.tolist() == [0, 3, 5]
+    alone = [VectorEnv(cfgs[0], num_envs=3), VectorEnv(cfgs[1], num_envs=2)]
+    obs, _ = mix.reset(seed=10)
+    parts = [alone[0].reset(seed=10)[0], alone[1].reset(seed=13)[0]]
+    for key in obs:
+        np.testing.assert_array_equal(obs[key], np.concatenate([p[key] for p in parts]))
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        actions = rng.integers(0, NUM_HEADINGS, size=(5, 1))
+        obs, rewards, terminated, truncated, _ = mix.step(actions)
+        ref = [alone[0].step(actions[:3]), alone[1].step(actions[3:])]
+        np.testing.assert_array_equal(rewards, np.concatenate([r[1] for r in ref]))
+        np.testing.assert_array_equal(obs["self"], np.concatenate([r[0]["self"] for r in ref]))
+    with pytest.raises(ValueError, match="observation layout"):
+        MixtureVectorEnv([cfgs[0], make_config("berlin_instances", max_passengers=8)], num_envs=2)
+
+
+def test_drawn_map_needs_no_extra_rows() -> None:
+    """On a drawn map, features work for a fleet too (each taxi its own stops)."""
+    cfg = small_config(
+        radio=drawn_map(WALL), starts_m=((150.0, 150.0), (650.0, 650.0)), stop_features=True,
+        requests=(Request(0, (550.0, 350.0), (650.0, 50.0)),),
+    )  # fmt: skip
+    obs, _ = VectorEnv(cfg, num_envs=1).reset(seed=0)
+    assert obs["stop_heading_mask"].shape == (1, 2, 1, NUM_HEADINGS)
+    assert obs["stop_heading_mask"][0, :, 0].sum(-1).tolist() == [1, 1]
+
+
+def test_rivals_name_the_nearest_other_free_taxi_and_the_share_nearer() -> None:
+    """Three taxis, one seat each; taxi 0 boards passenger B in the first step, so only taxis 1 and 2 count as
+    rivals for the waiting passenger A afterwards."""
+    reqs = (
+        Request(0, (650.0, 650.0), (50.0, 650.0)),  # A: waits in the north-east
+        Request(0, (150.0, 250.0), (650.0, 50.0)),  # B: next to taxi 0
+    )
+    cfg = small_config(
+        "\n".join(["......."] * 7), starts_m=((150.0, 150.0), (350.0, 350.0), (550.0, 250.0)), requests=reqs,
+        seats=1, stop_features=True, patch_size=4,
+    )  # fmt: skip
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=0)
+    assert obs["stop_rivals"].shape == (1, 3, 2, 2)
+    table, side = table_for(env.world), env.world.side_m
+    a_origin = np.array([650.0, 650.0])
+
+    def dist(pos: np.ndarray) -> float:
+        return float(table.distance(pos, a_origin))
+
+    d = [dist(env.state.pos_m[0, b]) for b in range(3)]
+    assert d[2] < d[1] < d[0]  # taxi 2 nearest to A, taxi 0 farthest
+    rivals = obs["stop_rivals"][0, :, 0]  # [taxi, feature] for passenger A
+    np.testing.assert_allclose(rivals[:, 0], np.array([d[2], d[2], d[1]]) / side, rtol=1e-6)
+    np.testing.assert_allclose(rivals[:, 1], [1.0, 0.5, 0.0])  # share of the 2 other free taxis nearer
+
+    obs, *_ = env.step(np.array([[4, 0, 0]]))  # taxi 0 north onto B's origin; taxis 1 and 2 east
+    assert env.state.pax_taxi[0, 1] == 0 and env.state.free_seats[0, 0] == 0
+    d = [dist(env.state.pos_m[0, b]) for b in range(3)]
+    rivals = obs["stop_rivals"][0, :, 0]
+    np.testing.assert_allclose(rivals[:, 0], np.array([min(d[1], d[2]), d[2], d[1]]) / side, rtol=1e-6)
+    np.testing.assert_allclose(rivals[:, 1], [1.0, float(d[2] < d[1]), float(d[1] < d[2])])  # taxi 0 is full
+    assert np.all(obs["stop_rivals"][0, :, 1] == 0.0)  # B rides: no rivals for her
