@@ -34,10 +34,11 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (2, ("uamfleet.config",)),
     (3, ("uamfleet.paths",)),
     (4, ("uamfleet.env",)),
-    (5, ("uamfleet.baselines", "uamfleet.rl")),
+    # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
+    (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
     (6, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
-    (7, ("uamfleet.rl.trainer",)),
+    (7, ("uamfleet.rl.trainer", "uamfleet.pretrained")),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in

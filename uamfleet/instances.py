@@ -30,12 +30,14 @@ the result stays a function of the seed. Seeds: :data:`TRAIN_SEEDS`, :data:`VALI
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from uamfleet.config import EnvConfig, FeasibilityRule, Request, make_config
 from uamfleet.env.generator import InfeasibleInstanceError, flyable_sites, validate_instance
+from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
@@ -187,9 +189,81 @@ def make_fleet_instance(
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
 
 
+def family_of(scenario: str) -> str:
+    """The instance family a training scenario draws like: ``berlin_instances`` / ``berlin_fleet`` -> ``berlin``."""
+    for family, fam in FAMILIES.items():
+        if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
+            return family
+    raise ValueError(f"scenario {scenario!r} belongs to no instance family; use one of {tuple(FAMILIES)} + '_instances'.")
+
+
+def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
+    """Instance ``seed`` of ``family`` laid out as the config ``like`` a policy trained on: its rule, passenger
+    axis, stop features, reward and time limit (the observation's time feature is a fraction of the limit). A
+    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis and 6 requests per taxi."""
+    if like.scenario.endswith("_fleet"):
+        cfg = make_fleet_instance(
+            family, seed, like.num_taxis, 6 * like.num_taxis, feasibility=like.feasibility,
+            max_passengers=like.num_passengers,
+        )  # fmt: skip
+    else:
+        cfg = make_instance(family, seed, feasibility=like.feasibility, max_passengers=like.num_passengers)
+    return cfg.replace(stop_features=like.stop_features, reward=like.reward, time_limit_steps=like.time_limit_steps)
+
+
+_BATCHES: dict[tuple[str, tuple[int, ...], int], MixtureVectorEnv] = {}
+
+
+def fly_instances(
+    policy: Callable[[dict[str, np.ndarray]], np.ndarray], family: str, seeds: Sequence[int], like: EnvConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Fly ``policy`` (``obs [E, A, ...] -> actions [E, A]``) once on each instance ``seeds`` of ``family``, laid
+    out as ``like`` (:func:`instance_for_policy`), all in one batch (one policy call per step for all).
+    Returns (share of passengers delivered [n], distance flown [n] metres). The batch of the last call is kept:
+    a trainer evaluating on the same seeds every few iterations builds the instances and worlds once."""
+    key = (family, tuple(int(s) for s in seeds), id(like))
+    if key not in _BATCHES:
+        _BATCHES.clear()
+        cfgs = [instance_for_policy(family, seed, like) for seed in key[1]]
+        _BATCHES[key] = MixtureVectorEnv(cfgs, num_envs=len(cfgs))
+    venv = _BATCHES[key]
+    count = venv.num_envs
+    obs, _ = venv.reset(seed=0)
+    served, distance, finished = np.zeros(count), np.zeros(count), np.zeros(count, bool)
+    while not finished.all():
+        obs, _, terminated, truncated, info = venv.step(policy(obs))
+        ended = (terminated | truncated) & ~finished
+        if ended.any():
+            served[ended] = info["episode"]["service_rate"][ended]
+            distance[ended] = info["episode"]["distance_m"][ended].sum(-1)
+            finished |= ended
+    return served, distance
+
+
+def validation_metrics(
+    policy: Callable[[dict[str, np.ndarray]], np.ndarray], family: str, count: int, like: EnvConfig
+) -> dict[str, float]:
+    """Fly ``policy`` on the first ``count`` validation instances of ``family`` (:func:`fly_instances`).
+
+    Returns ``pr_pct`` (mean share of passengers delivered, %), ``solved_pct`` (instances with everyone
+    delivered, %), ``td_m`` (mean distance flown) and ``instances``. The trainer keeps its best checkpoint by
+    these; choose on validation seeds only, the test seeds are for the report."""
+    served, distance = fly_instances(policy, family, split_seeds("validation", count), like)
+    return {
+        "pr_pct": float(100 * served.mean()),
+        "solved_pct": float(100 * (served >= 1.0).mean()),
+        "td_m": float(distance.mean()),
+        "instances": float(count),
+    }
+
+
 __all__ = [
     "FAMILIES",
     "FLEET_SETTINGS",
+    "family_of",
+    "fly_instances",
+    "instance_for_policy",
+    "validation_metrics",
     "SPLITS",
     "TEST_SEEDS",
     "TRAIN_SEEDS",

@@ -21,22 +21,34 @@ Ctrl-C saves the last finished iteration and exits with status 130.
 
 from __future__ import annotations
 
+import faulthandler
 from collections.abc import Sequence
 
 import torch.distributed as dist
 
 from uamfleet.cli._common import fmt, run
-from uamfleet.rl.trainer import TrainArgs, train
+from uamfleet.rl.distributed import leave_rank
+from uamfleet.rl.trainer import TrainArgs, TrainResult, train
 
 
 def main(args: TrainArgs) -> int:
     try:
         result = train(args)
-    finally:
+    except BaseException:
         if dist.is_initialized():
             dist.destroy_process_group()
+        raise
+    code = report(result)
+    if dist.is_initialized():  # a torchrun rank: leave without finalising the interpreter with gloo threads alive
+        faulthandler.enable(all_threads=True)
+        leave_rank(code)
+    return code
+
+
+def report(result: TrainResult) -> int:
+    """Print rank 0's summary; the exit status (130 after Ctrl-C, as a shell reports SIGINT)."""
     if result.interrupted:
-        return 130  # as a shell reports SIGINT
+        return 130
     if result.rank != 0:
         return 0  # under torchrun rank 0 reports
     best = result.best_eval

@@ -108,11 +108,17 @@ def global_moments(
     return out
 
 
+RAW_FIELDS: tuple[str, ...] = ("stop_paths", "stop_rivals")
+"""Fields passed through unchanged besides the masks: distances in map sides (already O(1)) that the stop head
+compares across passenger slots, which per-slot statistics would put on different scales."""
+
+
 class ObservationNormalizer:
-    """Normalises the continuous observation fields with running statistics; masks pass through unchanged."""
+    """Normalises the continuous observation fields with running statistics; masks and :data:`RAW_FIELDS` pass
+    through unchanged."""
 
     def __init__(self, shapes: dict[str, tuple[int, ...]], clip: float = 10.0) -> None:
-        self.fields = {k: RunningMeanStd(s) for k, s in shapes.items() if not k.endswith("mask")}
+        self.fields = {k: RunningMeanStd(s) for k, s in shapes.items() if not k.endswith("mask") and k not in RAW_FIELDS}
         self.clip = clip
 
     def update(self, obs: dict[str, np.ndarray], world: World | None = None) -> None:
@@ -130,7 +136,7 @@ class ObservationNormalizer:
         out = dict(obs)
         for key, rms in self.fields.items():
             x = (obs[key] - rms.mean) / np.sqrt(rms.var + 1e-8)
-            if key == "passengers":  # keep unreleased rows exactly zero: the network must not see them at all
+            if key == "passengers":  # unreleased rows stay exactly zero: the network must not see them
                 x = x * obs["passenger_mask"][..., None]
             if key == "others":
                 x = x * obs["others_mask"][..., None]

@@ -34,7 +34,7 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import timedelta
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 import torch
@@ -214,13 +214,20 @@ def _launched(local_rank: int, world_size: int, port: int, fn: Callable[..., Non
         if dist.is_initialized():
             dist.destroy_process_group()
         raise
+    leave_rank(0)
+
+
+def leave_rank(code: int) -> NoReturn:
+    """End a successful rank (of :func:`launch_local` or torchrun): wait for every rank, destroy the process
+    group, flush the output and ``os._exit(code)``, so the interpreter never finalises with gloo threads alive
+    (see :func:`_launched`)."""
     if dist.is_initialized():
         dist.barrier()
         dist.destroy_process_group()
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(0)
+    os._exit(code)
 
 
 def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
@@ -229,4 +236,4 @@ def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
     mp.spawn(_launched, args=(world_size, free_port(), fn, args), nprocs=world_size, join=True)
 
 
-__all__ = ["World", "launch_local", "sample_actions"]
+__all__ = ["World", "launch_local", "leave_rank", "sample_actions"]

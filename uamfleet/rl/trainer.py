@@ -33,6 +33,7 @@ from torch.distributions import Categorical
 
 from uamfleet.config import (
     FEASIBILITY_RULES,
+    PRESETS,
     REWARD_TERMS,
     SCENARIOS,
     ConfigError,
@@ -41,14 +42,17 @@ from uamfleet.config import (
     check_number,
     make_config,
 )
+from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.paths import table_for
+from uamfleet.instances import family_of, validation_metrics
 from uamfleet.io import write_bytes_atomic, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.distributed import World, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
-from uamfleet.rollout import fly
+from uamfleet.rollout import Trajectory, fly
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
 if TYPE_CHECKING:
@@ -70,6 +74,10 @@ class TrainArgs:
     """SINR threshold in dB; None: the scenario's"""
     num_taxis: int | None = None
     """fleet size; None: the scenario's"""
+    thresholds: tuple[float, ...] = ()
+    """train on several SINR thresholds at once (dB; the envs split into one group per threshold, see
+    uamfleet.env.mixture); empty: the one of --sinr-min-db. A generalist over -7 ... -3 dB on Berlin:
+    --scenario berlin_instances --thresholds -7 -6 -5 -4 -3"""
     feasibility: FeasibilityRule = "endpoint_block"
     """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
     time_limit_steps: int = 200
@@ -102,6 +110,11 @@ class TrainArgs:
     """how the designed variants read the k x k grid: linear over the flattened cells (keeps positions) or mean"""
     centralised_critic: bool = False
     """critic reads the global env state (MAPPO)"""
+    action_head: Literal["headings", "stops"] = "headings"
+    """headings: a logit per heading (the paper); stops: a pointer over the actionable stops, each flown along
+    its progress heading (needs the stop features, e.g. the *_instances scenarios)"""
+    stop_free_move: bool = False
+    """with --action-head stops: a free move (any heading) beside the stops, not only when no stop is actionable"""
     # PPO
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
@@ -150,6 +163,13 @@ class TrainArgs:
     # evaluation, logging, checkpoints
     eval_every: int = 5
     """greedy evaluation every this many iterations (0: only at the end)"""
+    fill_tables: bool = True
+    """with stop features on random demand: compute the feasible-path distance tables before training (or load
+    them from the disk cache, uamfleet.paths.distance_table), ~30 s per threshold on Berlin the first time"""
+    eval_instances: int = 0
+    """evaluate on this many held-out validation instances of the scenario's family (uamfleet.instances;
+    *_instances scenarios), flown in one batch, and keep the best on them; 0: one episode of the training
+    scenario. Never the test instances: those are for the final report"""
     eval_time_limit_steps: int | None = None
     """time limit of the greedy evaluation episodes; None: the training one (the observation's time
     features are fractions of the time limit, so a different one shifts them)"""
@@ -195,6 +215,19 @@ class TrainArgs:
             if (value <= low if low_open else value < low) or (high is not None and value > high):
                 interval = f"{'(' if low_open else '['}{low:g}, {'inf)' if high is None else f'{high:g}]'}"
                 raise ConfigError(f"{_flag(name)}={value!r} is out of range: it must lie in {interval}.")
+        if isinstance(self.thresholds, str | bytes) or not hasattr(self.thresholds, "__iter__"):
+            raise ConfigError(f"--thresholds={self.thresholds!r} must be a list of dB values, e.g. -7 -6 -5.")
+        self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
+        if self.thresholds and self.sinr_min_db is not None:
+            raise ConfigError(
+                f"--sinr-min-db={self.sinr_min_db} and --thresholds={list(self.thresholds)} both set the threshold; "
+                "give one of them."
+            )
+        if self.eval_instances and not self.scenario.endswith(("_instances", "_fleet")):
+            raise ConfigError(
+                f"--eval-instances={self.eval_instances} flies held-out instances of a family; it needs a "
+                f"*_instances or *_fleet scenario (not {self.scenario!r}), e.g. --scenario berlin_instances."
+            )
         for name in ("scenario", "run_name"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, str):
@@ -222,7 +255,7 @@ class TrainArgs:
 _COUNTS: dict[str, int] = {
     "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
     "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
-    "checkpoint_every": 1, "threads": 0,
+    "checkpoint_every": 1, "threads": 0, "eval_instances": 0,
 }  # fmt: skip
 # (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
 _RANGES: dict[str, tuple[float, float | None, bool]] = {
@@ -275,7 +308,8 @@ class GreedyPolicy:
     """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
 
     ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
-    training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout."""
+    training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
+    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it."""
 
     def __init__(
         self,
@@ -285,9 +319,40 @@ class GreedyPolicy:
         obs_shapes: dict[str, tuple[int, ...]] | None = None,
         num_taxis: int | None = None,
         passenger_slots: int | None = None,
+        trained_on: EnvConfig | None = None,
     ) -> None:
         self.net, self.normalizer, self.device = net, normalizer, device
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
+        self.trained_on = trained_on
+
+    def layout(self, cfg: EnvConfig) -> EnvConfig:
+        """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
+        passenger axis (the instance's requests padded to it), its stop features and its time limit (the
+        observation's time feature is a fraction of the limit). The rules, threshold and instance are kept.
+        Raises ValueError when the instance has more requests than the policy has passenger slots, or another
+        fleet size."""
+        if self.trained_on is None:
+            return cfg
+        like = self.trained_on
+        if cfg.num_requests_max > like.num_passengers:
+            raise ValueError(
+                f"the instance has {cfg.num_requests_max} requests; this policy reads {like.num_passengers} "
+                "passenger slots: give it at most that many requests (or train one with a larger max_passengers)."
+            )
+        if cfg.num_taxis != like.num_taxis:
+            raise ValueError(
+                f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
+                f"num_taxis={like.num_taxis} (or train a policy for this fleet)."
+            )
+        return cfg.replace(
+            max_passengers=like.num_passengers, stop_features=like.stop_features,
+            time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
+        )  # fmt: skip
+
+    def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
+        """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
+        :func:`uamfleet.metrics.episode_metrics`."""
+        return fly(self.layout(cfg), self, seed=seed)
 
     def check_layout(self, obs: dict[str, np.ndarray]) -> None:
         """ValueError naming every observation field whose shape differs from the training env's."""
@@ -331,8 +396,11 @@ def _score(m: dict[str, float]) -> tuple[float, float]:
 CHECKPOINT_FORMAT = 2
 """2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
 NumPy RNG state inside."""
-ARCHITECTURE_FIELDS = ("variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic")
-ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "num_taxis", "feasibility", "norm_obs", "norm_reward")
+ARCHITECTURE_FIELDS = (
+    "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
+    "stop_free_move",
+)  # fmt: skip
+ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "thresholds", "num_taxis", "feasibility", "norm_obs", "norm_reward")
 
 
 def _plain_args(args: TrainArgs) -> dict[str, Any]:
@@ -539,7 +607,7 @@ class Run:
     folder: Path
     cfg: EnvConfig
     eval_cfg: EnvConfig
-    venv: VectorEnv
+    venv: VectorEnv | MixtureVectorEnv
     obs_shapes: dict[str, tuple[int, ...]]
     buffer: RolloutBuffer
     env_offset: int
@@ -559,9 +627,14 @@ class Run:
         return {k: v.reshape(self.num_agents, *v.shape[2:]) for k, v in obs.items()}
 
     def global_state(self) -> np.ndarray | None:
+        """[N, S + A] the critic's agent-specific global state (MAPPO): each taxi's env state and a one-hot of
+        the taxi, so the critic knows whose value it predicts (rewards are per taxi)."""
         if not self.state_dim:
             return None
-        return np.repeat(self.venv.global_state(), self.venv.num_taxis, axis=0)  # [N, S]: each taxi's env state
+        taxis = self.venv.num_taxis
+        env_state = np.repeat(self.venv.global_state(), taxis, axis=0)  # [N, S]
+        own = np.tile(np.eye(taxis, dtype=np.float32), (env_state.shape[0] // taxis, 1))  # [N, A]
+        return np.concatenate([env_state, own], axis=1)
 
 
 def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device: torch.device) -> Run:
@@ -570,10 +643,17 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device
     env_offset, local_envs = world.shard(args.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
     cfg = make_env_config(base, args, training=True)
-    venv = VectorEnv(cfg, num_envs=local_envs)
+    venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
+    if args.thresholds:
+        venv = MixtureVectorEnv([cfg.replace(sinr_min_db=t) for t in args.thresholds], num_envs=local_envs)
+    if args.fill_tables and cfg.stop_features and cfg.requests is None:
+        # Random demand reads every row of the distance tables within minutes: compute them now (or load them
+        # from the disk cache), instead of a few Dijkstras in every new episode's reset.
+        for env in venv.envs if isinstance(venv, MixtureVectorEnv) else [venv]:
+            table_for(env.world).fill()
     taxis = cfg.num_taxis
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    state_dim = int(venv.state_space.shape[0]) if args.centralised_critic else 0
+    state_dim = int(venv.state_space.shape[0]) + taxis if args.centralised_critic else 0
     batch = args.num_steps * args.num_envs * taxis
     if args.total_timesteps < batch or args.num_minibatches > batch:
         raise ConfigError(
@@ -597,7 +677,8 @@ def make_learner(run: Run) -> Learner:
     torch.manual_seed(args.seed)
     net_cfg = NetConfig(
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
-        readout=args.readout, critic_state_dim=run.state_dim or None,
+        readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
+        stop_free_move=args.stop_free_move,
     )  # fmt: skip
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     return Learner(
@@ -835,8 +916,13 @@ def progress_row(
 
 
 def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[str, float]) -> bool:
-    """Rank 0: fly the greedy policy, add eval/* to the row, keep the best; True when it is a new best."""
-    m = evaluate(GreedyPolicy(learner.net, learner.normalizer, run.device), run.eval_cfg).as_dict()
+    """Rank 0: fly the greedy policy (one episode, or the validation instances), add eval/* to the row, keep the
+    best; True when it is a new best."""
+    policy = GreedyPolicy(learner.net, learner.normalizer, run.device)
+    if run.args.eval_instances:
+        m = validation_metrics(policy, family_of(run.args.scenario), run.args.eval_instances, run.eval_cfg)
+    else:
+        m = evaluate(policy, run.eval_cfg).as_dict()
     row.update({f"eval/{k}": v for k, v in m.items()})
     target = run.args.stop_at_td_m
     if counters.target_step is None and target is not None and m["pr_pct"] >= 100.0 and m["td_m"] <= target:
@@ -1022,11 +1108,17 @@ def load_policy(
     file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = ckpt.train_args()
-    base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    cfg = make_env_config(base, args, training=False)
+    cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
     venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    ckpt.check_matches(None, shapes)
+    try:
+        ckpt.check_matches(None, shapes)
+    except ValueError as err:
+        raise ValueError(
+            f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
+            f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
+            f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}."
+        ) from None
     net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt.net_config)).to(device)
     net.load_state_dict(ckpt.model)
     net.eval()
@@ -1034,7 +1126,12 @@ def load_policy(
     if ckpt.obs_normalizer is not None:
         normalizer = ObservationNormalizer(shapes)
         normalizer.load_state_dict(ckpt.obs_normalizer)
-    return GreedyPolicy(net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers), args
+    trained_on = env_config if env_config is not None else cfg
+    if env_config is not None and args.scenario in PRESETS:
+        trained_on = make_env_config(args.scenario, args, training=False)
+    return GreedyPolicy(
+        net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
+    ), args
 
 
 __all__ = [
