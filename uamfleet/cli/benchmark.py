@@ -85,6 +85,10 @@ class Args:
     section: str = "benchmark"
     from_csv: Path | None = None
     """re-render the table from the CSV of an earlier run (lower bounds recomputed), flying nothing"""
+    merge_csv: Path | None = None
+    """add the rows of an earlier run's CSV (e.g. the planners on the same instances) to this run's, which fly
+    only what is new (e.g. --methods with no planner and --checkpoint); rows of a method flown now replace its
+    earlier rows"""
     wall_min: float = math.nan
     """with --from-csv: the wall-clock minutes of that run, for the table's note"""
     command: str = ""
@@ -152,7 +156,7 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
                 print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
                       f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
                 continue
-            run_cfg = run_cfg.replace(max_passengers=policy.passenger_slots)
+            run_cfg = policy.layout(run_cfg)
         start = time.perf_counter()
         traj = fly(run_cfg, policy)
         elapsed = time.perf_counter() - start
@@ -327,6 +331,9 @@ def main(args: Args) -> list[dict[str, Any]]:
                 jobs
             ):  # partial results survive an interrupted run
                 write_outputs(args, rows, time.perf_counter() - start, f" (partial: {i + 1} of {len(jobs)} instances)")
+    if args.merge_csv is not None:
+        flown = {r["method"] for r in rows}
+        rows = [r for r in read_rows(args.merge_csv) if r["method"] not in flown] + rows
     write_outputs(args, rows, time.perf_counter() - start)
     return rows
 
@@ -340,6 +347,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (" --fixed" if args.fixed else "")
         + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
+        + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
     )
     replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock

@@ -57,6 +57,12 @@ class Args:
     first: int = 0
     """index of the first seed in the split"""
     dispatchers: tuple[str, ...] = DISPATCHERS
+    checkpoints: tuple[Path, ...] = ()
+    """learned fleet policies (runs/<name>/best.pt), each flown on the settings of its fleet size as
+    "learned:<run name>" (its passenger axis padded to the instance)"""
+    merge_csv: Path | None = None
+    """add an earlier run's rows (e.g. the dispatchers on the same episodes) to this run's; rows of a dispatcher
+    flown now replace its earlier rows"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path = Path("docs/results.md")
@@ -69,12 +75,24 @@ class Args:
     """with --from-csv: a line printed under the command (e.g. what ran and its wall-clock)"""
 
 
-Job = tuple[str, str, int, tuple[str, ...]]  # (family, setting, seed, dispatchers)
+Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...]]  # (family, setting, seed, dispatchers, checkpoints)
+
+
+def learned_name(checkpoint: Path) -> str:
+    return f"learned:{checkpoint.parent.name}"
+
+
+def _learned(checkpoint: Path, taxis: int) -> Any:
+    """The greedy policy of a checkpoint, or None when it was trained for another fleet size."""
+    from uamfleet.rl.trainer import load_policy
+
+    policy = load_policy(checkpoint)[0]
+    return policy if policy.num_taxis == taxis else None
 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
-    """Every dispatcher on one fleet instance (one worker process)."""
-    family, setting, seed, dispatchers = job
+    """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
+    family, setting, seed, dispatchers, checkpoints = job
     taxis, requests = FLEET_SETTINGS[setting]
     cfg = make_fleet_instance(family, seed, taxis, requests)
     start = time.perf_counter()
@@ -83,9 +101,14 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     shared_fields(env, warm=True)  # every dispatcher steers by the same per-stop fields: computed once, untimed
     fields_s = time.perf_counter() - start
     rows = []
-    for name in dispatchers:
+    flights = [(name, cfg, make_policy(name, num_taxis=taxis)) for name in dispatchers]
+    for checkpoint in checkpoints:
+        policy = _learned(checkpoint, taxis)
+        if policy is not None:
+            flights.append((learned_name(checkpoint), policy.layout(cfg), policy))
+    for name, flown, policy in flights:
         start = time.perf_counter()
-        traj = fly(cfg, make_policy(name, num_taxis=taxis))
+        traj = fly(flown, policy)
         elapsed = time.perf_counter() - start
         m = episode_metrics(traj, cfg.radio)
         per_taxi_ms = np.asarray(traj.decision_s) * 1000.0 / taxis
@@ -146,6 +169,9 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     command = args.command or (
         f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
+        + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
+        + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
+        + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
     )
     body = markdown(rows, command, wall, note)
     if args.note:
@@ -165,7 +191,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         write_outputs(args, earlier, math.nan)
         return earlier
     jobs = [
-        (args.family, setting, seed, tuple(args.dispatchers))
+        (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints))
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
@@ -182,6 +208,9 @@ def main(args: Args) -> list[dict[str, Any]]:
                 done = (i + 1) // len(args.settings)
                 write_outputs(args, rows, time.perf_counter() - start,
                               f" (partial: {done} of {args.count} episodes per setting)")  # fmt: skip
+    if args.merge_csv is not None:
+        flown = {r["dispatcher"] for r in rows}
+        rows = [r for r in read_rows(args.merge_csv) if r["dispatcher"] not in flown] + rows
     write_outputs(args, rows, time.perf_counter() - start)
     return rows
 

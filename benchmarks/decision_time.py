@@ -1,0 +1,67 @@
+"""Decision latency of a learned planner: milliseconds per policy call and per taxi, on one CPU core.
+
+A call is what a deployed planner does every step: normalise the observation, run the network, take the
+greedy heading (``GreedyPolicy.__call__``), for a batch of taxis at once. Observations come from real episodes of
+the policy's own layout (Berlin instances, random demand), and the policy's first calls (allocations) are not
+timed. Run on one core, with the shipped Berlin generalist or any checkpoint:
+
+    OMP_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/decision_time.py
+    OMP_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/decision_time.py --checkpoint runs/x/best.pt
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import tyro
+
+from uamfleet.config import make_config
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.pretrained import pretrained_path
+from uamfleet.rl.trainer import load_policy
+
+
+@dataclass
+class Args:
+    checkpoint: Path | None = None
+    """a checkpoint (default: the shipped Berlin generalist)"""
+    batch: tuple[int, ...] = (1, 4, 8, 64)
+    """taxis decided per call"""
+    calls: int = 300
+    threads: int = 1
+
+
+def main(args: Args) -> list[dict[str, float]]:
+    torch.set_num_threads(args.threads)
+    path = args.checkpoint if args.checkpoint is not None else pretrained_path("berlin")
+    policy, _ = load_policy(path)
+    assert policy.trained_on is not None
+    print(f"policy: {path} ({sum(p.numel() for p in policy.net.parameters()):,} parameters), "
+          f"torch {torch.__version__}, {args.threads} thread(s)")  # fmt: skip
+    print(f"{'taxis per call':>15} {'p50 ms/call':>12} {'p95 ms/call':>12} {'p50 ms/taxi':>12}")
+    rows = []
+    for batch in args.batch:
+        cfg = policy.layout(make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis))
+        env = VectorEnv(cfg, num_envs=batch)
+        obs, _ = env.reset(seed=0)
+        times = []
+        for i in range(args.calls + 10):
+            start = time.perf_counter()
+            actions = policy(obs)
+            if i >= 10:
+                times.append(time.perf_counter() - start)
+            obs, *_ = env.step(actions)
+        ms = 1000 * np.array(times)
+        taxis = batch * cfg.num_taxis
+        row = {"taxis": taxis, "p50_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95))}
+        rows.append(row)
+        print(f"{taxis:>15} {row['p50_ms']:>12.3f} {row['p95_ms']:>12.3f} {row['p50_ms'] / taxis:>12.3f}")
+    return rows
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))
