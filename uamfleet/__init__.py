@@ -6,6 +6,7 @@ Public surface::
     env = uamfleet.parallel_env("berlin_p4", sinr_min_db=-3.0, num_taxis=1)   # PettingZoo ParallelEnv
     venv = uamfleet.vector_env("berlin_p4", num_envs=64, num_taxis=4)          # the batched core
     radio = uamfleet.load_radio_map("berlin")                                  # RadioMap
+    planner = uamfleet.pretrained("berlin")      # a learned planner for your own Berlin instance: planner.fly(cfg)
 """
 
 from __future__ import annotations
@@ -47,6 +48,14 @@ def vector_env(
     return VectorEnv(make_config(scenario, **overrides), num_envs=num_envs, autoreset=autoreset)
 
 
+def pretrained(name: str = "berlin", device: str = "cpu") -> Any:
+    """A pretrained planner shipped with the package (:mod:`uamfleet.zoo`): ``uamfleet.pretrained("berlin")``
+    plans one taxi on the Berlin map at any threshold -7 ... -3 dB; ``.fly(cfg)`` flies a config of yours."""
+    from uamfleet.zoo import pretrained as load  # torch is imported only when asked for
+
+    return load(name, device=device)
+
+
 __all__ = [
     "RADIO_MAPS",
     "REWARD_TERMS",
@@ -62,5 +71,6 @@ __all__ = [
     "load_radio_map",
     "make_config",
     "parallel_env",
+    "pretrained",
     "vector_env",
 ]

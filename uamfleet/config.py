@@ -486,10 +486,12 @@ def _detroit3gpp_random(**overrides: Any) -> EnvConfig:
     return _with_overrides(base, overrides)
 
 
-INSTANCE_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, pickup=20.0, dropoff=30.0)
-"""The *_instances scenarios' reward: the distance flown (``step`` per step) is what is scored, so no
-exploration bonus (it pays for detours into new blocks) and pick-up / drop-off bonuses a tenth of the authors'
-(enough to learn to serve, small against the steps a better order saves)."""
+INSTANCE_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, pickup=0.0, dropoff=0.0)
+"""The *_instances scenarios' reward: the distance flown is what is scored, so ``step`` per step and nothing
+else. An episode ends only when everyone is delivered, so the return is the shorter the sooner the tour ends,
+for any discount. Pick-up and drop-off bonuses (tried: a tenth of the authors') pay, through the discount, for
+serving someone sooner at the price of a longer tour: with them PPO moved the stop head away from its
+shortest-tour prior (validation TD 9,708 -> 9,786 m in 190k agent-steps)."""
 
 
 def _berlin_instances(**overrides: Any) -> EnvConfig:

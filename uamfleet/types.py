@@ -53,6 +53,7 @@ NUM_PASSENGER_FEATURES = len(PASSENGER_FEATURES)
 STOP_PATH_FEATURES: tuple[str, ...] = (
     "path_to_stop",  # feasible-path distance from the taxi to the row's stop / side (0: no actionable stop)
     "ride_path",  # feasible-path distance from the row's origin to its destination / side
+    "tour_via_stop",  # the shortest tour through every known stop that flies to this one first / side
 )  # the "stop_paths" field, only with EnvConfig.stop_features
 STOP_RIVAL_FEATURES: tuple[str, ...] = (
     "rival_path",  # feasible-path distance from a waiting row's origin to the nearest other taxi with a seat / side
@@ -93,6 +94,14 @@ class FleetState(NamedTuple):
     pax_taxi: np.ndarray  # [E, P] int64, taxi carrying / that carried the passenger, -1 if none
     pax_pickup_step: np.ndarray  # [E, P] int64, -1 until picked up
     pax_dropoff_step: np.ndarray  # [E, P] int64, -1 until delivered
+    # [E, 2P, 2P] float64, feasible-path distances between the instance's stops (row/column 2p: p's origin, 2p + 1:
+    # her destination), looked up by the stop features on first use (NaN: not yet) and kept for the episode, as the
+    # stops never move; [E, 0, 0] without stop features
+    stop_pair_m: np.ndarray
+    # [E, A] int64 and [E, A, 2P] float64: each taxi's shortest tour rests after each first stop (the stop features'
+    # exact tours) and the key of the stops and seats they were computed for (-1: none); [E, A, 0] without them
+    stop_tour_key: np.ndarray
+    stop_tour_m: np.ndarray
 
     @property
     def num_envs(self) -> int:

@@ -3,6 +3,8 @@ makes most progress along it, against a Python recomputation from the same table
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -96,7 +98,7 @@ def test_rows_without_an_actionable_stop_are_zero() -> None:
 def test_observation_space_and_kernel_fill_table_rows_on_demand() -> None:
     cfg = make_config("berlin_instances", sinr_min_db=-4.0)
     env = VectorEnv(cfg, num_envs=3)
-    assert env.single_observation_space["stop_paths"].shape == (6, 2)
+    assert env.single_observation_space["stop_paths"].shape == (6, 3)
     assert env.single_observation_space["stop_heading_mask"].shape == (6, NUM_HEADINGS)
     obs, _ = env.reset(seed=5)
     assert env.single_observation_space.contains({k: v[0, 0] for k, v in obs.items()})
@@ -186,3 +188,106 @@ def test_rivals_name_the_nearest_other_free_taxi_and_the_share_nearer() -> None:
     np.testing.assert_allclose(rivals[:, 0], np.array([min(d[1], d[2]), d[2], d[1]]) / side, rtol=1e-6)
     np.testing.assert_allclose(rivals[:, 1], [1.0, float(d[2] < d[1]), float(d[1] < d[2])])  # taxi 0 is full
     assert np.all(obs["stop_rivals"][0, :, 1] == 0.0)  # B rides: no rivals for her
+
+
+def _brute_force_rest(table, state, a: int, first: int) -> float | None:  # noqa: ANN001
+    """The shortest rest of the tour after stop ``first`` (2p origin, 2p + 1 destination), by trying every order
+    of the other stops (pick-up before drop-off, seats respected); None beyond 8 stops (too many orders)."""
+    P = state.pax_status.shape[1]
+    pts = [state.pax_origin_m[0, p] if i == 0 else state.pax_dest_m[0, p] for p in range(P) for i in (0, 1)]
+    todo = []
+    for p in range(P):
+        if state.pax_exists[0, p] and state.pax_status[0, p] == 1:
+            todo += [2 * p, 2 * p + 1]
+        if state.pax_exists[0, p] and state.pax_status[0, p] == 2 and state.pax_taxi[0, p] == a:
+            todo.append(2 * p + 1)
+    todo.remove(first)
+    if len(todo) > 8:
+        return None
+    seats0 = int(state.free_seats[0, a]) + (-1 if first % 2 == 0 else 1)
+    best = np.inf
+    for order in itertools.permutations(todo):
+        seats, here, total, seen = seats0, first, 0.0, {first}
+        for stop in order:
+            if stop % 2 == 0:
+                if seats <= 0:
+                    break
+                seats -= 1
+            else:
+                if stop - 1 in todo + [first] and stop - 1 not in seen:
+                    break  # her pick-up is still ahead
+                seats += 1
+            total += float(table.distance(pts[here], pts[stop]))
+            here = stop
+            seen.add(stop)
+        else:
+            best = min(best, total)
+    return best
+
+
+def test_tour_via_stop_is_the_shortest_tour_by_brute_force() -> None:
+    cfg = make_config("berlin_instances", sinr_min_db=-6.0, num_taxis=1)
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=11)
+    table, side = table_for(env.world), env.world.side_m
+    rng = np.random.default_rng(0)
+    checked = 0
+    for _ in range(60):
+        paths, heading = obs["stop_paths"][0, 0], obs["stop_heading_mask"][0, 0]
+        for p in np.flatnonzero(heading.any(-1)):
+            mine = env.state.pax_status[0, p] == 2
+            first = 2 * p + 1 if mine else 2 * p
+            goal = env.state.pax_dest_m[0, p] if mine else env.state.pax_origin_m[0, p]
+            rest = _brute_force_rest(table, env.state, 0, first)
+            if rest is None:
+                continue
+            expected = float(table.distance(env.state.pos_m[0, 0], goal)) + rest
+            assert paths[p, 2] == pytest.approx(expected / side, rel=1e-5)
+            assert paths[p, 2] >= paths[p, 0]
+            checked += 1
+        actionable = np.flatnonzero(heading.any(-1))
+        action = heading[rng.choice(actionable)].argmax() if len(actionable) else 0
+        obs, _, terminated, _, _ = env.step(np.array([[action]]))
+        if terminated[0]:
+            break
+    assert checked > 20
+
+
+def _python_nearest_rest(table, state, a: int, first: int) -> float:  # noqa: ANN001
+    """The rest of the tour after stop ``first`` in nearest-stop order (pick-ups while a seat is free)."""
+    P = state.pax_status.shape[1]
+    pts = [state.pax_origin_m[0, p] if i == 0 else state.pax_dest_m[0, p] for p in range(P) for i in (0, 1)]
+    todo = {2 * p for p in range(P) if state.pax_exists[0, p] and state.pax_status[0, p] == 1}
+    todo |= {2 * p + 1 for p in range(P) if state.pax_status[0, p] == 2 and state.pax_taxi[0, p] == a}
+    seats = int(state.free_seats[0, a])
+    here, total = first, 0.0
+    todo.discard(first)
+    if first % 2 == 0:
+        todo.add(first + 1)
+    seats += -1 if first % 2 == 0 else 1
+    while True:
+        options = [i for i in sorted(todo) if i % 2 == 1 or seats > 0]
+        if not options:
+            return total
+        dists = [float(table.distance(pts[here], pts[i])) for i in options]
+        k = int(np.argmin(dists))
+        total, here = total + dists[k], options[k]
+        todo.discard(here)
+        if here % 2 == 0:
+            todo.add(here + 1)
+        seats += -1 if here % 2 == 0 else 1
+
+
+def test_beyond_twelve_pending_stops_tours_follow_the_nearest_stop_order() -> None:
+    demand = DemandConfig(num_initial=8, rate_per_step=0.0, max_requests=8)
+    cfg = make_config("berlin_random", num_taxis=1, demand=demand, stop_features=True, sinr_min_db=-5.0)
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=4)
+    table, side = table_for(env.world), env.world.side_m
+    heading = obs["stop_heading_mask"][0, 0]
+    rows = np.flatnonzero(heading.any(-1))
+    assert len(rows) == 8  # 8 waiting passengers: 16 pending stops
+    for p in rows:
+        expected = float(table.distance(env.state.pos_m[0, 0], env.state.pax_origin_m[0, p]))
+        expected += _python_nearest_rest(table, env.state, 0, 2 * p)
+        assert obs["stop_paths"][0, 0, p, 2] == pytest.approx(expected / side, rel=1e-5)

@@ -6,12 +6,19 @@
 Trains on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold) for 150k agent-steps (capped at
 ``--minutes``), keeps the best greedy evaluation (runs/quickstart/best.pt), and prints its TD / ATT / AWT /
 ELR / PR / connectivity next to the paper's MSHA-RL row and our REPLAN and clairvoyant OPT planners flown
-under the same rules (the authors' endpoint-block rule by default).
+under the same rules (the authors' endpoint-block rule by default). Then it flies the shipped Berlin generalist
+(``uamfleet.pretrained("berlin")``, one policy for any instance) on Berlin P4 at -7 ... -3 dB beside the paper's
+MSHA-RL, and on the held-out test instances beside the planners' recorded rows.
 """
 
 from __future__ import annotations
 
+import csv
+import math
+import time
 from collections.abc import Sequence
+
+import numpy as np
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +27,7 @@ from pathlib import Path
 from uamfleet.cli._common import Feasibility, Variant, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
+from uamfleet.config import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
@@ -44,6 +52,13 @@ class Args:
     run_dir: Path = Path("runs")
     """folder of the run (relative to the current folder)"""
     run_name: str = "quickstart"
+    generalist: bool = True
+    """then fly the shipped Berlin generalist (uamfleet.pretrained("berlin")) on Berlin P4 at -7 ... -3 dB and on
+    the held-out test instances"""
+    test_count: int = 200
+    """test instances the generalist flies (the first of the 200 of docs/results.md)"""
+    planner_csv: Path = Path("docs/results/benchmark_berlin_test.csv")
+    """the planners' recorded rows on the test instances, shown beside the generalist's (skipped if absent)"""
 
 
 def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics:
@@ -84,7 +99,58 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
         print(f"{name:<26} {fmt(m.pr_pct, '.0f'):>5} {fmt(m.td_m, '.0f'):>6} {fmt(m.att_s, '.2f'):>7} "
               f"{fmt(m.awt_s, '.2f'):>7} {fmt(m.elr_pct, '.2f'):>6} {fmt(m.connectivity_pct, '.1f'):>8}")  # fmt: skip
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
+    if args.generalist:
+        generalist_report(args.test_count, args.planner_csv)
     return rows
+
+
+def generalist_report(test_count: int, planner_csv: Path) -> dict[str, float]:
+    """The shipped generalist beside the paper on Berlin P4 and beside the planners on the test instances."""
+    from uamfleet.instances import fly_instances, split_seeds
+    from uamfleet.zoo import pretrained
+
+    start = time.perf_counter()
+    planner = pretrained("berlin")
+    print("\nThe shipped Berlin generalist, uamfleet.pretrained('berlin'): one policy for any instance, trained on "
+          "random demand;\nnever trained on Berlin P4 nor on the test instances (docs/results.md).")  # fmt: skip
+    print(f"\nBerlin P4 (zero-shot)   {'PR %':>5} {'TD m':>7} {'paper MSHA-RL TD m':>19}")
+    for threshold in (-7.0, -6.0, -5.0, -4.0, -3.0):
+        cfg = make_config("berlin_p4", sinr_min_db=threshold)
+        m = episode_metrics(planner.fly(cfg), cfg.radio, threshold_db=threshold)
+        paper = PAPER_TABLE_II["berlin"]["MSHA-RL"].get(threshold)
+        print(f"  {threshold:>4g} dB{'':14} {fmt(m.pr_pct, '.0f'):>5} {fmt(m.td_m, ',.0f'):>7} "
+              f"{fmt(paper[0] if paper else math.nan, ',.0f'):>19}")  # fmt: skip
+    seeds = split_seeds("test", test_count)
+    assert planner.trained_on is not None
+    served, distance = fly_instances(planner, "berlin", seeds, planner.trained_on)
+    print(f"\nBerlin test instances (first {test_count} of the 200 held-out seeds, endpoint-block rule)")
+    print(f"{'method':<28} {'all delivered %':>15} {'PR %':>6} {'TD m (mean)':>12}")
+    print(f"{'generalist (shipped)':<28} {100 * np.mean(served >= 1):>15.1f} {100 * served.mean():>6.1f} "
+          f"{distance.mean():>12,.0f}")  # fmt: skip
+    recorded = _recorded_rows(planner_csv, {str(s) for s in seeds})
+    for method in ("replan", "best_known"):
+        rows = recorded.get(method, [])
+        if len(rows) == len(seeds):
+            pr = np.array([r[0] for r in rows])
+            td = np.array([r[1] for r in rows])
+            print(f"{method + ' (recorded)':<28} {100 * np.mean(pr >= 100):>15.1f} {pr.mean():>6.1f} "
+                  f"{td.mean():>12,.0f}")  # fmt: skip
+    if not recorded:
+        print(f"(the planners' recorded rows are in {planner_csv} in the repository; not found here)")
+    print(f"(generalist section: {time.perf_counter() - start:.0f} s)")
+    return {"all_delivered_pct": float(100 * np.mean(served >= 1)), "td_m": float(distance.mean())}
+
+
+def _recorded_rows(path: Path, instances: set[str]) -> dict[str, list[tuple[float, float]]]:
+    """(PR %, TD m) per method of the benchmark CSV's rows on ``instances`` (empty when the file is absent)."""
+    if not path.is_file():
+        return {}
+    out: dict[str, list[tuple[float, float]]] = {}
+    with path.open(encoding="utf-8") as f:
+        for r in csv.DictReader(f):
+            if r["instance"] in instances and r["feasibility"] == "endpoint_block":
+                out.setdefault(r["method"], []).append((float(r["pr_pct"]), float(r["td_m"])))
+    return out
 
 
 def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-quickstart") -> int:

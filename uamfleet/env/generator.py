@@ -168,6 +168,9 @@ def allocate_state(world: World, num_envs: int) -> FleetState:
         pax_taxi=np.full((E, P), -1, np.int64),
         pax_pickup_step=np.full((E, P), -1, np.int64),
         pax_dropoff_step=np.full((E, P), -1, np.int64),
+        stop_pair_m=np.full((E, 2 * P, 2 * P) if cfg.stop_features else (E, 0, 0), np.nan),
+        stop_tour_key=np.full((E, A), -1, np.int64),
+        stop_tour_m=np.full((E, A, 2 * P if cfg.stop_features else 0), np.nan),
     )
 
 
@@ -200,6 +203,8 @@ def write_instance(state: FleetState, e: int, world: World, starts_m: np.ndarray
     state.pax_taxi[e] = -1
     state.pax_pickup_step[e] = -1
     state.pax_dropoff_step[e] = -1
+    state.stop_pair_m[e] = np.nan  # new stops: distances between them are looked up again
+    state.stop_tour_key[e] = -1
 
 
 class InstanceSource:

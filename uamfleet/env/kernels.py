@@ -311,8 +311,152 @@ def separation(pos: np.ndarray, min_separation_m: float, out: np.ndarray) -> Non
                     out[e, b] = True
 
 
-STOP_PATH_CLIP = 4.0
+STOP_PATH_CLIP = 16.0
 """Upper bound of the ``stop_paths`` distances (map sides): an unreachable stop (``inf``) reads as this."""
+
+
+@njit(cache=True)
+def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, table: np.ndarray, block_m: float,
+                   nbx: int, nby: int) -> float:  # fmt: skip
+    """Table distance from point i to point j of ``pts`` [2P, 2] (origin 2p, destination 2p + 1), memoised."""
+    d = memo[i, j]
+    if math.isnan(d):
+        d = table_distance(table, block_m, nbx, nby, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
+        memo[i, j] = d
+    return d
+
+
+MAX_EXACT_STOPS = 12
+"""Up to this many stops still to visit, ``tour_via_stop`` is the shortest tour (exact dynamic programme over
+subsets); beyond, the nearest-stop order's."""
+
+
+@njit(cache=True)
+def _pending_key(s: FleetState, e: int, a: int) -> int:
+    """A number that changes whenever taxi a's shortest tours can change: its stops still to visit (bits over the
+    2P stop points) and its free seats; -2 when the passenger axis is too long to encode (then no exact tours)."""
+    num_pax = s.pax_status.shape[1]
+    if 2 * num_pax > 56:
+        return -2
+    key = 0
+    for p in range(num_pax):
+        if not s.pax_exists[e, p]:
+            continue
+        if s.pax_status[e, p] == WAITING:
+            key |= 3 << (2 * p)
+        elif s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
+            key |= 2 << (2 * p)
+    return key | (s.free_seats[e, a] << (2 * num_pax)) | (1 << 60)
+
+
+@njit(cache=True)
+def _shortest_rests(
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
+    nbx: int, nby: int, out: np.ndarray,
+) -> int:  # fmt: skip
+    """out[point] = the shortest rest of taxi a's tour after it reaches stop ``point`` first (2p: p's origin, 2p + 1:
+    her destination), through every stop it knows of (its riders' destinations, the waiting passengers' origins
+    and destinations), pick-up before drop-off, never more riders than seats: a dynamic programme over the
+    subsets of stops still to visit. Returns 1, 0 when a table row is missing, -1 when more than
+    :data:`MAX_EXACT_STOPS` stops are pending (``out`` untouched)."""
+    num_pax = s.pax_status.shape[1]
+    ids = np.empty(MAX_EXACT_STOPS, np.int64)  # stop point of each local stop
+    origin_of = np.empty(MAX_EXACT_STOPS, np.int64)  # for a waiting passenger's destination: her origin's index
+    n = 0
+    for p in range(num_pax):
+        if not s.pax_exists[e, p]:
+            continue
+        if s.pax_status[e, p] == WAITING:
+            if n + 2 > MAX_EXACT_STOPS:
+                return -1
+            ids[n], origin_of[n], ids[n + 1], origin_of[n + 1] = 2 * p, -1, 2 * p + 1, n
+            n += 2
+        elif s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
+            if n + 1 > MAX_EXACT_STOPS:
+                return -1
+            ids[n], origin_of[n] = 2 * p + 1, -1
+            n += 1
+    dist = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            d = _stop_distance(memo, pts, ids[i], ids[j], table, block_m, nbx, nby) if i != j else 0.0
+            if math.isnan(d):
+                return 0
+            dist[i, j] = d
+    full = (1 << n) - 1
+    rest = np.full((1 << n, n), math.inf)  # rest[R, i]: shortest rest from stop i with stops R still to visit
+    for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
+        free = s.free_seats[e, a]
+        for k in range(n):
+            if not (remaining >> k) & 1:
+                free += 1 if ids[k] % 2 else -1
+        for i in range(n):
+            if (remaining >> i) & 1:
+                continue
+            if remaining == 0:
+                rest[remaining, i] = 0.0
+                continue
+            best = math.inf
+            for j in range(n):
+                if not (remaining >> j) & 1:
+                    continue
+                if ids[j] % 2 == 0:
+                    if free <= 0:
+                        continue
+                elif origin_of[j] >= 0 and (remaining >> origin_of[j]) & 1:
+                    continue
+                c = dist[i, j] + rest[remaining ^ (1 << j), j]
+                if c < best:
+                    best = c
+            rest[remaining, i] = best
+    for i in range(n):
+        out[ids[i]] = rest[full ^ (1 << i), i]
+    return 1
+
+
+@njit(cache=True)
+def _nearest_stop_tour(
+    s: FleetState, e: int, a: int, first: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray,
+    block_m: float, nbx: int, nby: int, todo: np.ndarray,
+) -> float:  # fmt: skip
+    """Length of the rest of taxi a's tour after it reaches stop point ``first`` (2p: p's origin, 2p + 1: p's
+    destination), flown in nearest-stop order through every stop it knows of: the destinations of its riders and
+    the origins of the waiting passengers (while a seat is free), pick-up before drop-off. NaN: a table row is
+    missing. ``todo`` [2P] is scratch (1: the stop is still to visit)."""
+    num_pax = s.pax_status.shape[1]
+    seats = s.free_seats[e, a]
+    for p in range(num_pax):
+        status = s.pax_status[e, p]
+        todo[2 * p] = 1 if s.pax_exists[e, p] and status == WAITING else 0
+        todo[2 * p + 1] = 1 if s.pax_exists[e, p] and status == ON_BOARD and s.pax_taxi[e, p] == a else 0
+    p0 = first // 2
+    if first % 2 == 0:  # boarding p0: her destination joins the tour
+        todo[first], todo[first + 1] = 0, 1
+        seats -= 1
+    else:
+        todo[first] = 0
+        seats += 1
+    total, here = 0.0, first
+    while True:
+        best, best_d = -1, math.inf
+        for i in range(2 * num_pax):
+            if todo[i] == 0 or (i % 2 == 0 and seats <= 0):
+                continue
+            d = _stop_distance(memo, pts, here, i, table, block_m, nbx, nby)
+            if math.isnan(d):
+                return math.nan
+            if d < best_d:
+                best, best_d = i, d
+        if best < 0:
+            return total
+        total += best_d
+        here = best
+        todo[best] = 0
+        if best % 2 == 0:
+            todo[best + 1] = 1
+            seats -= 1
+        else:
+            seats += 1
 
 
 @njit(cache=True)
@@ -322,15 +466,18 @@ def stop_features(
     table: np.ndarray,  # DistanceTable.distance_m
     nbx: int,
     nby: int,
-    o_paths: np.ndarray,  # [E, A, P, 2] float32 out
+    o_paths: np.ndarray,  # [E, A, P, 3] float32 out
     o_heading: np.ndarray,  # [E, A, P, NUM_HEADINGS] int8 out
 ) -> bool:
     """Each taxi's feasible-path view of its stops (docs/rules.md "Observation", ``stop_features``).
 
     Row p of taxi a is *actionable* when p waits and a has a free seat (stop: p's origin) or p rides in a
     (stop: p's destination). ``o_paths[..., 0]``: the feasible-path distance from the taxi to that stop;
-    ``o_paths[..., 1]``: from p's origin to p's destination (the ride still to fly once p is aboard); both in map
-    sides, clipped to :data:`STOP_PATH_CLIP`. ``o_heading``: one-hot, the allowed heading that makes most
+    ``o_paths[..., 1]``: from p's origin to p's destination (the ride still to fly once p is aboard);
+    ``o_paths[..., 2]``: the shortest whole tour through every stop the taxi knows of when that stop is flown
+    to first (:func:`_shortest_rests`, exact up to :data:`MAX_EXACT_STOPS` pending stops; beyond, the
+    nearest-stop order after it, :func:`_nearest_stop_tour`); all in map sides, clipped to
+    :data:`STOP_PATH_CLIP`. ``o_heading``: one-hot, the allowed heading that makes most
     progress along the feasible path to the stop (the move plus the distance left after it; a move ending
     within the pick-up radius costs the move only); all zero for a row that is not actionable. Distances are
     the table's (:func:`uamfleet.paths.distance_table.table_distance`). Returns False, leaving the outputs
@@ -339,14 +486,33 @@ def stop_features(
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     side, step, radius, block_m = w.side_m, w.step_m, w.radius_m, w.block_m
+    pts = np.empty((2 * num_pax, 2))
+    todo = np.empty(2 * num_pax, np.int8)
     for e in range(num_envs):
+        memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
+        for p in range(num_pax):
+            pts[2 * p] = s.pax_origin_m[e, p]
+            pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            # the shortest rests after each first stop change only when a stop or seat does: kept in the state
+            key = _pending_key(s, e, a)
+            if key < 0:
+                exact = False
+            elif s.stop_tour_key[e, a] == key:
+                exact = True
+            else:
+                found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
+                if found == 0:
+                    return False
+                exact = found == 1
+                s.stop_tour_key[e, a] = key if exact else -1
             for p in range(num_pax):
                 for h in range(NUM_HEADINGS):
                     o_heading[e, a, p, h] = 0
                 o_paths[e, a, p, 0] = 0.0
                 o_paths[e, a, p, 1] = 0.0
+                o_paths[e, a, p, 2] = 0.0
                 status = s.pax_status[e, p]
                 if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
                     continue
@@ -357,15 +523,22 @@ def stop_features(
                     return False
                 o_paths[e, a, p, 1] = min(trip / side, STOP_PATH_CLIP)
                 if status == ON_BOARD and s.pax_taxi[e, p] == a:
-                    gx, gy = dx, dy
+                    gx, gy, point = dx, dy, 2 * p + 1
                 elif status == WAITING and s.free_seats[e, a] > 0:
-                    gx, gy = ox, oy
+                    gx, gy, point = ox, oy, 2 * p
                 else:
                     continue
                 here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
                 if math.isnan(here):
                     return False
                 o_paths[e, a, p, 0] = min(here / side, STOP_PATH_CLIP)
+                if exact:
+                    rest = s.stop_tour_m[e, a, point]
+                else:
+                    rest = _nearest_stop_tour(s, e, a, point, memo, pts, table, block_m, nbx, nby, todo)
+                if math.isnan(rest):
+                    return False
+                o_paths[e, a, p, 2] = min((here + rest) / side, STOP_PATH_CLIP)
                 best, best_cost = -1, math.inf
                 for h in range(NUM_HEADINGS):
                     if not s.action_mask[e, a, h]:

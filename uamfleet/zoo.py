@@ -1,0 +1,54 @@
+"""Pretrained policies shipped inside the package (the model zoo): one call gives a planner for a user's own instance.
+
+    import uamfleet
+    planner = uamfleet.pretrained("berlin")            # the Berlin generalist (one taxi, -7 ... -3 dB)
+    cfg = uamfleet.make_config("berlin_p4", sinr_min_db=-5.0)   # or any start / requests / threshold
+    traj = planner.fly(cfg)                              # one episode; uamfleet.metrics.episode_metrics(traj, cfg.radio)
+
+Each file is a training checkpoint stripped of its optimiser and RNG state (:func:`export_policy`), loaded with
+``torch.load(weights_only=True)`` like every checkpoint. The command that trained each, and its held-out
+results, are in ``docs/results.md`` ("One learned planner for every instance").
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy
+
+PRETRAINED: dict[str, str] = {
+    "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests
+}
+"""Name -> file in ``uamfleet/data/pretrained``."""
+
+
+def pretrained_path(name: str = "berlin") -> Path:
+    if name not in PRETRAINED:
+        raise ValueError(f"no pretrained policy {name!r}; the package ships {tuple(PRETRAINED)}.")
+    path = Path(str(resources.files("uamfleet") / "data" / "pretrained" / PRETRAINED[name]))
+    if not path.is_file():
+        raise FileNotFoundError(f"the pretrained policy file {path} is missing from this install; reinstall uamfleet.")
+    return path
+
+
+def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
+    """The shipped policy ``name`` (:data:`PRETRAINED`) as a greedy planner: call it on observations, or
+    ``.fly(cfg)`` any config of its map (``.layout(cfg)`` fits the passenger axis and features to it)."""
+    return load_policy(pretrained_path(name), device=device)[0]
+
+
+def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
+    """Write ``checkpoint`` without what only training needs (optimiser moments, RNG states): a few hundred
+    kB that still loads with :func:`uamfleet.rl.trainer.load_policy` (it cannot be resumed)."""
+    ckpt = Checkpoint.load(checkpoint)
+    ckpt.optimizer = {}
+    ckpt.numpy_rng = {}
+    ckpt.reward_scaler = None
+    ckpt.cuda_rng = None
+    out = Path(out)
+    ckpt.save(out)
+    return out
+
+
+__all__ = ["PRETRAINED", "export_policy", "pretrained", "pretrained_path"]
