@@ -86,9 +86,9 @@ class Args:
     from_csv: Path | None = None
     """re-render the table from the CSV of an earlier run (lower bounds recomputed), flying nothing"""
     merge_csv: Path | None = None
-    """add the rows of an earlier run's CSV (e.g. the planners on the same instances) to this run's, which fly
-    only what is new (e.g. --methods with no planner and --checkpoint); rows of a method flown now replace its
-    earlier rows"""
+    """add the rows of an earlier run's CSV (e.g. the planners) on the instances flown now to this run's, which
+    flies only what is new (e.g. --methods with no planner and --checkpoint); rows of a method flown now replace
+    its earlier rows"""
     wall_min: float = math.nan
     """with --from-csv: the wall-clock minutes of that run, for the table's note"""
     command: str = ""
@@ -331,9 +331,14 @@ def main(args: Args) -> list[dict[str, Any]]:
                 jobs
             ):  # partial results survive an interrupted run
                 write_outputs(args, rows, time.perf_counter() - start, f" (partial: {i + 1} of {len(jobs)} instances)")
-    if args.merge_csv is not None:
+    if args.merge_csv is not None:  # the earlier run's rows on the instances flown now, of the other methods
         flown = {r["method"] for r in rows}
-        rows = [r for r in read_rows(args.merge_csv) if r["method"] not in flown] + rows
+        instances = {(r["set"], r["instance"], r["feasibility"]) for r in rows}
+        earlier = [
+            r for r in read_rows(args.merge_csv)
+            if r["method"] not in flown and (r["set"], r["instance"], r["feasibility"]) in instances
+        ]  # fmt: skip
+        rows = earlier + rows
     write_outputs(args, rows, time.perf_counter() - start)
     return rows
 

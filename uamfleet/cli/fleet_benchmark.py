@@ -61,8 +61,8 @@ class Args:
     """learned fleet policies (runs/<name>/best.pt), each flown on the settings of its fleet size as
     "learned:<run name>" (its passenger axis padded to the instance)"""
     merge_csv: Path | None = None
-    """add an earlier run's rows (e.g. the dispatchers on the same episodes) to this run's; rows of a dispatcher
-    flown now replace its earlier rows"""
+    """add an earlier run's rows (e.g. the dispatchers) on the episodes flown now to this run's; rows of a
+    dispatcher flown now replace its earlier rows"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path = Path("docs/results.md")
@@ -208,9 +208,14 @@ def main(args: Args) -> list[dict[str, Any]]:
                 done = (i + 1) // len(args.settings)
                 write_outputs(args, rows, time.perf_counter() - start,
                               f" (partial: {done} of {args.count} episodes per setting)")  # fmt: skip
-    if args.merge_csv is not None:
+    if args.merge_csv is not None:  # the earlier run's rows on the episodes flown now, of the other dispatchers
         flown = {r["dispatcher"] for r in rows}
-        rows = [r for r in read_rows(args.merge_csv) if r["dispatcher"] not in flown] + rows
+        episodes = {(r["family"], r["setting"], int(r["seed"])) for r in rows}
+        earlier = [
+            r for r in read_rows(args.merge_csv)
+            if r["dispatcher"] not in flown and (r["family"], r["setting"], int(r["seed"])) in episodes
+        ]  # fmt: skip
+        rows = earlier + rows
     write_outputs(args, rows, time.perf_counter() - start)
     return rows
 
