@@ -49,3 +49,14 @@ def test_the_main_jobs_generalist_report_runs(capsys: pytest.CaptureFixture[str]
     out = capsys.readouterr().out
     assert "Berlin P4 (zero-shot)" in out and "generalist (shipped)" in out
     assert result["all_delivered_pct"] == 100.0 and result["td_m"] > 0
+
+
+def test_the_berlin_fleet_policy_serves_a_fleet_instance() -> None:
+    from uamfleet.instances import make_fleet_instance
+
+    fleet = uamfleet.pretrained("berlin_fleet4")
+    cfg = make_fleet_instance("berlin", 2_000_000, num_taxis=4, num_requests=8)
+    m = episode_metrics(fleet.fly(cfg), cfg.radio)
+    assert m.num_requests == 8 and m.pr_pct == 100.0
+    with pytest.raises(ValueError, match="4"):
+        fleet.layout(uamfleet.make_config("berlin_fleet", num_taxis=2))

@@ -19,6 +19,7 @@ from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy
 
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests
+    "berlin_fleet4": "berlin_fleet4.pt",  # 4 taxis sharing one policy on the Berlin map, up to 24 requests
 }
 """Name -> file in ``uamfleet/data/pretrained``."""
 

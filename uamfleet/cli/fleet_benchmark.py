@@ -59,7 +59,7 @@ class Args:
     dispatchers: tuple[str, ...] = DISPATCHERS
     checkpoints: tuple[Path, ...] = ()
     """learned fleet policies (runs/<name>/best.pt), each flown on the settings of its fleet size as
-    "learned:<run name>" (its passenger axis padded to the instance)"""
+    "learned:<run name>" ("learned:<file stem>" for other file names; its passenger axis padded to the instance)"""
     merge_csv: Path | None = None
     """add an earlier run's rows (e.g. the dispatchers) on the episodes flown now to this run's; rows of a
     dispatcher flown now replace its earlier rows"""
@@ -79,7 +79,8 @@ Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...]]  # (family, settin
 
 
 def learned_name(checkpoint: Path) -> str:
-    return f"learned:{checkpoint.parent.name}"
+    """``learned:<run name>`` for a run's best.pt / last.pt, else ``learned:<file stem>`` (e.g. a shipped policy)."""
+    return f"learned:{checkpoint.parent.name if checkpoint.stem in ('best', 'last') else checkpoint.stem}"
 
 
 def _learned(checkpoint: Path, taxis: int) -> Any:
