@@ -523,7 +523,9 @@ FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0)
 waiting costs about as much per step, through the discount, as a taxi's step) without the exploration bonus."""
 
 
-def _fleet(random_preset: Callable[..., EnvConfig], scenario: str, slot_s: float, overrides: dict[str, Any]) -> EnvConfig:
+def _fleet(
+    random_preset: Callable[..., EnvConfig], scenario: str, slot_s: float, overrides: dict[str, Any]
+) -> EnvConfig:
     """A fleet with the demand of the held-out fleet instances (:func:`uamfleet.instances.make_fleet_instance`):
     6 requests per taxi, released uniformly over the first 10 minutes, on flyable block centres."""
     taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)

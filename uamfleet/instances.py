@@ -194,7 +194,9 @@ def family_of(scenario: str) -> str:
     for family, fam in FAMILIES.items():
         if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
             return family
-    raise ValueError(f"scenario {scenario!r} belongs to no instance family; use one of {tuple(FAMILIES)} + '_instances'.")
+    raise ValueError(
+        f"scenario {scenario!r} belongs to no instance family; use one of {tuple(FAMILIES)} + '_instances'."
+    )
 
 
 def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
@@ -260,16 +262,16 @@ def validation_metrics(
 __all__ = [
     "FAMILIES",
     "FLEET_SETTINGS",
-    "family_of",
-    "fly_instances",
-    "instance_for_policy",
-    "validation_metrics",
     "SPLITS",
     "TEST_SEEDS",
     "TRAIN_SEEDS",
     "VALIDATION_SEEDS",
     "InstanceFamily",
+    "family_of",
+    "fly_instances",
+    "instance_for_policy",
     "make_fleet_instance",
     "make_instance",
     "split_seeds",
+    "validation_metrics",
 ]

@@ -3,7 +3,7 @@
     import uamfleet
     planner = uamfleet.pretrained("berlin")            # the Berlin generalist (one taxi, -7 ... -3 dB)
     cfg = uamfleet.make_config("berlin_p4", sinr_min_db=-5.0)   # or any start / requests / threshold
-    traj = planner.fly(cfg)                              # one episode; uamfleet.metrics.episode_metrics(traj, cfg.radio)
+    traj = planner.fly(cfg)     # one episode; score it with uamfleet.metrics.episode_metrics(traj, cfg.radio)
 
 Each file is a training checkpoint stripped of its optimiser and RNG state (:func:`export_policy`), loaded with
 ``torch.load(weights_only=True)`` like every checkpoint. The command that trained each, and its held-out

@@ -140,6 +140,8 @@ def test_mixture_concatenates_groups_as_separate_cores() -> None:
         ref = [alone[0].step(actions[:3]), alone[1].step(actions[3:])]
         np.testing.assert_array_equal(rewards, np.concatenate([r[1] for r in ref]))
         np.testing.assert_array_equal(obs["self"], np.concatenate([r[0]["self"] for r in ref]))
+        np.testing.assert_array_equal(terminated, np.concatenate([r[2] for r in ref]))
+        np.testing.assert_array_equal(truncated, np.concatenate([r[3] for r in ref]))
     with pytest.raises(ValueError, match="observation layout"):
         MixtureVectorEnv([cfgs[0], make_config("berlin_instances", max_passengers=8)], num_envs=2)
 
@@ -190,7 +192,7 @@ def test_rivals_name_the_nearest_other_free_taxi_and_the_share_nearer() -> None:
     assert np.all(obs["stop_rivals"][0, :, 1] == 0.0)  # B rides: no rivals for her
 
 
-def _brute_force_rest(table, state, a: int, first: int) -> float | None:  # noqa: ANN001
+def _brute_force_rest(table, state, a: int, first: int) -> float | None:
     """The shortest rest of the tour after stop ``first`` (2p origin, 2p + 1 destination), by trying every order
     of the other stops (pick-up before drop-off, seats respected); None beyond 8 stops (too many orders)."""
     P = state.pax_status.shape[1]
@@ -214,7 +216,7 @@ def _brute_force_rest(table, state, a: int, first: int) -> float | None:  # noqa
                     break
                 seats -= 1
             else:
-                if stop - 1 in todo + [first] and stop - 1 not in seen:
+                if stop - 1 in [*todo, first] and stop - 1 not in seen:
                     break  # her pick-up is still ahead
                 seats += 1
             total += float(table.distance(pts[here], pts[stop]))
@@ -253,7 +255,7 @@ def test_tour_via_stop_is_the_shortest_tour_by_brute_force() -> None:
     assert checked > 20
 
 
-def _python_nearest_rest(table, state, a: int, first: int) -> float:  # noqa: ANN001
+def _python_nearest_rest(table, state, a: int, first: int) -> float:
     """The rest of the tour after stop ``first`` in nearest-stop order (pick-ups while a seat is free)."""
     P = state.pax_status.shape[1]
     pts = [state.pax_origin_m[0, p] if i == 0 else state.pax_dest_m[0, p] for p in range(P) for i in (0, 1)]

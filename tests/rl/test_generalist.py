@@ -120,7 +120,8 @@ def test_load_policy_flies_another_threshold_and_fewer_passengers(generalist_run
     m = episode_metrics(traj, p4.radio, threshold_db=-5.0)
     assert m.num_requests == 4
     # a held-out instance with 2 requests (another start and threshold) flies too
-    small = next(make_instance("berlin", s) for s in range(2_000_000, 2_000_050) if make_instance("berlin", s).num_requests_max == 2)
+    seeds = range(2_000_000, 2_000_050)
+    small = next(cfg for cfg in (make_instance("berlin", s) for s in seeds) if cfg.num_requests_max == 2)
     assert policy.fly(small).sinr_min_db == small.sinr_min_db
 
 

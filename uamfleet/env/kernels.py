@@ -359,11 +359,31 @@ def _shortest_rests(
     and destinations), pick-up before drop-off, never more riders than seats: a dynamic programme over the
     subsets of stops still to visit. Returns 1, 0 when a table row is missing, -1 when more than
     :data:`MAX_EXACT_STOPS` stops are pending (``out`` untouched)."""
-    num_pax = s.pax_status.shape[1]
     ids = np.empty(MAX_EXACT_STOPS, np.int64)  # stop point of each local stop
     origin_of = np.empty(MAX_EXACT_STOPS, np.int64)  # for a waiting passenger's destination: her origin's index
+    n = _pending_stops(s, e, a, ids, origin_of)
+    if n < 0:
+        return -1
+    dist = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            d = _stop_distance(memo, pts, ids[i], ids[j], table, block_m, nbx, nby) if i != j else 0.0
+            if math.isnan(d):
+                return 0
+            dist[i, j] = d
+    rest = _subset_rests(dist, ids, origin_of, n, s.free_seats[e, a])
+    full = (1 << n) - 1
+    for i in range(n):
+        out[ids[i]] = rest[full ^ (1 << i), i]
+    return 1
+
+
+@njit(cache=True)
+def _pending_stops(s: FleetState, e: int, a: int, ids: np.ndarray, origin_of: np.ndarray) -> int:
+    """Taxi a's stops still to visit into ``ids`` (stop points) and ``origin_of`` (for a waiting passenger's
+    destination, her origin's index; else -1); their number, or -1 beyond :data:`MAX_EXACT_STOPS`."""
     n = 0
-    for p in range(num_pax):
+    for p in range(s.pax_status.shape[1]):
         if not s.pax_exists[e, p]:
             continue
         if s.pax_status[e, p] == WAITING:
@@ -376,17 +396,16 @@ def _shortest_rests(
                 return -1
             ids[n], origin_of[n] = 2 * p + 1, -1
             n += 1
-    dist = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            d = _stop_distance(memo, pts, ids[i], ids[j], table, block_m, nbx, nby) if i != j else 0.0
-            if math.isnan(d):
-                return 0
-            dist[i, j] = d
-    full = (1 << n) - 1
-    rest = np.full((1 << n, n), math.inf)  # rest[R, i]: shortest rest from stop i with stops R still to visit
+    return n
+
+
+@njit(cache=True)
+def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: int, seats: int) -> np.ndarray:
+    """rest[R, i]: the shortest rest from local stop i with the stops of bit set R still to visit (pick-up before
+    drop-off; an origin only with a free seat, ``seats`` being free before any of the n stops)."""
+    rest = np.full((1 << n, n), math.inf)
     for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
-        free = s.free_seats[e, a]
+        free = seats
         for k in range(n):
             if not (remaining >> k) & 1:
                 free += 1 if ids[k] % 2 else -1
@@ -400,18 +419,13 @@ def _shortest_rests(
             for j in range(n):
                 if not (remaining >> j) & 1:
                     continue
-                if ids[j] % 2 == 0:
-                    if free <= 0:
-                        continue
-                elif origin_of[j] >= 0 and (remaining >> origin_of[j]) & 1:
+                if ids[j] % 2 == 0 and free <= 0:
                     continue
-                c = dist[i, j] + rest[remaining ^ (1 << j), j]
-                if c < best:
-                    best = c
+                if ids[j] % 2 == 1 and origin_of[j] >= 0 and (remaining >> origin_of[j]) & 1:
+                    continue
+                best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
             rest[remaining, i] = best
-    for i in range(n):
-        out[ids[i]] = rest[full ^ (1 << i), i]
-    return 1
+    return rest
 
 
 @njit(cache=True)
@@ -429,7 +443,6 @@ def _nearest_stop_tour(
         status = s.pax_status[e, p]
         todo[2 * p] = 1 if s.pax_exists[e, p] and status == WAITING else 0
         todo[2 * p + 1] = 1 if s.pax_exists[e, p] and status == ON_BOARD and s.pax_taxi[e, p] == a else 0
-    p0 = first // 2
     if first % 2 == 0:  # boarding p0: her destination joins the tour
         todo[first], todo[first + 1] = 0, 1
         seats -= 1
@@ -485,7 +498,7 @@ def stop_features(
     """
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
-    side, step, radius, block_m = w.side_m, w.step_m, w.radius_m, w.block_m
+    side, block_m = w.side_m, w.block_m
     pts = np.empty((2 * num_pax, 2))
     todo = np.empty(2 * num_pax, np.int8)
     for e in range(num_envs):
@@ -495,18 +508,9 @@ def stop_features(
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            # the shortest rests after each first stop change only when a stop or seat does: kept in the state
-            key = _pending_key(s, e, a)
-            if key < 0:
-                exact = False
-            elif s.stop_tour_key[e, a] == key:
-                exact = True
-            else:
-                found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
-                if found == 0:
-                    return False
-                exact = found == 1
-                s.stop_tour_key[e, a] = key if exact else -1
+            exact = _update_rests(s, e, a, memo, pts, table, block_m, nbx, nby)
+            if exact < 0:
+                return False
             for p in range(num_pax):
                 for h in range(NUM_HEADINGS):
                     o_heading[e, a, p, h] = 0
@@ -522,39 +526,82 @@ def stop_features(
                 if math.isnan(trip):
                     return False
                 o_paths[e, a, p, 1] = min(trip / side, STOP_PATH_CLIP)
-                if status == ON_BOARD and s.pax_taxi[e, p] == a:
-                    gx, gy, point = dx, dy, 2 * p + 1
-                elif status == WAITING and s.free_seats[e, a] > 0:
-                    gx, gy, point = ox, oy, 2 * p
-                else:
+                point = _row_stop(s, e, a, p)
+                if point < 0:
                     continue
+                gx, gy = pts[point, 0], pts[point, 1]
                 here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
                 if math.isnan(here):
                     return False
                 o_paths[e, a, p, 0] = min(here / side, STOP_PATH_CLIP)
-                if exact:
+                if exact == 1:
                     rest = s.stop_tour_m[e, a, point]
                 else:
                     rest = _nearest_stop_tour(s, e, a, point, memo, pts, table, block_m, nbx, nby, todo)
                 if math.isnan(rest):
                     return False
                 o_paths[e, a, p, 2] = min((here + rest) / side, STOP_PATH_CLIP)
-                best, best_cost = -1, math.inf
-                for h in range(NUM_HEADINGS):
-                    if not s.action_mask[e, a, h]:
-                        continue
-                    qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
-                    if (qx - gx) ** 2 + (qy - gy) ** 2 <= radius * radius:
-                        cost = step
-                    else:
-                        cost = step + table_distance(table, block_m, nbx, nby, qx, qy, gx, gy)
-                        if math.isnan(cost):
-                            return False
-                    if cost < best_cost:
-                        best, best_cost = h, cost
+                best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)
+                if best == -2:
+                    return False
                 if best >= 0:
                     o_heading[e, a, p, best] = 1
     return True
+
+
+@njit(cache=True)
+def _row_stop(s: FleetState, e: int, a: int, p: int) -> int:
+    """The stop point row p offers taxi a: its destination (2p + 1) while p rides in a, its origin (2p) while p
+    waits and a has a free seat, else -1."""
+    status = s.pax_status[e, p]
+    if status == ON_BOARD and s.pax_taxi[e, p] == a:
+        return 2 * p + 1
+    if status == WAITING and s.free_seats[e, a] > 0:
+        return 2 * p
+    return -1
+
+
+@njit(cache=True)
+def _update_rests(
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
+    nbx: int, nby: int,
+) -> int:  # fmt: skip
+    """Bring taxi a's exact shortest rests (``s.stop_tour_m``) up to date; they change only when a stop or seat
+    does, so they are kept in the state under the key of what they were computed for. 1: exact rests are in
+    the state; 0: too many stops (use the nearest-stop order); -1: a table row is missing."""
+    key = _pending_key(s, e, a)
+    if key < 0:
+        return 0
+    if s.stop_tour_key[e, a] == key:
+        return 1
+    found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
+    if found == 0:
+        return -1
+    s.stop_tour_key[e, a] = key if found == 1 else -1
+    return 1 if found == 1 else 0
+
+
+@njit(cache=True)
+def _progress_heading(
+    allowed: np.ndarray, w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, gx: float,
+    gy: float,
+) -> int:  # fmt: skip
+    """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
+    ends within the pick-up radius); -1 when none is allowed or reachable, -2 when a table row is missing."""
+    best, best_cost = -1, math.inf
+    for h in range(NUM_HEADINGS):
+        if not allowed[h]:
+            continue
+        qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+        if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
+            cost = w.step_m
+        else:
+            cost = w.step_m + table_distance(table, w.block_m, nbx, nby, qx, qy, gx, gy)
+            if math.isnan(cost):
+                return -2
+        if cost < best_cost:
+            best, best_cost = h, cost
+    return best
 
 
 @njit(cache=True)

@@ -66,7 +66,8 @@ class MixtureVectorEnv:
         actions = np.asarray(actions)
         if actions.shape[:1] != (self.num_envs,):
             raise ValueError(f"actions has shape {actions.shape}, expected ({self.num_envs}, {self.num_taxis}).")
-        results = [env.step(actions[lo:hi]) for env, lo, hi in zip(self.envs, self.bounds[:-1], self.bounds[1:])]
+        groups = zip(self.envs, self.bounds[:-1], self.bounds[1:], strict=True)
+        results = [env.step(actions[lo:hi]) for env, lo, hi in groups]
         obs = _cat([r[0] for r in results])
         rewards, terminated, truncated = (np.concatenate([r[i] for r in results]) for i in (1, 2, 3))
         info: dict[str, Any] = {"reward_terms": np.concatenate([r[4]["reward_terms"] for r in results])}
@@ -80,7 +81,7 @@ class MixtureVectorEnv:
             info["episode"] = {
                 key: np.concatenate(
                     [s[key] if s is not None else np.zeros((hi - lo, *v.shape[1:]), v.dtype)
-                     for s, lo, hi in zip(stats, self.bounds[:-1], self.bounds[1:])]
+                     for s, lo, hi in zip(stats, self.bounds[:-1], self.bounds[1:], strict=True)]
                 )
                 for key, v in template.items()
             }  # fmt: skip

@@ -62,7 +62,7 @@ class Observer:
         cfg = self.cfg
         k, P, H = cfg.patch_size, cfg.num_passengers, cfg.history_len
         f32 = np.float32
-        stop_fields = {}
+        stop_fields: dict[str, spaces.Space] = {}
         if cfg.stop_features:
             stop_fields = {
                 "stop_paths": spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_PATH_FEATURES)), f32),

@@ -118,7 +118,8 @@ class ObservationNormalizer:
     through unchanged."""
 
     def __init__(self, shapes: dict[str, tuple[int, ...]], clip: float = 10.0) -> None:
-        self.fields = {k: RunningMeanStd(s) for k, s in shapes.items() if not k.endswith("mask") and k not in RAW_FIELDS}
+        normalised = [k for k in shapes if not k.endswith("mask") and k not in RAW_FIELDS]
+        self.fields = {k: RunningMeanStd(shapes[k]) for k in normalised}
         self.clip = clip
 
     def update(self, obs: dict[str, np.ndarray], world: World | None = None) -> None:
