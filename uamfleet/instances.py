@@ -202,10 +202,10 @@ def family_of(scenario: str) -> str:
 def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
     """Instance ``seed`` of ``family`` laid out as the config ``like`` a policy trained on: its rule, passenger
     axis, stop features, reward and time limit (the observation's time feature is a fraction of the limit). A
-    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis and 6 requests per taxi."""
+    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis and its demand's request count."""
     if like.scenario.endswith("_fleet"):
         cfg = make_fleet_instance(
-            family, seed, like.num_taxis, 6 * like.num_taxis, feasibility=like.feasibility,
+            family, seed, like.num_taxis, like.demand.max_requests, feasibility=like.feasibility,
             max_passengers=like.num_passengers,
         )  # fmt: skip
     else:
@@ -213,7 +213,7 @@ def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
     return cfg.replace(stop_features=like.stop_features, reward=like.reward, time_limit_steps=like.time_limit_steps)
 
 
-_BATCHES: dict[tuple[str, tuple[int, ...], int], MixtureVectorEnv] = {}
+_BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig], MixtureVectorEnv] = {}
 
 
 def fly_instances(
@@ -223,7 +223,7 @@ def fly_instances(
     out as ``like`` (:func:`instance_for_policy`), all in one batch (one policy call per step for all).
     Returns (share of passengers delivered [n], distance flown [n] metres). The batch of the last call is kept:
     a trainer evaluating on the same seeds every few iterations builds the instances and worlds once."""
-    key = (family, tuple(int(s) for s in seeds), id(like))
+    key = (family, tuple(int(s) for s in seeds), like)  # the config itself (hashed by identity, kept alive)
     if key not in _BATCHES:
         _BATCHES.clear()
         cfgs = [instance_for_policy(family, seed, like) for seed in key[1]]

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import csv
+import functools
 import math
 import multiprocessing as mp
 import time
@@ -113,17 +114,21 @@ def _policy(method: str, checkpoint: Path | None, beams: tuple[int, ...], replan
         return StepPlannerPolicy(method, [SearchSettings(b, rank_slack=slack[i % 2]) for i, b in enumerate(beams)])
     if method == "replan":
         return StepPlannerPolicy(method, [SearchSettings(replan_beam, rank_slack=1.0)])
+    assert checkpoint is not None
+    return learned_policy(checkpoint)
+
+
+@functools.lru_cache(maxsize=8)
+def learned_policy(checkpoint: Path) -> Any:
+    """The greedy policy of a checkpoint, loaded once per worker process (it keeps no state between episodes)."""
     from uamfleet.rl.trainer import load_policy
 
-    assert checkpoint is not None
     return load_policy(checkpoint)[0]
 
 
 def check_checkpoint(path: Path) -> None:
     """The benchmark's instances have one taxi: refuse a fleet policy (or an unreadable file) before flying."""
-    from uamfleet.rl.trainer import load_policy
-
-    policy = load_policy(path)[0]
+    policy = learned_policy(path)
     if policy.num_taxis != 1:
         raise UsageError(
             f"--checkpoint {path} was trained with {policy.num_taxis} taxis; the benchmark's instances have one "

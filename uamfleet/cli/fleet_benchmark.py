@@ -29,7 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from uamfleet.cli._common import fmt, run
-from uamfleet.cli.benchmark import _ci, command_header
+from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import make_policy
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.env.vector_env import VectorEnv
@@ -85,9 +85,7 @@ def learned_name(checkpoint: Path) -> str:
 
 def _learned(checkpoint: Path, taxis: int) -> Any:
     """The greedy policy of a checkpoint, or None when it was trained for another fleet size."""
-    from uamfleet.rl.trainer import load_policy
-
-    policy = load_policy(checkpoint)[0]
+    policy = learned_policy(checkpoint)
     return policy if policy.num_taxis == taxis else None
 
 

@@ -520,13 +520,11 @@ def stop_features(
                 status = s.pax_status[e, p]
                 if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
                     continue
-                ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
-                dx, dy = s.pax_dest_m[e, p, 0], s.pax_dest_m[e, p, 1]
-                trip = table_distance(table, block_m, nbx, nby, ox, oy, dx, dy)
+                trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, table, block_m, nbx, nby)  # kept per episode
                 if math.isnan(trip):
                     return False
                 o_paths[e, a, p, 1] = min(trip / side, STOP_PATH_CLIP)
-                point = _row_stop(s, e, a, p)
+                point = row_stop(s, e, a, p)
                 if point < 0:
                     continue
                 gx, gy = pts[point, 0], pts[point, 1]
@@ -550,9 +548,9 @@ def stop_features(
 
 
 @njit(cache=True)
-def _row_stop(s: FleetState, e: int, a: int, p: int) -> int:
-    """The stop point row p offers taxi a: its destination (2p + 1) while p rides in a, its origin (2p) while p
-    waits and a has a free seat, else -1."""
+def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
+    """The stop point row p offers taxi a (its *actionable* stop; the shaping potential's stops too): its
+    destination (2p + 1) while p rides in a, its origin (2p) while p waits and a has a free seat, else -1."""
     status = s.pax_status[e, p]
     if status == ON_BOARD and s.pax_taxi[e, p] == a:
         return 2 * p + 1

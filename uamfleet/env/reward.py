@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from uamfleet.config import REWARD_TERMS, RewardConfig
+from uamfleet.env.kernels import row_stop
 from uamfleet.paths import DistanceFields, DistanceTable, table_for
 from uamfleet.paths.distance_table import table_distance
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
@@ -145,13 +146,11 @@ def _phi(
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
             nearest = math.inf
             for p in range(num_pax):
-                status = s.pax_status[e, p]
-                if status == ON_BOARD and s.pax_taxi[e, p] == a:
-                    gx, gy = s.pax_dest_m[e, p, 0], s.pax_dest_m[e, p, 1]
-                elif status == WAITING and s.free_seats[e, a] > 0:
-                    gx, gy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
-                else:
+                point = row_stop(s, e, a, p)  # 2p: p's origin, 2p + 1: her destination, -1: none for taxi a
+                if point < 0:
                     continue
+                stops = s.pax_dest_m if point % 2 else s.pax_origin_m
+                gx, gy = stops[e, p, 0], stops[e, p, 1]
                 if use_table:
                     d = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
                     if math.isnan(d):
