@@ -4,6 +4,8 @@ Adam updates), per network variant and per number of data-parallel ranks, side b
     OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/train_throughput.py            # variants, 1 rank
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py --variants de_msfea --ranks 1 2
     .venv/bin/python benchmarks/train_throughput.py --device cuda --ranks 1 8 --num-envs 256   # a GPU machine
+    OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/train_throughput.py --scenario berlin_fleet \
+        --taxis 1 2 4 8 --variants de_msfea --d-model 32 --action-head stops --stop-prior nearest  # cost vs taxis
 
 One rank is the plain ``train()`` (no torchrun); R > 1 ranks are R local processes with torchrun's
 environment (gloo; with --device cuda they share the GPU), ``--num-envs`` and the batch being global, so
@@ -11,6 +13,9 @@ every row trains the same PPO problem. Rates are measured between the end of the
 numba compilation, allocations) and the end of the last, so start-up and the final evaluation are excluded.
 "CPU s/update/rank" is the CPU time the busiest rank spent per update: on a machine whose cores are shared
 with other work, its ratio ("CPU speed-up") says what the ranks would gain on idle cores, before waiting.
+``--taxis`` compares fleet sizes of one scenario (``num_taxis``; the ``*_fleet`` scenarios scale their demand
+and passenger axis with it): "us/agent-step" is the wall time per agent-step and "vs first" its ratio to the
+first size's, which grows no worse than linearly when it stays at or below the ratio of the sizes.
 """
 
 from __future__ import annotations
@@ -40,47 +45,61 @@ class Args:
     device: str = "cpu"
     threads: int = 1
     """torch CPU threads per rank"""
+    scenario: str = "berlin_p4"
+    taxis: tuple[int, ...] = ()
+    """fleet sizes to compare (num_taxis); empty: the scenario's own"""
+    action_head: str = "headings"
+    stop_prior: str = "tour"
+    d_model: int = 64
 
 
-def train_args(args: Args, variant: str, run_dir: Path) -> TrainArgs:
+def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None) -> TrainArgs:
     return TrainArgs(
-        variant=variant,  # type: ignore[arg-type]
-        total_timesteps=args.iterations * args.num_envs * args.num_steps, num_envs=args.num_envs,
+        scenario=args.scenario, num_taxis=taxis, action_head=args.action_head,  # type: ignore[arg-type]
+        stop_prior=args.stop_prior, d_model=args.d_model, variant=variant,  # type: ignore[arg-type]
+        total_timesteps=args.iterations * args.num_envs * args.num_steps * (taxis or 1), num_envs=args.num_envs,
         num_steps=args.num_steps, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="bench",
         progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
     )  # fmt: skip
 
 
-def _rank_main(args: Args, variant: str, run_dir: str) -> None:
+def _rank_main(args: Args, variant: str, run_dir: str, taxis: int | None = None) -> None:
     """Train; record each iteration's end as (wall s, this process's CPU s) in run_dir/times_rank<r>.json."""
     times: list[tuple[float, float]] = []
-    result = train(train_args(args, variant, Path(run_dir)),
+    result = train(train_args(args, variant, Path(run_dir), taxis),
                    on_iteration=lambda _, __: times.append((time.perf_counter(), time.process_time())))  # fmt: skip
     (Path(run_dir) / f"times_rank{result.rank}.json").write_text(json.dumps(times))
 
 
-def measure(args: Args, variant: str, ranks: int) -> tuple[float, float, float]:
+def measure(args: Args, variant: str, ranks: int, taxis: int | None = None) -> tuple[float, float, float]:
     """(agent-steps/s, updates/s, CPU s per update of the busiest rank), between the end of the first and of the
     last iteration."""
     with tempfile.TemporaryDirectory() as tmp:
         if ranks == 1:
-            _rank_main(args, variant, tmp)
+            _rank_main(args, variant, tmp, taxis)
         else:
-            launch_local(ranks, _rank_main, args, variant, tmp)
+            launch_local(ranks, _rank_main, args, variant, tmp, taxis)
         times = [json.loads((Path(tmp) / f"times_rank{r}.json").read_text()) for r in range(ranks)]
     updates = len(times[0]) - 1
     seconds = times[0][-1][0] - times[0][0][0]
     cpu = max((t[-1][1] - t[0][1]) / updates for t in times)
-    return updates * args.num_envs * args.num_steps / seconds, updates / seconds, cpu
+    agents = taxis or 1
+    return updates * args.num_envs * args.num_steps * agents / seconds, updates / seconds, cpu
+
+
+def header(args: Args, batch_note: str, thread_note: str) -> str:
+    defaults = TrainArgs()
+    return (f"{args.scenario}, {args.num_envs} envs x {args.num_steps} steps per iteration {batch_note}, "
+            f"{defaults.update_epochs} epochs x {defaults.num_minibatches} minibatches, device {args.device}, "
+            f"{args.threads} thread(s) {thread_note}, {args.iterations - 1} timed iterations")  # fmt: skip
 
 
 def main(args: Args) -> list[dict[str, float | str | int]]:
     if args.iterations < 2:
         raise ValueError(f"iterations={args.iterations}: need >= 2 (the first is warm-up)")
-    defaults = TrainArgs()
-    print(f"berlin_p4, {args.num_envs} envs (global) x {args.num_steps} steps per iteration, "
-          f"{defaults.update_epochs} epochs x {defaults.num_minibatches} minibatches, device {args.device}, "
-          f"{args.threads} thread(s) per rank, {args.iterations - 1} timed iterations")  # fmt: skip
+    if args.taxis:
+        return by_fleet_size(args)
+    print(header(args, "(global)", "per rank"))
     print(f"{'variant':<10} {'ranks':>5} {'agent-steps/s':>14} {'updates/s':>10} {'speed-up':>9} "
           f"{'CPU s/update/rank':>18} {'CPU speed-up':>13}")  # fmt: skip
     table: list[dict[str, float | str | int]] = []
@@ -93,6 +112,25 @@ def main(args: Args) -> list[dict[str, float | str | int]]:
                           "cpu_per_update": cpu, "cpu_speedup": base_cpu / cpu})  # fmt: skip
             print(f"{variant:<10} {ranks:>5} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x {cpu:>18.2f} "
                   f"{base_cpu / cpu:>12.2f}x", flush=True)  # fmt: skip
+    return table
+
+
+def by_fleet_size(args: Args) -> list[dict[str, float | str | int]]:
+    """One rank, each variant at each fleet size of ``args.taxis``."""
+    print(header(args, "(x taxis agent-steps)", f"head {args.action_head}"))
+    print(f"{'variant':<10} {'taxis':>5} {'agent-steps/s':>14} {'us/agent-step':>14} {'vs first':>9} "
+          f"{'taxis ratio':>12}")  # fmt: skip
+    table: list[dict[str, float | str | int]] = []
+    for variant in args.variants:
+        first: tuple[int, float] | None = None
+        for taxis in args.taxis:
+            sps = measure(args, variant, 1, taxis)[0]
+            us = 1e6 / sps
+            first = first or (taxis, us)
+            table.append({"variant": variant, "taxis": taxis, "sps": sps, "us_per_agent_step": us,
+                          "cost_ratio": us / first[1], "taxis_ratio": taxis / first[0]})  # fmt: skip
+            print(f"{variant:<10} {taxis:>5} {sps:>14,.0f} {us:>14.0f} {us / first[1]:>8.2f}x "
+                  f"{taxis / first[0]:>11.0f}x", flush=True)  # fmt: skip
     return table
 
 

@@ -127,7 +127,7 @@ class Request:
 SHAPING_METRICS: tuple[str, ...] = ("path", "path_exact", "euclidean")
 """Values of ``RewardConfig.shaping_metric`` (docs/rules.md "Rewards")."""
 
-REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping")
+REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping", "separation")
 """Names of the reward terms: term ``name`` is weighted by ``RewardConfig.<name>``, is column
 ``REWARD_TERMS.index(name)`` of ``info["reward_terms"]`` and is logged as ``reward/<name>`` (docs/rules.md
 "Rewards")."""
@@ -140,12 +140,13 @@ class RewardConfig:
 
     Per taxi and step: ``step`` every step; ``explore`` on entering a block it never visited, else
     ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
-    allowed (the taxi stays where it is). ``shaping`` > 0 adds the potential-based term
-    ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with ``Phi = -(distance to the taxi's nearest actionable
-    stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999 keep the optimal policy unchanged), the distance
-    measured along feasible paths (``shaping_metric="path"``: looked up in a table of distances between block
-    centres, fast; ``"path_exact"``: a 10 m Dijkstra field per stop, slow on random demand) or in a straight line
-    (``"euclidean"``).
+    allowed (the taxi stays where it is); ``separation`` per step that another taxi is closer than
+    ``EnvConfig.min_separation_m`` after the move (0 in the authors' reward: they fly one taxi). ``shaping`` > 0
+    adds the potential-based term ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with
+    ``Phi = -(distance to the taxi's nearest actionable stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999
+    keep the optimal policy unchanged), the distance measured along feasible paths (``shaping_metric="path"``:
+    looked up in a table of distances between block centres, fast; ``"path_exact"``: a 10 m Dijkstra field per
+    stop, slow on random demand) or in a straight line (``"euclidean"``).
 
     ``first_visit`` and ``repeat_visit`` are the earlier names of ``explore`` and ``explore_repeat``, still
     accepted as keywords.
@@ -158,6 +159,7 @@ class RewardConfig:
     dropoff: float = 300.0
     blocked: float = -50.0
     shaping: float = 0.0
+    separation: float = 0.0
     shaping_gamma: float = 0.99
     shaping_metric: str = "path"  # along feasible paths: "path" (table), "path_exact"; "euclidean": straight line
     first_visit: InitVar[float | None] = None  # earlier name of `explore`
@@ -277,6 +279,7 @@ class EnvConfig:
     min_separation_m: float = 50.0
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
     stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
+    stop_claims: bool = False  # with stop_features: "stop_rivals" and "stop_claims" for any fleet size (docs/rules.md)
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -349,6 +352,10 @@ class EnvConfig:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
         if not isinstance(self.stop_features, bool):
             raise ConfigError(f"stop_features={self.stop_features!r} must be True or False.")
+        if not isinstance(self.stop_claims, bool):
+            raise ConfigError(f"stop_claims={self.stop_claims!r} must be True or False.")
+        if self.stop_claims and not self.stop_features:
+            raise ConfigError("stop_claims=True needs stop_features=True (the claims use the same path distances).")
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
 
@@ -390,6 +397,15 @@ class EnvConfig:
 
     def replace(self, **changes: Any) -> EnvConfig:
         return dataclasses.replace(self, **changes)
+
+    def with_layout_of(self, like: EnvConfig) -> EnvConfig:
+        """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
+        passenger axis, stop features and claims, patch, history and time limit (the observation's time feature is
+        a fraction of the limit). How a policy trained on ``like`` flies another instance."""
+        return self.replace(
+            max_passengers=like.num_passengers, stop_features=like.stop_features, stop_claims=like.stop_claims,
+            time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
+        )  # fmt: skip
 
 
 # ---- the paper's scenarios (as the authors coded them) ----------------------------------------------------
@@ -518,9 +534,10 @@ def _detroit3gpp_instances(**overrides: Any) -> EnvConfig:
     return _with_overrides(base, overrides)
 
 
-FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0)
+FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, separation=-20.0)
 """The *_fleet scenarios' reward: the authors' pick-up / drop-off bonuses (200 / 300, so that a passenger left
-waiting costs about as much per step, through the discount, as a taxi's step) without the exploration bonus."""
+waiting costs about as much per step, through the discount, as a taxi's step) without the exploration bonus, and
+-20 (ten steps' worth) per step a taxi flies closer than the separation minimum to another."""
 
 
 def _fleet(
@@ -535,7 +552,7 @@ def _fleet(
         horizon_steps=max(int(600.0 // slot_s) - 1, 0), min_trip_m=min_trip,
     )  # fmt: skip
     base = _fields(random_preset(num_taxis=taxis, demand=demand))
-    base.update(max_passengers=6 * taxis, stop_features=True, reward=FLEET_REWARD, scenario=scenario)
+    base.update(max_passengers=6 * taxis, stop_features=True, stop_claims=True, reward=FLEET_REWARD, scenario=scenario)
     base["time_limit_steps"] = max(base["time_limit_steps"], 3 * (demand.horizon_steps + 1))
     return _with_overrides(base, {k: v for k, v in overrides.items() if k != "num_taxis"})
 

@@ -210,7 +210,7 @@ def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
         )  # fmt: skip
     else:
         cfg = make_instance(family, seed, feasibility=like.feasibility, max_passengers=like.num_passengers)
-    return cfg.replace(stop_features=like.stop_features, reward=like.reward, time_limit_steps=like.time_limit_steps)
+    return cfg.with_layout_of(like).replace(reward=like.reward)
 
 
 _BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig], MixtureVectorEnv] = {}

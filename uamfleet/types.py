@@ -59,6 +59,10 @@ STOP_RIVAL_FEATURES: tuple[str, ...] = (
     "rival_path",  # feasible-path distance from a waiting row's origin to the nearest other taxi with a seat / side
     "rivals_nearer",  # share of the other taxis with a seat that are nearer to it than this taxi
 )  # the "stop_rivals" field, with EnvConfig.stop_features and more than one taxi
+STOP_CLAIM_FEATURES: tuple[str, ...] = (  # with stop_claims, "stop_rivals" is observed for any fleet size
+    "claimed_by_me",  # 1: the nearest-first matching of free taxis to waiting rows gives this row to this taxi
+    "claimed_by_other",  # 1: ... to another taxi
+)  # the "stop_claims" field (int8), with EnvConfig.stop_claims and more than one taxi
 STATE_TAXI_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "index")  # rows of state(), per taxi
 STATE_PASSENGER_FEATURES: tuple[str, ...] = (
     "origin_x",

@@ -7,7 +7,7 @@ import pytest
 from conftest import small_config
 
 import uamfleet
-from uamfleet.config import RewardConfig
+from uamfleet.config import Request, RewardConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import NUM_HEADINGS, PASSENGER_FEATURES, PAX_AGE, PAX_ORIGIN_DX, PAX_WAITING
 
@@ -16,16 +16,41 @@ EAST, NORTH, WEST = 0, 4, 8
 
 def test_each_term_is_weighted_by_the_field_of_its_name():
     # Weights all different from the defaults: each column must show its own weight and nothing else.
-    weights = RewardConfig(step=-3.0, explore=5.0, explore_repeat=-0.7, pickup=11.0, dropoff=13.0, blocked=-17.0)
+    weights = RewardConfig(
+        step=-3.0, explore=5.0, explore_repeat=-0.7, pickup=11.0, dropoff=13.0, blocked=-17.0, separation=-19.0
+    )
     env = VectorEnv(small_config(reward=weights))
     env.reset(seed=0)
     # East: (250, 150), a new block (explore = +5), 100 m from P1's origin (350, 150): pick-up (+11).
     _, _, _, _, info = env.step(np.array([[EAST]]))
     terms = dict(zip(uamfleet.REWARD_TERMS, info["reward_terms"][0, 0], strict=True))
-    assert terms == pytest.approx({"step": -3, "explore": 5, "pickup": 11, "dropoff": 0, "blocked": 0, "shaping": 0})
+    expected = {"step": -3, "explore": 5, "pickup": 11, "dropoff": 0, "blocked": 0, "shaping": 0, "separation": 0}
+    assert terms == pytest.approx(expected)  # one taxi: never closer than the separation minimum to another
     # West: back to the start block, visited twice now: explore = -0.7 * (2 - 1).
     _, _, _, _, info = env.step(np.array([[WEST]]))
     assert dict(zip(uamfleet.REWARD_TERMS, info["reward_terms"][0, 0], strict=True))["explore"] == pytest.approx(-0.7)
+
+
+def test_separation_term_charges_each_taxi_that_ends_a_step_too_close_to_another():
+    # Three taxis on a 7x7 map of 100 m blocks; taxis 0 and 1 start 200 m apart, taxi 2 far away. Taxi 0 flies
+    # east and taxi 1 west: they meet (0 m) and both pay; then both fly north and stay together (0 m); taxi 2
+    # hovers east / west and never pays. 60 m minimum, so 100 m apart is no violation.
+    cfg = small_config(
+        "\n".join(["......."] * 7), starts_m=((150.0, 150.0), (350.0, 150.0), (650.0, 650.0)),
+        requests=(Request(0, (650.0, 150.0), (650.0, 350.0)),), reward=RewardConfig(separation=-19.0),
+        min_separation_m=60.0,
+    )  # fmt: skip
+    env = VectorEnv(cfg)
+    env.reset(seed=0)
+    column = uamfleet.REWARD_TERMS.index("separation")
+    for actions, expected in (
+        ([[EAST, WEST, WEST]], [-19.0, -19.0, 0.0]),  # 0 and 1 both at (250, 150)
+        ([[NORTH, NORTH, EAST]], [-19.0, -19.0, 0.0]),  # together at (250, 250)
+        ([[NORTH, EAST, WEST]], [0.0, 0.0, 0.0]),  # (250, 350) and (350, 250): 141 m apart
+    ):
+        _, _, _, _, info = env.step(np.array(actions))
+        assert info["reward_terms"][0, :, column].tolist() == expected
+        assert env.state.pos_m[0, 2].tolist() in ([550.0, 650.0], [650.0, 650.0])
 
 
 def test_every_term_has_a_weight_of_its_name_and_old_weight_names_still_work():

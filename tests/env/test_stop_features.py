@@ -15,7 +15,7 @@ from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
 from uamfleet.paths import table_for
-from uamfleet.types import NUM_HEADINGS
+from uamfleet.types import NUM_HEADINGS, WAITING
 
 # A wall at x = 300-400 m from y = 100 m to 500 m: from the west side, the stop on the east side is reached over the
 # wall's north end (the gap at y = 500-700 m), never straight east and never round the south (there is no gap).
@@ -190,6 +190,68 @@ def test_rivals_name_the_nearest_other_free_taxi_and_the_share_nearer() -> None:
     np.testing.assert_allclose(rivals[:, 0], np.array([min(d[1], d[2]), d[2], d[1]]) / side, rtol=1e-6)
     np.testing.assert_allclose(rivals[:, 1], [1.0, float(d[2] < d[1]), float(d[1] < d[2])])  # taxi 0 is full
     assert np.all(obs["stop_rivals"][0, :, 1] == 0.0)  # B rides: no rivals for her
+
+
+def _nearest_first(dist: dict[tuple[int, int], float], free: list[bool]) -> dict[int, int]:
+    """Row -> taxi by the nearest-first rule written out directly: repeatedly take the globally nearest
+    (taxi, row) pair whose taxi has a free seat and neither is taken yet."""
+    claims: dict[int, int] = {}
+    pairs = dict(dist)
+    while pairs:
+        (a, p), _ = min(pairs.items(), key=lambda item: (item[1], item[0]))
+        if free[a]:
+            claims[p] = a
+            pairs = {k: v for k, v in pairs.items() if k[0] != a and k[1] != p}
+        else:
+            pairs = {k: v for k, v in pairs.items() if k[0] != a}
+    return claims
+
+
+def test_claims_are_the_nearest_first_matching_of_free_taxis_to_waiting_rows() -> None:
+    """Three taxis (one seat each) and three waiting passengers: taxi 0 is next to B, taxi 2 next to C, so taxi 1
+    is left with A far in the north-east; after taxi 0 boards B it is full and claims nothing, and nobody claims
+    a rider."""
+    reqs = (
+        Request(0, (650.0, 650.0), (50.0, 650.0)),  # A
+        Request(0, (150.0, 250.0), (650.0, 50.0)),  # B: 100 m north of taxi 0
+        Request(0, (550.0, 350.0), (50.0, 50.0)),  # C: 100 m north of taxi 2
+    )
+    cfg = small_config(
+        "\n".join(["......."] * 7), starts_m=((150.0, 150.0), (350.0, 450.0), (550.0, 250.0)), requests=reqs,
+        seats=1, stop_features=True, stop_claims=True, patch_size=4,
+    )  # fmt: skip
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=0)
+    assert obs["stop_claims"].shape == (1, 3, 3, 2) and obs["stop_claims"].dtype == np.int8
+    table = table_for(env.world)
+
+    def expected_claims() -> dict[int, int]:
+        s = env.state
+        waiting = [p for p in range(3) if s.pax_status[0, p] == WAITING]
+        dist = {(a, p): float(table.distance(s.pos_m[0, a], s.pax_origin_m[0, p])) for a in range(3) for p in waiting}
+        return _nearest_first(dist, [bool(s.free_seats[0, a] > 0) for a in range(3)])
+
+    def observed_claims(obs: dict[str, np.ndarray]) -> dict[int, int]:
+        claims = obs["stop_claims"][0]  # [A, P, 2]
+        out = {}
+        for p in range(3):
+            mine = np.flatnonzero(claims[:, p, 0])
+            assert len(mine) <= 1
+            if len(mine):
+                out[p] = int(mine[0])
+                others = np.ones(3, bool)
+                others[mine[0]] = False
+                assert claims[others, p, 1].all() and not claims[mine[0], p, 1]  # everyone else: another's
+            else:
+                assert not claims[:, p].any()
+        return out
+
+    assert observed_claims(obs) == expected_claims() == {0: 1, 1: 0, 2: 2}  # by hand, then by the rule
+    obs, *_ = env.step(np.array([[4, 8, 8]]))  # taxi 0 north onto B; taxis 1 and 2 west
+    assert env.state.free_seats[0, 0] == 0
+    claims = observed_claims(obs)
+    assert claims == expected_claims() and set(claims) == {0, 2} and 1 not in claims  # B rides: nobody claims
+    assert 0 not in claims.values()  # a full taxi claims nothing
 
 
 def _brute_force_rest(table, state, a: int, first: int) -> float | None:

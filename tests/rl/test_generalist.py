@@ -15,7 +15,7 @@ from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_instance
 from uamfleet.metrics import episode_metrics
-from uamfleet.rl.networks import MSHAActorCritic, NetConfig, StopHead, obs_to_torch
+from uamfleet.rl.networks import CLAIM_INIT, MSHAActorCritic, NetConfig, StopHead, obs_to_torch
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.types import NUM_HEADINGS
 
@@ -42,6 +42,32 @@ def test_stop_head_is_the_hand_computed_mixture() -> None:
     expected[[0, 5, 9, 12]] += (1 / 3) / 4  # the free component over 4 allowed headings
     torch.testing.assert_close(probs, expected, atol=1e-6, rtol=0)
     assert math.isclose(float(probs.sum()), 1.0, abs_tol=1e-6)
+
+
+def test_claims_lower_another_taxis_stops_and_open_the_free_move_when_all_are_claimed() -> None:
+    """Zero learned weights and no tour prior: a stop claimed by another taxi starts CLAIM_INIT logits lower; the
+    free move (closed while an unclaimed stop is left) opens when every stop is another taxi's."""
+    head = StopHead(features=3, d_model=2, hidden=4, free_bias=0.0, claims=True)
+    with torch.no_grad():
+        for p in head.parameters():
+            p.zero_()
+        head.log_claim_weight.fill_(math.log(CLAIM_INIT))
+    heading_mask = torch.zeros(2, 2, NUM_HEADINGS)
+    heading_mask[:, 0, 3] = 1  # stop 0 -> heading 3
+    heading_mask[:, 1, 7] = 1  # stop 1 -> heading 7
+    free_logits = torch.zeros(2, NUM_HEADINGS)  # every heading allowed
+    claimed = torch.tensor([[True, False], [True, True]])
+    with torch.no_grad():
+        probs = head(torch.zeros(2, 3), torch.zeros(2, 2, 2), heading_mask, free_logits, None, claimed).exp()
+    low = math.exp(-CLAIM_INIT)
+    one = torch.zeros(NUM_HEADINGS)  # sample 0: stop 1 is open, so the free move is closed
+    one[3], one[7] = low / (low + 1), 1 / (low + 1)
+    two = torch.full((NUM_HEADINGS,), 1 / 16) * (1 / (2 * low + 1))  # sample 1: free move weight 1 of 2e^-8 + 1
+    two[3] += low / (2 * low + 1)
+    two[7] += low / (2 * low + 1)
+    torch.testing.assert_close(probs, torch.stack([one, two]), atol=1e-6, rtol=0)
+    with pytest.raises(ValueError, match="claimed_by_other"):
+        head(torch.zeros(2, 3), torch.zeros(2, 2, 2), heading_mask, free_logits)
 
 
 def _policy_net(**cfg_kwargs: object) -> tuple[MSHAActorCritic, dict[str, np.ndarray]]:

@@ -18,6 +18,7 @@ field of every stop, which all dispatchers share, is computed once per instance 
 from __future__ import annotations
 
 import csv
+import functools
 import math
 import multiprocessing as mp
 import time
@@ -83,10 +84,15 @@ def learned_name(checkpoint: Path) -> str:
     return f"learned:{checkpoint.parent.name if checkpoint.stem in ('best', 'last') else checkpoint.stem}"
 
 
+@functools.lru_cache(maxsize=16)
 def _learned(checkpoint: Path, taxis: int) -> Any:
-    """The greedy policy of a checkpoint, or None when it was trained for another fleet size."""
+    """The greedy policy of a checkpoint for ``taxis`` taxis: as trained, or resized zero-shot to another fleet
+    size (:meth:`~uamfleet.rl.trainer.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
     policy = learned_policy(checkpoint)
-    return policy if policy.num_taxis == taxis else None
+    try:
+        return policy.for_fleet(taxis)
+    except ValueError:
+        return None
 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:

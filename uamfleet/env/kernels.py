@@ -610,28 +610,37 @@ def stop_rivals(
     nbx: int,
     nby: int,
     o_rivals: np.ndarray,  # [E, A, P, 2] float32 out
+    o_claims: np.ndarray,  # [E, A, P, 2] int8 out, or a 0-size array: no claims
 ) -> bool:
     """What the other taxis of a fleet offer for each waiting passenger (docs/rules.md "Observation").
 
     For taxi a and a ``WAITING`` row p: ``o_rivals[..., 0]`` is the feasible-path distance from p's origin to the
     nearest *other* taxi with a free seat (map sides, :data:`STOP_PATH_CLIP` when there is none);
     ``o_rivals[..., 1]`` the share of the other taxis with a free seat that are nearer to it than a (0: a is the
-    nearest, or the only one). Zero for rows that are not waiting. Returns False when a table row is missing.
+    nearest, or the only one). Zero for rows that are not waiting.
+
+    ``o_claims`` (when not empty): the nearest-first matching of taxis with a free seat to waiting passengers
+    (pairs taken in order of feasible-path distance, each taxi and each passenger at most once):
+    ``o_claims[e, a, p, 0]`` = 1 when p is matched to a, ``[..., 1]`` = 1 when p is matched to another taxi.
+    Returns False when a table row is missing.
     """
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     side, block_m = w.side_m, w.block_m
-    dist = np.empty(num_taxis)
+    claims = o_claims.shape[0] > 0
+    dist = np.empty((num_taxis, num_pax))  # [A, P] taxi -> waiting origin, inf for other rows
     for e in range(num_envs):
         for p in range(num_pax):
             waiting = s.pax_exists[e, p] and s.pax_status[e, p] == WAITING
-            if waiting:
-                ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
-                for b in range(num_taxis):
-                    d = table_distance(table, block_m, nbx, nby, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
-                    if math.isnan(d):
-                        return False
-                    dist[b] = d
+            ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+            for b in range(num_taxis):
+                if not waiting:
+                    dist[b, p] = math.inf
+                    continue
+                d = table_distance(table, block_m, nbx, nby, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                if math.isnan(d):
+                    return False
+                dist[b, p] = d
             for a in range(num_taxis):
                 if not waiting:
                     o_rivals[e, a, p, 0] = 0.0
@@ -642,9 +651,32 @@ def stop_rivals(
                     if b == a or s.free_seats[e, b] <= 0:
                         continue
                     free_others += 1
-                    nearest = min(nearest, dist[b])
-                    if dist[b] < dist[a]:
+                    nearest = min(nearest, dist[b, p])
+                    if dist[b, p] < dist[a, p]:
                         nearer += 1
                 o_rivals[e, a, p, 0] = min(nearest / side, STOP_PATH_CLIP)
                 o_rivals[e, a, p, 1] = nearer / free_others if free_others > 0 else 0.0
+        if claims:
+            _nearest_first_claims(dist, s.free_seats[e], o_claims[e])
     return True
+
+
+@njit(cache=True)
+def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndarray) -> None:
+    """Greedy matching of taxis with a free seat to waiting passengers, nearest pair first (ties: lower taxi,
+    then lower row); ``dist`` [A, P] is inf for rows that are not waiting. out [A, P, 2]: mine, another's."""
+    num_taxis, num_pax = dist.shape
+    out[:] = 0
+    order = np.argsort(dist.ravel(), kind="mergesort")  # stable: ties in (taxi, row) order
+    taxi_done = np.zeros(num_taxis, np.bool_)
+    pax_done = np.zeros(num_pax, np.bool_)
+    for flat in order:
+        a, p = flat // num_pax, flat % num_pax
+        if math.isinf(dist[a, p]):
+            break  # only rows that are not waiting are left
+        if taxi_done[a] or pax_done[p] or free_seats[a] <= 0:
+            continue
+        taxi_done[a] = True
+        pax_done[p] = True
+        for b in range(num_taxis):
+            out[b, p, 0 if b == a else 1] = 1

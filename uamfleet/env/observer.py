@@ -25,6 +25,7 @@ from uamfleet.types import (
     SELF_FEATURES,
     STATE_PASSENGER_FEATURES,
     STATE_TAXI_FEATURES,
+    STOP_CLAIM_FEATURES,
     STOP_PATH_FEATURES,
     STOP_RIVAL_FEATURES,
     WAITING,
@@ -68,8 +69,10 @@ class Observer:
                 "stop_paths": spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_PATH_FEATURES)), f32),
                 "stop_heading_mask": spaces.Box(0, 1, (P, NUM_HEADINGS), np.int8),
             }
-            if cfg.num_taxis > 1:
+            if cfg.num_taxis > 1 or cfg.stop_claims:  # claims: also a fleet of one (one layout for every size)
                 stop_fields["stop_rivals"] = spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_RIVAL_FEATURES)), f32)
+                if cfg.stop_claims:
+                    stop_fields["stop_claims"] = spaces.Box(0, 1, (P, len(STOP_CLAIM_FEATURES)), np.int8)
         return spaces.Dict(
             {
                 **stop_fields,
@@ -112,9 +115,13 @@ class Observer:
             table, (nbx, nby) = self.table, self.table.shape
             args = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_paths"], obs["stop_heading_mask"])
             rivals = None
-            if A > 1:
+            if A > 1 or cfg.stop_claims:
                 obs["stop_rivals"] = np.empty((E, A, P, len(STOP_RIVAL_FEATURES)), f32)
-                rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"])
+                claims_shape = (E, A, P, len(STOP_CLAIM_FEATURES)) if cfg.stop_claims else (0, 0, 0, 0)
+                claims = np.zeros(claims_shape, np.int8)
+                if cfg.stop_claims:
+                    obs["stop_claims"] = claims
+                rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"], claims)
             if not kernels.stop_features(*args) or (rivals is not None and not kernels.stop_rivals(*rivals)):
                 # a stop whose table rows are not computed yet (a new instance): compute them, then again
                 exists = state.pax_exists

@@ -31,6 +31,7 @@ PICKUP = REWARD_TERMS.index("pickup")
 DROPOFF = REWARD_TERMS.index("dropoff")
 BLOCKED = REWARD_TERMS.index("blocked")
 SHAPING = REWARD_TERMS.index("shaping")
+SEPARATION = REWARD_TERMS.index("separation")
 
 
 def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray | None = None) -> np.ndarray:
@@ -38,9 +39,13 @@ def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray 
 
     ``step`` every step; ``explore``: ``explore`` on entering a new block, else ``explore_repeat * (visits - 1)``
     (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move; ``shaping`` as
-    given (see :func:`shaping_term`). Each term is weighted by the :class:`RewardConfig` field of its name.
+    given (see :func:`shaping_term`); ``separation`` per taxi closer than the separation minimum to another after
+    the step. Each term is weighted by the :class:`RewardConfig` field of its name.
     """
-    terms = _terms(events.moved, events.block_visits, events.pickups, events.dropoffs, *_weights(weights))
+    terms = _terms(
+        events.moved, events.block_visits, events.pickups, events.dropoffs, events.separation_violation,
+        *_weights(weights),
+    )  # fmt: skip
     if shaping is not None:
         terms[..., SHAPING] = shaping
     return terms
@@ -61,6 +66,7 @@ def _terms(
     block_visits: np.ndarray,  # [E, A]
     pickups: np.ndarray,  # [E, A]
     dropoffs: np.ndarray,  # [E, A]
+    separation: np.ndarray,  # [E, A] bool
     w: np.ndarray,  # [len(REWARD_TERMS)]
     explore_repeat: float,
 ) -> np.ndarray:
@@ -74,6 +80,7 @@ def _terms(
             out[e, a, PICKUP] = w[PICKUP] * pickups[e, a]
             out[e, a, DROPOFF] = w[DROPOFF] * dropoffs[e, a]
             out[e, a, BLOCKED] = 0.0 if moved[e, a] else w[BLOCKED]
+            out[e, a, SEPARATION] = w[SEPARATION] if separation[e, a] else 0.0
     return out
 
 

@@ -108,9 +108,9 @@ def global_moments(
     return out
 
 
-RAW_FIELDS: tuple[str, ...] = ("stop_paths", "stop_rivals")
+RAW_FIELDS: tuple[str, ...] = ("stop_paths", "stop_rivals", "stop_claims")
 """Fields passed through unchanged besides the masks: distances in map sides (already O(1)) that the stop head
-compares across passenger slots, which per-slot statistics would put on different scales."""
+compares across passenger slots, which per-slot statistics would put on different scales, and 0/1 claims."""
 
 
 class ObservationNormalizer:
@@ -146,6 +146,26 @@ class ObservationNormalizer:
 
     def state_dict(self) -> dict[str, dict[str, torch.Tensor | float]]:
         return {k: v.state_dict() for k, v in self.fields.items()}
+
+    def resized(self, shapes: dict[str, tuple[int, ...]]) -> ObservationNormalizer:
+        """These statistics for another layout of the same fields (another fleet size): a field whose first axis,
+        a set (passenger rows, other taxis), has another length gets the statistics pooled over that axis, the
+        same for every row; every other field keeps its own. Raises ValueError when a field changes otherwise."""
+        out = ObservationNormalizer(shapes, self.clip)
+        for key, rms in self.fields.items():
+            new = out.fields.get(key)
+            if new is None:
+                raise ValueError(f"field {key!r} is not in the new layout {sorted(shapes)}.")
+            if new.shape == rms.shape:
+                mean, var = rms.mean, rms.var
+            elif len(new.shape) >= 2 and new.shape[1:] == rms.shape[1:]:
+                pooled = rms.mean.mean(0)  # the moments of all rows together
+                mean = np.broadcast_to(pooled, new.shape)
+                var = np.broadcast_to((rms.var + rms.mean**2).mean(0) - pooled**2, new.shape)
+            else:
+                raise ValueError(f"field {key!r} has shape {new.shape} here and {rms.shape} in the statistics.")
+            new.mean, new.var, new.count = mean.copy(), np.maximum(var, 0.0), rms.count
+        return out
 
     def load_state_dict(self, state: dict[str, dict[str, torch.Tensor | np.ndarray | float]]) -> None:
         for key, value in state.items():

@@ -42,12 +42,17 @@ from torch import nn
 from torch.distributions import Categorical
 
 from uamfleet.env.observer import ObservationShapeError
-from uamfleet.types import NUM_HEADINGS, STOP_PATH_FEATURES
+from uamfleet.types import NUM_HEADINGS, STOP_CLAIM_FEATURES, STOP_PATH_FEATURES
 
 TOUR_VIA_STOP = STOP_PATH_FEATURES.index("tour_via_stop")
+PATH_TO_STOP = STOP_PATH_FEATURES.index("path_to_stop")
+CLAIMED_BY_OTHER = STOP_CLAIM_FEATURES.index("claimed_by_other")
 
 VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
 ACTION_HEADS: tuple[str, ...] = ("headings", "stops")
+STOP_PRIORS: tuple[str, ...] = ("tour", "nearest")
+"""The stop head's prior measure of a stop (``stop_paths`` column): the shortest tour that flies to it first, or
+the path to it alone."""
 READOUTS: tuple[str, ...] = ("flatten", "mean")
 NUM_ACTIONS = NUM_HEADINGS  # one logit per heading
 MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
@@ -66,8 +71,11 @@ class NetConfig:
     critic_state_dim: int | None = None  # set: the critic reads the global state [B, S] (MAPPO)
     action_head: str = "headings"  # "stops": a pointer over the stops, each flown along its progress heading
     stop_free_move: bool = False  # "stops": also a free move beside the stops (else only when no stop is actionable)
+    stop_prior: str = "tour"  # "stops": the prior prefers the shortest tour via a stop, or "nearest" stop
 
     def __post_init__(self) -> None:
+        if self.stop_prior not in STOP_PRIORS:
+            raise ValueError(f"stop_prior={self.stop_prior!r} is unknown; use one of {STOP_PRIORS}.")
         if self.action_head not in ACTION_HEADS:
             raise ValueError(f"action_head={self.action_head!r} is unknown; use one of {ACTION_HEADS}.")
         if self.action_head == "stops" and self.variant == "le":
@@ -430,6 +438,8 @@ class DesignedTorso(nn.Module):
         extra = shapes["stop_paths"][1] + 1 if self.stop_inputs else 0
         self.rival_inputs = self.stop_inputs and "stop_rivals" in shapes  # a fleet: what the other taxis offer
         extra += shapes["stop_rivals"][1] if self.rival_inputs else 0
+        self.claim_inputs = self.rival_inputs and "stop_claims" in shapes  # the nearest-first matching's claims
+        extra += shapes["stop_claims"][1] if self.claim_inputs else 0
         self.passengers = PassengerEncoder(shapes["passengers"][1] + extra, D, cfg.num_heads)
         self.sinr_cnn = MapEncoder(C)
         self.visit_cnn = MapEncoder(C)  # a separate CNN: SINR and visit ratio are different physical fields
@@ -458,7 +468,9 @@ class DesignedTorso(nn.Module):
         if self.stop_inputs:
             actionable = _as_bool(obs["stop_heading_mask"]).any(-1, keepdim=True).to(rows.dtype)  # [B, P, 1]
             parts = [rows, obs["stop_paths"], actionable] + ([obs["stop_rivals"]] if self.rival_inputs else [])
-            rows = torch.cat(parts, dim=-1)  # [B, P, F + 3 (+ 2)]
+            if self.claim_inputs:
+                parts.append(obs["stop_claims"].to(rows.dtype))
+            rows = torch.cat(parts, dim=-1)  # [B, P, F + 3 (+ 2 rivals + 2 claims)]
         pax = self.passengers(rows, released)  # [B, P, D]
         maps = torch.cat([self.sinr_cnn(obs["sinr_patch"]), self.visit_cnn(obs["visit_patch"])], dim=-1)  # [B, G, 2C]
         others = self.others(obs["others"], _as_bool(obs["others_mask"]))  # [B, D]
@@ -479,6 +491,9 @@ NOT_THIS = -1e4  # log-weight of "no": exp() is 0 in float32, yet finite, so no 
 NEARNESS_INIT = 20.0
 """Initial weight of the stop head's prior, per map side of tour: on Berlin (3.3 km) a stop whose tour is 330 m
 shorter starts with 2 more logits (e^2 = 7.4 times the probability)."""
+CLAIM_INIT = 8.0
+"""Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
+the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
 
 
 class StopHead(nn.Module):
@@ -491,15 +506,23 @@ class StopHead(nn.Module):
     still one categorical distribution over the 16 headings (the env and PPO are unchanged), but choosing a stop
     is one decision instead of learning the path to it.
 
-    Each stop's score starts from a prior, ``-nearness * (tour_via_stop - the best stop's)``: the length of the
-    tour that flies to this stop first and then to every other known stop in nearest-stop order
-    (``stop_paths[..., 2]``, map sides, passed to the network unnormalised), i.e. one step of a rollout of the
-    nearest-stop heuristic. So the untrained policy already plans like that rollout and keeps flying to the stop
-    it chose; ``nearness`` (initially :data:`NEARNESS_INIT`, learned) and the learned part of the score then move
-    it off that order where the return says so. Without a prior the untrained policy picks a stop afresh every
-    step and dithers between them (episodes of ~370 steps against ~90 for flying to the nearest stop, in a first
-    run); with the nearest stop's distance as the prior, PPO stayed at the nearest-stop heuristic's TD for 1 M
-    agent-steps (validation mean 10,416 m against its 10,470 m).
+    Each stop's score starts from a prior, ``-nearness * (measure - the best stop's)``. With
+    ``NetConfig.stop_prior="tour"`` the measure is ``tour_via_stop`` (``stop_paths[..., 2]``, map sides, passed
+    to the network unnormalised): the shortest tour through every known stop that flies to this one first. So
+    the untrained policy already flies that tour and keeps flying to the stop it chose; ``nearness`` (initially
+    :data:`NEARNESS_INIT`, learned) and the learned part of the score then move it off that order where the
+    return says so. Without a prior the untrained policy picks a stop afresh every step and dithers between them
+    (episodes of ~370 steps against ~90 for flying to the nearest stop, in a first run); with the nearest stop's
+    distance as the prior, PPO stayed at the nearest-stop heuristic's TD for 1 M agent-steps (validation mean
+    10,416 m against its 10,470 m). With ``stop_prior="nearest"`` the measure is ``path_to_stop``: the fleet's
+    choice, since one taxi's tour through every waiting passenger of a fleet is not its tour.
+
+    In a fleet whose observation has ``stop_claims`` (``claims=True``), a waiting passenger that the nearest-first
+    matching of free taxis gives to *another* taxi starts :data:`CLAIM_INIT` logits lower (``claim_weight``,
+    learned), and the free component is also open when every actionable stop of the taxi is claimed by others
+    (it carries nobody and no passenger is left for it): the taxi may then wait instead of chasing another
+    taxi's passenger. Without claims every taxi of a fleet flew to some stop, so idle taxis converged on the last
+    waiting passengers and flew in convoy (18.7 separation violations per episode against greedy's 1.5).
 
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
@@ -509,10 +532,13 @@ class StopHead(nn.Module):
     """
 
     def __init__(
-        self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False
-    ) -> None:
+        self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
+        claims: bool = False,
+    ) -> None:  # fmt: skip
         super().__init__()
-        self.free_move = free_move
+        self.free_move, self.claims = free_move, claims
+        if claims:  # only then: checkpoints of heads without claims keep their exact parameter set
+            self.log_claim_weight = nn.Parameter(torch.tensor(math.log(CLAIM_INIT)))
         self.from_features = nn.Linear(features, hidden)
         self.from_token = nn.Linear(d_model, hidden, bias=False)
         self.score = layer_init(nn.Linear(hidden, 1), std=0.01)
@@ -521,10 +547,10 @@ class StopHead(nn.Module):
 
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
-        path_to_stop: torch.Tensor | None = None,
+        path_to_stop: torch.Tensor | None = None, claimed_by_other: torch.Tensor | None = None,
     ) -> torch.Tensor:  # fmt: skip
         """features [B, F], tokens [B, P, D], heading_mask [B, P, 16], free_logits [B, 16] (masked), path_to_stop
-        [B, P] (map sides; None: no prior) → log pi [B, 16]."""
+        [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``) → log pi [B, 16]."""
         onehot = _as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
         hidden = torch.tanh(self.from_features(features).unsqueeze(1) + self.from_token(tokens))  # [B, P, H]
@@ -533,10 +559,16 @@ class StopHead(nn.Module):
             nearest = path_to_stop.masked_fill(~actionable, math.inf).amin(-1, keepdim=True)  # [B, 1]
             extra = torch.where(actionable, path_to_stop - nearest, 0.0)  # [B, P] >= 0
             scores = scores - self.log_nearness.exp() * extra
+        open_stop = actionable  # [B, P] the stops that keep the free component closed
+        if self.claims:
+            if claimed_by_other is None:
+                raise ValueError("this stop head reads claims: pass claimed_by_other [B, P] (obs 'stop_claims').")
+            scores = scores - self.log_claim_weight.exp() * claimed_by_other.to(scores.dtype)
+            open_stop = actionable & ~claimed_by_other
         scores = scores.masked_fill(~actionable, NOT_THIS)  # [B, P]
         free_score = self.free(features)  # [B, 1]
-        if not self.free_move:  # only when there is no stop to fly to
-            free_score = free_score.masked_fill(actionable.any(-1, keepdim=True), NOT_THIS)
+        if not self.free_move:  # only when there is no stop to fly to (that no other taxi is matched with)
+            free_score = free_score.masked_fill(open_stop.any(-1, keepdim=True), NOT_THIS)
         weights = torch.log_softmax(torch.cat([scores, free_score], dim=-1), dim=-1)  # [B, P + 1]
         per_stop = weights[:, :-1, None] + torch.where(onehot, 0.0, NOT_THIS)  # [B, P, 16]
         free = weights[:, -1:, None] + torch.log_softmax(free_logits, dim=-1).unsqueeze(1)  # [B, 1, 16]
@@ -579,7 +611,9 @@ class MSHAActorCritic(nn.Module):
                     "'stop_heading_mask'): build the env with EnvConfig(stop_features=True), e.g. the "
                     "'berlin_instances' scenario."
                 )
-            self.stop_head = StopHead(features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move)
+            self.stop_head = StopHead(
+                features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=self.torso.claim_inputs
+            )
 
     def _actor(self, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
         """(masked logits [B, 16], torso features [B, F])."""
@@ -589,8 +623,10 @@ class MSHAActorCritic(nn.Module):
         assert isinstance(self.torso, DesignedTorso)
         features, tokens = self.torso.encode(obs)  # [B, F], [B, P, D]
         free = mask_logits(self.actor(features), obs["action_mask"])  # [B, 16]
-        tour = obs["stop_paths"][..., TOUR_VIA_STOP]  # [B, P] map sides: the prior's measure of each stop
-        logp = self.stop_head(features, tokens, obs["stop_heading_mask"], free, tour)  # [B, 16]
+        measure = TOUR_VIA_STOP if self.cfg.stop_prior == "tour" else PATH_TO_STOP
+        prior = obs["stop_paths"][..., measure]  # [B, P] map sides: the prior's measure of each stop
+        claimed = _as_bool(obs["stop_claims"][..., CLAIMED_BY_OTHER]) if self.stop_head.claims else None  # [B, P]
+        logp = self.stop_head(features, tokens, obs["stop_heading_mask"], free, prior, claimed)  # [B, 16]
         return mask_logits(logp, obs["action_mask"]), features
 
     def check(self, obs: dict[str, torch.Tensor]) -> int:

@@ -50,7 +50,7 @@ from uamfleet.io import write_bytes_atomic, write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.distributed import World, sample_actions
-from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.networks import VARIANTS, DesignedTorso, MSHAActorCritic, NetConfig, obs_to_torch
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
 from uamfleet.rollout import Trajectory, fly
 
@@ -115,6 +115,9 @@ class TrainArgs:
     its progress heading (needs the stop features, e.g. the *_instances scenarios)"""
     stop_free_move: bool = False
     """with --action-head stops: a free move (any heading) beside the stops, not only when no stop is actionable"""
+    stop_prior: Literal["tour", "nearest"] = "tour"
+    """with --action-head stops: the prior prefers the stop that starts the shortest tour through every known stop
+    (one taxi), or the nearest stop (a fleet with claims: the greedy dispatcher's rule along feasible paths)"""
     # PPO
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
@@ -344,10 +347,42 @@ class GreedyPolicy:
                 f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
                 f"num_taxis={like.num_taxis} (or train a policy for this fleet)."
             )
-        return cfg.replace(
-            max_passengers=like.num_passengers, stop_features=like.stop_features,
-            time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
+        return cfg.with_layout_of(like)
+
+    def for_fleet(self, num_taxis: int, passenger_slots: int | None = None) -> GreedyPolicy:
+        """This policy for a fleet of ``num_taxis`` (zero-shot: the same weights). The network reads the other
+        taxis and the passenger rows as sets, so only the observation layout changes: ``passenger_slots``
+        (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
+        their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
+        position (the linear encoder) or a policy without its training config."""
+        slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
+        if num_taxis == self.num_taxis and slots == self.passenger_slots:
+            return self
+        if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
+            raise ValueError(
+                "only a policy of a designed variant ('de', 'de_msfea', 'full') with its training config flies "
+                f"another fleet size; this one flies num_taxis={self.num_taxis} only."
+            )
+        # the layout's own random demand must fit its passenger axis
+        demand, most = self.trained_on.demand, min(self.trained_on.demand.max_requests, slots)
+        demand = dataclasses.replace(
+            demand, max_requests=most, min_requests=min(demand.min_requests, most),
+            num_initial=min(demand.num_initial, most),
         )  # fmt: skip
+        like = self.trained_on.replace(
+            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand
+        )
+        venv = VectorEnv(like, num_envs=1)
+        shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+        if set(shapes) != set(self.obs_shapes or shapes):
+            raise ValueError(
+                f"a fleet of {num_taxis} observes fields {sorted(shapes)}, the policy was trained on "
+                f"{sorted(self.obs_shapes or {})}: fly it on fleets of more than one taxi (or train one)."
+            )
+        net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
+        net.shapes = shapes
+        normalizer = self.normalizer.resized(shapes) if self.normalizer is not None else None
+        return GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like)
 
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
         """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
@@ -398,7 +433,7 @@ CHECKPOINT_FORMAT = 2
 NumPy RNG state inside."""
 ARCHITECTURE_FIELDS = (
     "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
-    "stop_free_move",
+    "stop_free_move", "stop_prior",
 )  # fmt: skip
 ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "thresholds", "num_taxis", "feasibility", "norm_obs", "norm_reward")
 
@@ -678,7 +713,7 @@ def make_learner(run: Run) -> Learner:
     net_cfg = NetConfig(
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
         readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
-        stop_free_move=args.stop_free_move,
+        stop_free_move=args.stop_free_move, stop_prior=args.stop_prior,
     )  # fmt: skip
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     return Learner(
@@ -1100,6 +1135,12 @@ def read_progress(path: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in r.items() if v not in ("", None)} for r in csv.DictReader(f)]
 
 
+def _as_trained(cfg: EnvConfig, ckpt: Checkpoint) -> EnvConfig:
+    """A preset's config as the checkpoint saw it: a fleet preset observes ``stop_claims`` since they were added,
+    so a checkpoint trained before (no such field) flies the preset without them."""
+    return cfg.replace(stop_claims=False) if cfg.stop_claims and "stop_claims" not in ckpt.obs_shapes else cfg
+
+
 def load_policy(
     path: str | Path, device: str = "cpu", env_config: EnvConfig | None = None
 ) -> tuple[GreedyPolicy, TrainArgs]:
@@ -1108,7 +1149,7 @@ def load_policy(
     file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = ckpt.train_args()
-    cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
+    cfg = env_config if env_config is not None else _as_trained(make_env_config(args.scenario, args, False), ckpt)
     venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     try:
@@ -1117,7 +1158,8 @@ def load_policy(
         raise ValueError(
             f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
             f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
-            f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}."
+            f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}, "
+            f"stop_claims={'stop_claims' in ckpt.obs_shapes}."
         ) from None
     net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt.net_config)).to(device)
     net.load_state_dict(ckpt.model)
@@ -1128,7 +1170,7 @@ def load_policy(
         normalizer.load_state_dict(ckpt.obs_normalizer)
     trained_on = env_config if env_config is not None else cfg
     if env_config is not None and args.scenario in PRESETS:
-        trained_on = make_env_config(args.scenario, args, training=False)
+        trained_on = _as_trained(make_env_config(args.scenario, args, training=False), ckpt)
     return GreedyPolicy(
         net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
     ), args

@@ -1,0 +1,67 @@
+"""One fleet policy for every fleet size: the set-shaped observation fields and their normaliser statistics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from uamfleet.config import make_config
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import make_fleet_instance
+from uamfleet.metrics import episode_metrics
+from uamfleet.rl.buffer import ObservationNormalizer
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig
+from uamfleet.rl.trainer import GreedyPolicy
+
+
+def test_a_resized_normaliser_pools_the_rows_of_a_set() -> None:
+    """Rows with different means: the pooled statistics are the mean and variance of all rows' values together
+    (computed here directly from the data), the same for every row of the new length; other fields are kept."""
+    rng = np.random.default_rng(0)
+    rows = rng.normal(loc=[[0.0, 1.0], [2.0, -1.0], [4.0, 0.5]], scale=[[1.0, 2.0], [0.5, 1.0], [1.0, 0.1]],
+                      size=(2000, 3, 2))  # fmt: skip
+    own = rng.normal(size=(2000, 4))
+    norm = ObservationNormalizer({"others": (3, 2), "self": (4,)})
+    norm.update({"others": rows, "self": own})
+    for length in (1, 7):
+        out = norm.resized({"others": (length, 2), "self": (4,)})
+        pooled = out.fields["others"]
+        np.testing.assert_allclose(pooled.mean, np.tile(rows.reshape(-1, 2).mean(0), (length, 1)), atol=1e-6)
+        np.testing.assert_allclose(pooled.var, np.tile(rows.reshape(-1, 2).var(0), (length, 1)), rtol=1e-5)
+        np.testing.assert_array_equal(out.fields["self"].mean, norm.fields["self"].mean)
+    with pytest.raises(ValueError, match="'others'"):
+        norm.resized({"others": (3, 5), "self": (4,)})
+
+
+def _untrained_fleet_policy(taxis: int, variant: str = "de_msfea") -> GreedyPolicy:
+    cfg = make_config("berlin_fleet", num_taxis=taxis, sinr_min_db=-5.0)
+    venv = VectorEnv(cfg, num_envs=1)
+    torch.manual_seed(0)
+    head = "stops" if variant != "le" else "headings"
+    net = MSHAActorCritic(
+        venv.single_observation_space, NetConfig(variant=variant, d_model=16, action_head=head, stop_prior="nearest")
+    ).eval()
+    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    return GreedyPolicy(net, None, torch.device("cpu"), shapes, taxis, cfg.num_passengers, cfg)
+
+
+def test_a_two_taxi_policy_flies_one_and_three_taxis() -> None:
+    """The untrained stop head flies its prior (nearest stop, another taxi's claims avoided), which serves
+    everyone: resized, it reads one taxi (no rivals, 6 slots) and three (18 slots) and delivers every passenger."""
+    policy = _untrained_fleet_policy(2)
+    assert policy.for_fleet(2) is policy
+    for taxis in (1, 3):
+        resized = policy.for_fleet(taxis)
+        assert resized.num_taxis == taxis and resized.passenger_slots == 6 * taxis
+        assert resized.obs_shapes is not None and resized.obs_shapes["stop_claims"] == (6 * taxis, 2)
+        cfg = make_fleet_instance("berlin", 1_000_000, num_taxis=taxis, num_requests=2 * taxis)
+        m = episode_metrics(resized.fly(cfg), cfg.radio)
+        assert m.num_requests == 2 * taxis and m.pr_pct == 100.0
+    with pytest.raises(ValueError, match="3 taxi"):
+        policy.layout(make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=2))
+
+
+def test_a_policy_that_reads_the_sets_by_position_keeps_its_size() -> None:
+    with pytest.raises(ValueError, match="designed variant"):
+        _untrained_fleet_policy(2, variant="le").for_fleet(3)
