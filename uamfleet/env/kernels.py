@@ -662,6 +662,28 @@ def stop_rivals(
 
 
 @njit(cache=True)
+def hover_headings(s: FleetState, w: WorldArrays, out: np.ndarray) -> None:
+    """out[e, a] (int8 [E, A, 16], one-hot): the allowed heading whose endpoint is nearest the taxi's position one
+    step ago, so that two such moves in a row hover about a point (as the fleet dispatchers' idle taxis do); the
+    lowest allowed heading at the first step, all zero when no move is allowed."""
+    num_envs, num_taxis = s.free_seats.shape
+    out[:] = 0
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            px, py = s.history_m[e, a, 0, 0], s.history_m[e, a, 0, 1]
+            best, best_d = -1, math.inf
+            for h in range(NUM_HEADINGS):
+                if not s.action_mask[e, a, h]:
+                    continue
+                d = (x + w.moves_m[h, 0] - px) ** 2 + (y + w.moves_m[h, 1] - py) ** 2
+                if d < best_d - 1e-9:
+                    best, best_d = h, d
+            if best >= 0:
+                out[e, a, best] = 1
+
+
+@njit(cache=True)
 def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndarray) -> None:
     """Greedy matching of taxis with a free seat to waiting passengers, nearest pair first (ties: lower taxi,
     then lower row); ``dist`` [A, P] is inf for rows that are not waiting. out [A, P, 2]: mine, another's."""

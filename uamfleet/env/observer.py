@@ -73,6 +73,7 @@ class Observer:
                 stop_fields["stop_rivals"] = spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_RIVAL_FEATURES)), f32)
                 if cfg.stop_claims:
                     stop_fields["stop_claims"] = spaces.Box(0, 1, (P, len(STOP_CLAIM_FEATURES)), np.int8)
+                    stop_fields["hover_heading_mask"] = spaces.Box(0, 1, (NUM_HEADINGS,), np.int8)
         return spaces.Dict(
             {
                 **stop_fields,
@@ -121,6 +122,8 @@ class Observer:
                 claims = np.zeros(claims_shape, np.int8)
                 if cfg.stop_claims:
                     obs["stop_claims"] = claims
+                    obs["hover_heading_mask"] = np.empty((E, A, NUM_HEADINGS), np.int8)
+                    kernels.hover_headings(state, self.world.arrays, obs["hover_heading_mask"])
                 rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"], claims)
             if not kernels.stop_features(*args) or (rivals is not None and not kernels.stop_rivals(*rivals)):
                 # a stop whose table rows are not computed yet (a new instance): compute them, then again

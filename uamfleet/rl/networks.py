@@ -491,6 +491,9 @@ NOT_THIS = -1e4  # log-weight of "no": exp() is 0 in float32, yet finite, so no 
 NEARNESS_INIT = 20.0
 """Initial weight of the stop head's prior, per map side of tour: on Berlin (3.3 km) a stop whose tour is 330 m
 shorter starts with 2 more logits (e^2 = 7.4 times the probability)."""
+HOVER_LEAD = 2.0
+"""Initial lead, in logits, of the stop head's hover component over its free move: an idle taxi starts by
+hovering (7.4 times as likely as moving freely)."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -523,6 +526,10 @@ class StopHead(nn.Module):
     (it carries nobody and no passenger is left for it): the taxi may then wait instead of chasing another
     taxi's passenger. Without claims every taxi of a fleet flew to some stop, so idle taxis converged on the last
     waiting passengers and flew in convoy (18.7 separation violations per episode against greedy's 1.5).
+    With ``hover=True`` (the observation has ``hover_heading_mask``, the heading back to where the taxi was a step
+    ago) a hover component opens with the free move and starts :data:`HOVER_LEAD` logits ahead of it: an idle
+    taxi then hovers about a point, as the dispatchers' idle taxis do, instead of wandering into the others (with
+    claims but no hover, idle taxis drifted together: most of the separation violations left).
 
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
@@ -533,12 +540,14 @@ class StopHead(nn.Module):
 
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
-        claims: bool = False,
+        claims: bool = False, hover: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
-        self.free_move, self.claims = free_move, claims
+        self.free_move, self.claims, self.hovers = free_move, claims, hover
         if claims:  # only then: checkpoints of heads without claims keep their exact parameter set
             self.log_claim_weight = nn.Parameter(torch.tensor(math.log(CLAIM_INIT)))
+        if hover:  # a "hover" component beside the free move, HOVER_LEAD logits ahead of it at first
+            self.hover = layer_init(nn.Linear(features, 1), std=0.01, bias=free_bias + HOVER_LEAD)
         self.from_features = nn.Linear(features, hidden)
         self.from_token = nn.Linear(d_model, hidden, bias=False)
         self.score = layer_init(nn.Linear(hidden, 1), std=0.01)
@@ -548,9 +557,11 @@ class StopHead(nn.Module):
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
         path_to_stop: torch.Tensor | None = None, claimed_by_other: torch.Tensor | None = None,
+        hover_mask: torch.Tensor | None = None,
     ) -> torch.Tensor:  # fmt: skip
         """features [B, F], tokens [B, P, D], heading_mask [B, P, 16], free_logits [B, 16] (masked), path_to_stop
-        [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``) → log pi [B, 16]."""
+        [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``), hover_mask [B, 16]
+        one-hot (with ``hover``) → log pi [B, 16]."""
         onehot = _as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
         hidden = torch.tanh(self.from_features(features).unsqueeze(1) + self.from_token(tokens))  # [B, P, H]
@@ -569,10 +580,21 @@ class StopHead(nn.Module):
         free_score = self.free(features)  # [B, 1]
         if not self.free_move:  # only when there is no stop to fly to (that no other taxi is matched with)
             free_score = free_score.masked_fill(open_stop.any(-1, keepdim=True), NOT_THIS)
-        weights = torch.log_softmax(torch.cat([scores, free_score], dim=-1), dim=-1)  # [B, P + 1]
-        per_stop = weights[:, :-1, None] + torch.where(onehot, 0.0, NOT_THIS)  # [B, P, 16]
-        free = weights[:, -1:, None] + torch.log_softmax(free_logits, dim=-1).unsqueeze(1)  # [B, 1, 16]
-        return torch.logsumexp(torch.cat([per_stop, free], dim=1), dim=1)  # [B, 16] log-probabilities
+        idle = [free_score]
+        if self.hovers:
+            if hover_mask is None:
+                raise ValueError("this stop head hovers: pass hover_mask [B, 16] (obs 'hover_heading_mask').")
+            hover_at = _as_bool(hover_mask)  # [B, 16] one-hot (all zero: no move allowed)
+            closed = open_stop.any(-1, keepdim=True) | ~hover_at.any(-1, keepdim=True)  # [B, 1]
+            idle.append(self.hover(features).masked_fill(closed, NOT_THIS))
+        weights = torch.log_softmax(torch.cat([scores, *idle], dim=-1), dim=-1)  # [B, P + 1 (+ 1)]
+        P = scores.shape[-1]
+        per_stop = weights[:, :P, None] + torch.where(onehot, 0.0, NOT_THIS)  # [B, P, 16]
+        free = weights[:, P : P + 1, None] + torch.log_softmax(free_logits, dim=-1).unsqueeze(1)  # [B, 1, 16]
+        parts = [per_stop, free]
+        if self.hovers:
+            parts.append(weights[:, P + 1 :, None] + torch.where(hover_at, 0.0, NOT_THIS).unsqueeze(1))  # [B, 1, 16]
+        return torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
 
 
 # ---------------------------------------------------------------------------------------------- the policy
@@ -612,8 +634,9 @@ class MSHAActorCritic(nn.Module):
                     "'berlin_instances' scenario."
                 )
             self.stop_head = StopHead(
-                features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=self.torso.claim_inputs
-            )
+                features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=self.torso.claim_inputs,
+                hover=self.torso.claim_inputs and "hover_heading_mask" in self.shapes,
+            )  # fmt: skip
 
     def _actor(self, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
         """(masked logits [B, 16], torso features [B, F])."""
@@ -626,7 +649,8 @@ class MSHAActorCritic(nn.Module):
         measure = TOUR_VIA_STOP if self.cfg.stop_prior == "tour" else PATH_TO_STOP
         prior = obs["stop_paths"][..., measure]  # [B, P] map sides: the prior's measure of each stop
         claimed = _as_bool(obs["stop_claims"][..., CLAIMED_BY_OTHER]) if self.stop_head.claims else None  # [B, P]
-        logp = self.stop_head(features, tokens, obs["stop_heading_mask"], free, prior, claimed)  # [B, 16]
+        hover = obs["hover_heading_mask"] if self.stop_head.hovers else None  # [B, 16]
+        logp = self.stop_head(features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover)  # [B, 16]
         return mask_logits(logp, obs["action_mask"]), features
 
     def check(self, obs: dict[str, torch.Tensor]) -> int:

@@ -22,13 +22,14 @@ import math
 import re
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
+from gymnasium import spaces
 from torch.distributions import Categorical
 
 from uamfleet.config import (
@@ -374,6 +375,7 @@ class GreedyPolicy:
         )
         venv = VectorEnv(like, num_envs=1)
         shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+        shapes = {k: v for k, v in shapes.items() if k in (self.obs_shapes or shapes)}
         if set(shapes) != set(self.obs_shapes or shapes):
             raise ValueError(
                 f"a fleet of {num_taxis} observes fields {sorted(shapes)}, the policy was trained on "
@@ -394,9 +396,9 @@ class GreedyPolicy:
         if self.obs_shapes is None:
             return
         diffs = [
-            f"{k!r} {tuple(v.shape[2:])} (trained on {self.obs_shapes.get(k)})"
-            for k, v in obs.items()
-            if tuple(v.shape[2:]) != tuple(self.obs_shapes.get(k, ()))
+            f"{k!r} {tuple(obs[k].shape[2:]) if k in obs else None} (trained on {shape})"
+            for k, shape in self.obs_shapes.items()
+            if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
         ]
         if diffs:
             raise ValueError(
@@ -410,7 +412,8 @@ class GreedyPolicy:
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         self.check_layout(obs)
         E, A = obs["action_mask"].shape[:2]
-        flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items()}
+        known = self.obs_shapes or obs  # a field the policy was not trained on is not read
+        flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
         if self.normalizer is not None:
             flat = self.normalizer(flat)
         logits = self.net.masked_logits(obs_to_torch(flat, self.device))  # [E * A, 16]; needs no critic state
@@ -518,8 +521,11 @@ class Checkpoint:
         saved["run_dir"] = Path(saved.get("run_dir", "runs"))
         return TrainArgs(**saved)
 
-    def check_matches(self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]]) -> None:
-        """Raise ValueError naming every architecture, scenario or observation-layout field that differs."""
+    def check_matches(
+        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
+    ) -> None:
+        """Raise ValueError naming every architecture, scenario or observation-layout field that differs;
+        ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
         diffs = []
         if args is not None:
             for key in (*ARCHITECTURE_FIELDS, *ENVIRONMENT_FIELDS):
@@ -527,6 +533,8 @@ class Checkpoint:
                     diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {getattr(args, key)!r}")
         for key in sorted(set(self.obs_shapes) | set(obs_shapes)):
             saved, now = self.obs_shapes.get(key), obs_shapes.get(key)
+            if saved is None and extra_ok:
+                continue
             if saved is None or now is None or tuple(saved) != tuple(now):
                 diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
         if diffs:
@@ -1135,6 +1143,10 @@ def read_progress(path: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in r.items() if v not in ("", None)} for r in csv.DictReader(f)]
 
 
+def _only(space: spaces.Dict, fields: Iterable[str]) -> spaces.Dict:
+    return spaces.Dict({k: s for k, s in space.spaces.items() if k in set(fields)})
+
+
 def _as_trained(cfg: EnvConfig, ckpt: Checkpoint) -> EnvConfig:
     """A preset's config as the checkpoint saw it: a fleet preset observes ``stop_claims`` since they were added,
     so a checkpoint trained before (no such field) flies the preset without them."""
@@ -1153,7 +1165,7 @@ def load_policy(
     venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     try:
-        ckpt.check_matches(None, shapes)
+        ckpt.check_matches(None, shapes, extra_ok=True)
     except ValueError as err:
         raise ValueError(
             f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
@@ -1161,7 +1173,9 @@ def load_policy(
             f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}, "
             f"stop_claims={'stop_claims' in ckpt.obs_shapes}."
         ) from None
-    net = MSHAActorCritic(venv.single_observation_space, NetConfig(**ckpt.net_config)).to(device)
+    space = _only(venv.single_observation_space, ckpt.obs_shapes)  # fields added to the env since are not read
+    shapes = {k: tuple(s.shape or ()) for k, s in space.spaces.items()}
+    net = MSHAActorCritic(space, NetConfig(**ckpt.net_config)).to(device)
     net.load_state_dict(ckpt.model)
     net.eval()
     normalizer = None
