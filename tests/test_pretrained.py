@@ -60,3 +60,15 @@ def test_the_berlin_fleet_policy_serves_a_fleet_instance() -> None:
     assert m.num_requests == 8 and m.pr_pct == 100.0
     with pytest.raises(ValueError, match="4"):
         fleet.layout(uamfleet.make_config("berlin_fleet", num_taxis=2))
+
+
+def test_the_shipped_fleet_policy_serves_its_own_and_other_fleet_sizes() -> None:
+    from uamfleet.instances import make_fleet_instance
+
+    fleet = uamfleet.pretrained("berlin_fleet")
+    assert fleet.num_taxis == 4
+    for taxis, requests in ((4, 8), (2, 4)):
+        policy = fleet.for_fleet(taxis)
+        cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=taxis, num_requests=requests)
+        m = episode_metrics(policy.fly(cfg), cfg.radio)
+        assert m.num_requests == requests and m.pr_pct == 100.0

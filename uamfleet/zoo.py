@@ -19,7 +19,9 @@ from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy
 
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests
-    "berlin_fleet4": "berlin_fleet4.pt",  # 4 taxis sharing one policy on the Berlin map, up to 24 requests
+    "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
+    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi
+    "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
 }
 """Name -> file in ``uamfleet/data/pretrained``."""
 

@@ -254,6 +254,27 @@ def test_claims_are_the_nearest_first_matching_of_free_taxis_to_waiting_rows() -
     assert 0 not in claims.values()  # a full taxi claims nothing
 
 
+def test_the_hover_heading_flies_back_to_where_the_taxi_was_a_step_ago() -> None:
+    """At the first step every endpoint is a step from the start, so the hover heading is the lowest allowed one
+    (taxi 1 starts with a wall east of it: not east); after flying east it is west, after north-east south-west."""
+    art = "\n".join([".......", ".......", ".......", ".......", ".......", ".......", ".#....."])
+    cfg = small_config(
+        art, starts_m=((350.0, 350.0), (50.0, 50.0)), requests=(Request(0, (650.0, 650.0), (650.0, 50.0)),),
+        stop_features=True, stop_claims=True, patch_size=4, feasibility="endpoint_block",
+    )  # fmt: skip
+    env = VectorEnv(cfg, num_envs=1)
+    obs, _ = env.reset(seed=0)
+    hover = obs["hover_heading_mask"][0]  # [A, 16]
+    assert hover.sum(-1).tolist() == [1, 1]
+    first_allowed = [int(np.flatnonzero(env.state.action_mask[0, a])[0]) for a in range(2)]
+    assert first_allowed[0] == 0 and first_allowed[1] > 0  # the wall blocks taxi 1's way east
+    assert hover.argmax(-1).tolist() == first_allowed
+    obs, *_ = env.step(np.array([[0, 4]]))  # taxi 0 east to (450, 350); taxi 1 north to (50, 150)
+    assert obs["hover_heading_mask"][0].argmax(-1).tolist() == [8, 12]  # west; south
+    obs, *_ = env.step(np.array([[2, 0]]))  # taxi 0 north-east; taxi 1 east
+    assert obs["hover_heading_mask"][0].argmax(-1).tolist() == [10, 8]  # south-west; west
+
+
 def _brute_force_rest(table, state, a: int, first: int) -> float | None:
     """The shortest rest of the tour after stop ``first`` (2p origin, 2p + 1 destination), by trying every order
     of the other stops (pick-up before drop-off, seats respected); None beyond 8 stops (too many orders)."""

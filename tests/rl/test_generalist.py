@@ -15,7 +15,7 @@ from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_instance
 from uamfleet.metrics import episode_metrics
-from uamfleet.rl.networks import CLAIM_INIT, MSHAActorCritic, NetConfig, StopHead, obs_to_torch
+from uamfleet.rl.networks import CLAIM_INIT, HOVER_LEAD, MSHAActorCritic, NetConfig, StopHead, obs_to_torch
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.types import NUM_HEADINGS
 
@@ -68,6 +68,37 @@ def test_claims_lower_another_taxis_stops_and_open_the_free_move_when_all_are_cl
     torch.testing.assert_close(probs, torch.stack([one, two]), atol=1e-6, rtol=0)
     with pytest.raises(ValueError, match="claimed_by_other"):
         head(torch.zeros(2, 3), torch.zeros(2, 2, 2), heading_mask, free_logits)
+
+
+def test_an_idle_taxi_hovers_first_and_a_taxi_with_an_open_stop_never_does() -> None:
+    """With every stop claimed by others, the free move (score 0) and the hover component (HOVER_LEAD) open:
+    hovering starts e^HOVER_LEAD times as likely as the free move; with an open stop both stay closed."""
+    head = StopHead(features=3, d_model=2, hidden=4, free_bias=0.0, claims=True, hover=True)
+    with torch.no_grad():
+        for p in head.parameters():
+            p.zero_()
+        head.log_claim_weight.fill_(math.log(CLAIM_INIT))
+        head.hover.bias.fill_(HOVER_LEAD)
+    heading_mask = torch.zeros(2, 2, NUM_HEADINGS)
+    heading_mask[:, 0, 3] = 1
+    heading_mask[:, 1, 7] = 1
+    hover_mask = torch.zeros(2, NUM_HEADINGS)
+    hover_mask[:, 12] = 1  # back where the taxi came from
+    claimed = torch.tensor([[True, True], [True, False]])
+    with torch.no_grad():
+        probs = head(
+            torch.zeros(2, 3), torch.zeros(2, 2, 2), heading_mask, torch.zeros(2, NUM_HEADINGS), None, claimed,
+            hover_mask,
+        ).exp()  # fmt: skip
+    low, lead = math.exp(-CLAIM_INIT), math.exp(HOVER_LEAD)
+    z = 2 * low + 1 + lead
+    idle = torch.full((NUM_HEADINGS,), 1 / 16 / z)
+    idle[3] += low / z
+    idle[7] += low / z
+    idle[12] += lead / z
+    busy = torch.zeros(NUM_HEADINGS)
+    busy[3], busy[7] = low / (low + 1), 1 / (low + 1)
+    torch.testing.assert_close(probs, torch.stack([idle, busy]), atol=1e-6, rtol=0)
 
 
 def _policy_net(**cfg_kwargs: object) -> tuple[MSHAActorCritic, dict[str, np.ndarray]]:

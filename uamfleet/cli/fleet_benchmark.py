@@ -103,7 +103,8 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     start = time.perf_counter()
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
-    shared_fields(env, warm=True)  # every dispatcher steers by the same per-stop fields: computed once, untimed
+    if dispatchers:  # every dispatcher steers by the same per-stop fields: computed once, untimed
+        shared_fields(env, warm=True)  # (a learned policy reads the env's distance table instead)
     fields_s = time.perf_counter() - start
     rows = []
     flights = [(name, cfg, make_policy(name, num_taxis=taxis)) for name in dispatchers]

@@ -346,7 +346,8 @@ class GreedyPolicy:
         if cfg.num_taxis != like.num_taxis:
             raise ValueError(
                 f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
-                f"num_taxis={like.num_taxis} (or train a policy for this fleet)."
+                f"num_taxis={like.num_taxis}, or fly policy.for_fleet({cfg.num_taxis}) (a designed variant reads "
+                "any fleet size zero-shot), or train a policy for this fleet."
             )
         return cfg.with_layout_of(like)
 
