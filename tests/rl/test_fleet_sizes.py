@@ -65,3 +65,23 @@ def test_a_two_taxi_policy_flies_one_and_three_taxis() -> None:
 def test_a_policy_that_reads_the_sets_by_position_keeps_its_size() -> None:
     with pytest.raises(ValueError, match="designed variant"):
         _untrained_fleet_policy(2, variant="le").for_fleet(3)
+
+
+def test_the_fleet_design_trains_end_to_end_and_flies_another_size(tmp_path) -> None:
+    """The shipped fleet design (claims, hover, nearest prior, MAPPO critic) through the trainer on a 2-taxi
+    fleet: two PPO iterations, a checkpoint that loads with the claim-aware hovering head, flown with 3 taxis."""
+    from uamfleet.rl.trainer import TrainArgs, load_policy, train
+
+    result = train(TrainArgs(
+        scenario="berlin_fleet", num_taxis=2, action_head="stops", stop_prior="nearest", centralised_critic=True,
+        variant="de_msfea", d_model=16, num_heads=2, total_timesteps=2 * 2 * 2 * 16, num_envs=2, num_steps=16,
+        num_minibatches=1, update_epochs=1, eval_every=0, run_dir=tmp_path, run_name="fleet", progress=False,
+        tensorboard=False, threads=1, shaping=0.0,
+    ))  # fmt: skip
+    assert result.global_step == 128 and result.iterations == 2
+    policy, _ = load_policy(result.run_dir / "last.pt")
+    head = policy.net.stop_head
+    assert head is not None and head.claims and head.hovers
+    cfg = make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=3)
+    traj = policy.for_fleet(3).fly(cfg)
+    assert traj.num_steps > 0 and traj.start_pos_m.shape == (3, 2)
