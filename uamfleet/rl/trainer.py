@@ -1148,12 +1148,6 @@ def _only(space: spaces.Dict, fields: Iterable[str]) -> spaces.Dict:
     return spaces.Dict({k: s for k, s in space.spaces.items() if k in set(fields)})
 
 
-def _as_trained(cfg: EnvConfig, ckpt: Checkpoint) -> EnvConfig:
-    """A preset's config as the checkpoint saw it: a fleet preset observes ``stop_claims`` since they were added,
-    so a checkpoint trained before (no such field) flies the preset without them."""
-    return cfg.replace(stop_claims=False) if cfg.stop_claims and "stop_claims" not in ckpt.obs_shapes else cfg
-
-
 def load_policy(
     path: str | Path, device: str = "cpu", env_config: EnvConfig | None = None
 ) -> tuple[GreedyPolicy, TrainArgs]:
@@ -1162,7 +1156,7 @@ def load_policy(
     file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = ckpt.train_args()
-    cfg = env_config if env_config is not None else _as_trained(make_env_config(args.scenario, args, False), ckpt)
+    cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
     venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     try:
@@ -1185,7 +1179,7 @@ def load_policy(
         normalizer.load_state_dict(ckpt.obs_normalizer)
     trained_on = env_config if env_config is not None else cfg
     if env_config is not None and args.scenario in PRESETS:
-        trained_on = _as_trained(make_env_config(args.scenario, args, training=False), ckpt)
+        trained_on = make_env_config(args.scenario, args, training=False)
     return GreedyPolicy(
         net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
     ), args
