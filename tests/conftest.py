@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Any
 
 import numpy as np
 import pytest
 
-from uamfleet.config import EnvConfig, Request
+from uamfleet.config import EnvConfig, Request, heading_vectors
 from uamfleet.radio import RadioMap
 
 # Distance tables are computed in each test, never read from (or written to) the user's disk cache: tests must not
@@ -67,3 +68,31 @@ def small_config(art: str = OPEN_5, **overrides: Any) -> EnvConfig:
 @pytest.fixture
 def open_map() -> RadioMap:
     return drawn_map(OPEN_5)
+
+
+def brute_force_moves(start, requests, side_m, step_m, radius_m, seats, max_moves):
+    """Fewest moves that deliver everyone on an all-flyable square map: every sequence of headings, layer by
+    layer, identical states (position to the micrometre, passenger phases) merged. The rules are written out
+    here from the env's documentation (move unless it leaves the map; drop-offs, then pick-ups in passenger
+    order while a seat is free, within the radius), independently of the env's code."""
+    moves = step_m * heading_vectors()
+    frontier = {(round(start[0], 6), round(start[1], 6), (0,) * len(requests))}
+    for k in range(1, max_moves + 1):
+        nxt = set()
+        for x, y, phases in frontier:
+            for dx, dy in moves:
+                px, py = x + dx, y + dy
+                if not (0 <= px <= side_m and 0 <= py <= side_m):
+                    continue
+                ph = list(phases)
+                for i, r in enumerate(requests):
+                    if ph[i] == 1 and math.dist((px, py), r.destination_m) <= radius_m + 1e-9:
+                        ph[i] = 2
+                for i, r in enumerate(requests):
+                    if ph[i] == 0 and ph.count(1) < seats and math.dist((px, py), r.origin_m) <= radius_m + 1e-9:
+                        ph[i] = 1
+                if all(p == 2 for p in ph):
+                    return k
+                nxt.add((round(px, 6), round(py, 6), tuple(ph)))
+        frontier = nxt
+    return None

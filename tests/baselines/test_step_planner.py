@@ -3,11 +3,9 @@ route against the promised one, and the lower bound against hand-computed values
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from conftest import small_config
+from conftest import brute_force_moves, small_config
 
 from uamfleet.baselines.step_planner import (
     SearchSettings,
@@ -16,40 +14,12 @@ from uamfleet.baselines.step_planner import (
     instance_lower_bound_m,
     lower_bound_m,
 )
-from uamfleet.config import Request, heading_vectors
+from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
 OPEN_7 = "\n".join(["......."] * 7)
-
-
-def brute_force_moves(start, requests, side_m, step_m, radius_m, seats, max_moves):
-    """Fewest moves that deliver everyone on an all-flyable square map: every sequence of headings, layer by
-    layer, identical states (position to the micrometre, passenger phases) merged. The rules are written out
-    here from the env's documentation (move unless it leaves the map; drop-offs, then pick-ups in passenger
-    order while a seat is free, within the radius), independently of the env's code."""
-    moves = step_m * heading_vectors()
-    frontier = {(round(start[0], 6), round(start[1], 6), (0,) * len(requests))}
-    for k in range(1, max_moves + 1):
-        nxt = set()
-        for x, y, phases in frontier:
-            for dx, dy in moves:
-                px, py = x + dx, y + dy
-                if not (0 <= px <= side_m and 0 <= py <= side_m):
-                    continue
-                ph = list(phases)
-                for i, r in enumerate(requests):
-                    if ph[i] == 1 and math.dist((px, py), r.destination_m) <= radius_m + 1e-9:
-                        ph[i] = 2
-                for i, r in enumerate(requests):
-                    if ph[i] == 0 and ph.count(1) < seats and math.dist((px, py), r.origin_m) <= radius_m + 1e-9:
-                        ph[i] = 1
-                if all(p == 2 for p in ph):
-                    return k
-                nxt.add((round(px, 6), round(py, 6), tuple(ph)))
-        frontier = nxt
-    return None
 
 
 TINY = [

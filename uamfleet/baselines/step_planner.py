@@ -52,6 +52,7 @@ STEP_PLANNERS: tuple[str, ...] = ("replan", "best_known")
 _STATE_FIELDS = ("t", "pos_m", "free_seats", "distance_m", "action_mask", "pax_exists", "pax_release", "pax_origin_m",
                  "pax_dest_m", "pax_status", "pax_taxi", "pax_pickup_step", "pax_dropoff_step")  # fmt: skip
 """The FleetState fields that decide the future of a one-taxi episode (history and visit counts do not)."""
+SEARCH_STATE_FIELDS = _STATE_FIELDS
 
 
 @dataclass(frozen=True)
@@ -195,15 +196,17 @@ class StepSearch:
     cfg: EnvConfig
     scratch_envs: int = 0
     _env: VectorEnv | None = field(default=None, repr=False)
+    _last_stops: tuple[bytes, np.ndarray] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.cfg.num_taxis != 1:
             raise ValueError(f"step-level planners fly one taxi; got num_taxis={self.cfg.num_taxis}.")
         # The scratch core: same rules; no shaping, no truncation (the largest time limit the config allows), the
-        # smallest observation parts.
+        # smallest observation parts (no stop features: the search reads states and events, never observations).
         self.scratch_cfg = self.cfg.replace(
-            patch_size=1, history_len=1, time_limit_steps=2**24 - 1, max_block_visits=None, reward=RewardConfig()
-        )
+            patch_size=1, history_len=1, time_limit_steps=2**24 - 1, max_block_visits=None, reward=RewardConfig(),
+            stop_features=False, stop_claims=False,
+        )  # fmt: skip
         self.fields = DistanceFields(VectorEnv(self.scratch_cfg, 1).world)
         self.step_m = self.cfg.step_m
         self.radius_m = self.cfg.radius_m
@@ -226,6 +229,14 @@ class StepSearch:
                 best = plan
         return best
 
+    def _stop_distances(self, stops: np.ndarray) -> np.ndarray:
+        """[S, S] feasible-path distances between ``stops`` [S, 2]; the last set is kept, since a replan between
+        two releases (and every setting of one solve) asks for the same stops again."""
+        key = stops.tobytes()
+        if self._last_stops is None or self._last_stops[0] != key:
+            self._last_stops = (key, self.fields.graph.shortest_paths(stops).distance_m)
+        return self._last_stops[1]
+
     def _beam(self, state: FleetState, e: int, settings: SearchSettings, upper_moves: int | None) -> StepPlan | None:
         start = time.perf_counter()
         beam = {k: getattr(state, k)[e : e + 1].copy() for k in _STATE_FIELDS}
@@ -234,7 +245,7 @@ class StepSearch:
         if num_pax == 0 or np.all(beam["pax_status"][0, :num_pax][exists[:num_pax]] == DELIVERED):
             return StepPlan([], 0, 0, 0.0, "beam", settings)
         stops = np.stack([beam["pax_origin_m"][0, :num_pax], beam["pax_dest_m"][0, :num_pax]], axis=1).reshape(-1, 2)
-        stop_dist = self.fields.graph.shortest_paths(stops).distance_m
+        stop_dist = self._stop_distances(stops)
         seats = self.cfg.seats
         rank_next, after = remaining_tables(stop_dist, seats, 0.0)
         bound_next, _ = remaining_tables(stop_dist, seats, 2.0 * self.radius_m)

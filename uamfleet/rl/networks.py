@@ -72,12 +72,18 @@ class NetConfig:
     action_head: str = "headings"  # "stops": a pointer over the stops, each flown along its progress heading
     stop_free_move: bool = False  # "stops": also a free move beside the stops (else only when no stop is actionable)
     stop_prior: str = "tour"  # "stops": the prior prefers the shortest tour via a stop, or "nearest" stop
+    heading_residual: bool = False  # "stops": learned per-heading logits on top of the stop mixture (zero at first)
 
     def __post_init__(self) -> None:
         if self.stop_prior not in STOP_PRIORS:
             raise ValueError(f"stop_prior={self.stop_prior!r} is unknown; use one of {STOP_PRIORS}.")
         if self.action_head not in ACTION_HEADS:
             raise ValueError(f"action_head={self.action_head!r} is unknown; use one of {ACTION_HEADS}.")
+        if self.heading_residual and self.action_head != "stops":
+            raise ValueError(
+                "heading_residual=True adds learned logits to the stop head's prior; it needs action_head='stops' "
+                "(the 'headings' head already chooses every heading freely)."
+            )
         if self.action_head == "stops" and self.variant == "le":
             raise ValueError(
                 "action_head='stops' points at passenger tokens, which the linear encoder ('le') does not make; "
@@ -494,6 +500,10 @@ shorter starts with 2 more logits (e^2 = 7.4 times the probability)."""
 HOVER_LEAD = 2.0
 """Initial lead, in logits, of the stop head's hover component over its free move: an idle taxi starts by
 hovering (7.4 times as likely as moving freely)."""
+PRIOR_FLOOR = -12.0
+"""With ``heading_residual``, the stop mixture's log-probabilities are floored here before the learned residual
+is added: a heading the prior rules out (log-probability -1e4) stays within reach of a residual of a dozen logits,
+and with zero residuals the policy keeps the prior's greedy choice and all but e^-12 of its probabilities."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -536,14 +546,22 @@ class StopHead(nn.Module):
     it is always a component (starting at ``free_bias``), so the policy may wait or reposition; in a first run
     on Berlin instances its weight grew (the entropy bonus favours spreading over all headings) and episodes got
     longer, from 78 to 250 steps in 3 iterations, so it is off by default.
+
+    ``residual=True`` (``NetConfig.heading_residual``) lets the policy choose its flight: learned per-heading
+    logits (each stop's from its hidden row, weighted by that stop's mixture weight, plus one from the features)
+    are added to the mixture's log-probabilities floored at :data:`PRIOR_FLOOR`. They start at zero, so the
+    untrained head flies as the prior; the order of the known stops still comes from the exact tour prior.
     """
 
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
-        claims: bool = False, hover: bool = False,
+        claims: bool = False, hover: bool = False, residual: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
-        self.free_move, self.claims, self.hovers = free_move, claims, hover
+        self.free_move, self.claims, self.hovers, self.residual = free_move, claims, hover, residual
+        if residual:  # the flight beyond the prior: per-heading logits, zero at first (the prior unchanged)
+            self.residual_per_stop = layer_init(nn.Linear(hidden, NUM_HEADINGS), std=0.0)
+            self.residual_free = layer_init(nn.Linear(features, NUM_HEADINGS), std=0.0)
         if claims:  # only then: checkpoints of heads without claims keep their exact parameter set
             self.log_claim_weight = nn.Parameter(torch.tensor(math.log(CLAIM_INIT)))
         if hover:  # a "hover" component beside the free move, HOVER_LEAD logits ahead of it at first
@@ -557,11 +575,12 @@ class StopHead(nn.Module):
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
         path_to_stop: torch.Tensor | None = None, claimed_by_other: torch.Tensor | None = None,
-        hover_mask: torch.Tensor | None = None,
+        hover_mask: torch.Tensor | None = None, with_residual: bool = True,
     ) -> torch.Tensor:  # fmt: skip
         """features [B, F], tokens [B, P, D], heading_mask [B, P, 16], free_logits [B, 16] (masked), path_to_stop
         [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``), hover_mask [B, 16]
-        one-hot (with ``hover``) → log pi [B, 16]."""
+        one-hot (with ``hover``) → log pi [B, 16]; with ``residual`` (and ``with_residual``) unnormalised logits:
+        the mixture's log-probabilities floored at :data:`PRIOR_FLOOR` plus the learned per-heading residual."""
         onehot = _as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
         hidden = torch.tanh(self.from_features(features).unsqueeze(1) + self.from_token(tokens))  # [B, P, H]
@@ -594,7 +613,12 @@ class StopHead(nn.Module):
         parts = [per_stop, free]
         if self.hovers:
             parts.append(weights[:, P + 1 :, None] + torch.where(hover_at, 0.0, NOT_THIS).unsqueeze(1))  # [B, 1, 16]
-        return torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
+        logp = torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
+        if not (self.residual and with_residual):
+            return logp
+        # each stop's own flight correction (from its hidden row), weighted by how likely that stop is chosen
+        per_stop = torch.einsum("bp,bph->bh", weights[:, :P].exp(), self.residual_per_stop(hidden))  # [B, 16]
+        return logp.clamp(min=PRIOR_FLOOR) + per_stop + self.residual_free(features)  # [B, 16]
 
 
 # ---------------------------------------------------------------------------------------------- the policy
@@ -635,11 +659,11 @@ class MSHAActorCritic(nn.Module):
                 )
             self.stop_head = StopHead(
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=self.torso.claim_inputs,
-                hover=self.torso.claim_inputs and "hover_heading_mask" in self.shapes,
+                hover=self.torso.claim_inputs and "hover_heading_mask" in self.shapes, residual=cfg.heading_residual,
             )  # fmt: skip
 
-    def _actor(self, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
-        """(masked logits [B, 16], torso features [B, F])."""
+    def _actor(self, obs: dict[str, torch.Tensor], with_residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+        """(masked logits [B, 16], torso features [B, F]); ``with_residual=False``: the stop head's prior alone."""
         if self.stop_head is None:
             features = self.torso(obs)  # [B, F]
             return mask_logits(self.actor(features), obs["action_mask"]), features
@@ -650,7 +674,9 @@ class MSHAActorCritic(nn.Module):
         prior = obs["stop_paths"][..., measure]  # [B, P] map sides: the prior's measure of each stop
         claimed = _as_bool(obs["stop_claims"][..., CLAIMED_BY_OTHER]) if self.stop_head.claims else None  # [B, P]
         hover = obs["hover_heading_mask"] if self.stop_head.hovers else None  # [B, 16]
-        logp = self.stop_head(features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover)  # [B, 16]
+        logp = self.stop_head(
+            features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual
+        )  # [B, 16]
         return mask_logits(logp, obs["action_mask"]), features
 
     def check(self, obs: dict[str, torch.Tensor]) -> int:
@@ -693,6 +719,12 @@ class MSHAActorCritic(nn.Module):
         """The actor alone (no state needed, even with a centralised critic): masked logits [B, 16]."""
         self.check(obs)
         return self._actor(obs)[0]  # [B, 16]
+
+    def prior_logits(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The stop head's mixture without the learned heading residual: masked logits [B, 16] (the same as
+        :meth:`masked_logits` for a network without ``heading_residual``)."""
+        self.check(obs)
+        return self._actor(obs, with_residual=False)[0]  # [B, 16]
 
     def forward(
         self, obs: dict[str, torch.Tensor], state: torch.Tensor | None = None

@@ -1,0 +1,189 @@
+"""Learning from the search: the heading residual (zero: exactly the prior's choice; large: any allowed heading),
+the expert's labels (one solve labels a whole plan, which replays to the distance it promised; a deviation or a
+release costs a new solve), and one DAgger fit that moves the policy toward the expert's headings."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from conftest import brute_force_moves, small_config
+
+from uamfleet.baselines.step_planner import SearchSettings, StepSearch
+from uamfleet.config import Request, heading_vectors, make_config
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.rl.buffer import ObservationNormalizer
+from uamfleet.rl.imitation import NO_LABEL, Group, ImitationArgs, ReplanExpert, collect, fit, with_heading_residual
+from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.trainer import GreedyPolicy
+from uamfleet.types import HIDDEN, NUM_HEADINGS
+
+OPEN_7 = "\n".join(["......."] * 7)
+
+
+def _berlin_batch(steps: int = 12) -> tuple[VectorEnv, dict[str, torch.Tensor]]:
+    """Observations of 8 Berlin instance envs after a few random allowed moves (several stops actionable)."""
+    venv = VectorEnv(make_config("berlin_instances", sinr_min_db=-5.0), num_envs=8)
+    obs, _ = venv.reset(seed=5)
+    rng = np.random.default_rng(0)
+    for _ in range(steps):
+        allowed = obs["action_mask"][:, 0].astype(bool)
+        obs, *_ = venv.step(np.array([[rng.choice(np.flatnonzero(a))] for a in allowed]))
+    return venv, obs_to_torch({k: v.reshape(8, *v.shape[2:]) for k, v in obs.items()}, "cpu")
+
+
+def _nets(**kw: object) -> tuple[MSHAActorCritic, MSHAActorCritic, VectorEnv, dict[str, torch.Tensor]]:
+    venv, obs = _berlin_batch()
+    torch.manual_seed(0)
+    cfg = NetConfig(variant="de_msfea", d_model=32, action_head="stops", **kw)  # type: ignore[arg-type]
+    prior = MSHAActorCritic(venv.single_observation_space, cfg)
+    residual = MSHAActorCritic(venv.single_observation_space, NetConfig(**{**cfg.__dict__, "heading_residual": True}))
+    missing, unexpected = residual.load_state_dict(prior.state_dict(), strict=False)
+    assert not unexpected and missing and all(k.startswith("stop_head.residual_") for k in missing)
+    return prior, residual, venv, obs
+
+
+def test_zero_residual_flies_exactly_as_the_prior() -> None:
+    prior, residual, _, obs = _nets()
+    with torch.no_grad():
+        p_logits, r_logits = prior.masked_logits(obs), residual.masked_logits(obs)
+        torch.testing.assert_close(residual.prior_logits(obs), p_logits, atol=0, rtol=0)
+    assert torch.equal(p_logits.argmax(-1), r_logits.argmax(-1))
+    # the floor moves at most 16 e^-12 of probability onto headings the prior rules out
+    torch.testing.assert_close(r_logits.softmax(-1), p_logits.softmax(-1), atol=16 * np.exp(PRIOR_FLOOR), rtol=0)
+    assert float(p_logits.softmax(-1).max(-1).values.min()) > 0.5  # the prior is decided: the test is not vacuous
+
+
+def test_a_residual_reaches_any_allowed_heading_and_never_a_forbidden_one() -> None:
+    _, residual, _, obs = _nets()
+    with torch.no_grad():
+        chosen = residual.masked_logits(obs).argmax(-1)  # [B] the prior's headings
+        allowed = obs["action_mask"] > 0.5  # [B, 16]
+        b = int(torch.nonzero(allowed.sum(-1) >= 2)[0, 0])
+        other = int(next(h for h in torch.nonzero(allowed[b])[:, 0].tolist() if h != int(chosen[b])))
+        forbidden = torch.nonzero(~allowed[b])[:, 0].tolist()
+        residual.stop_head.residual_free.bias.zero_()
+        residual.stop_head.residual_free.bias[other] = -PRIOR_FLOOR + 5.0  # past the floor and the prior's lead
+        for h in forbidden:
+            residual.stop_head.residual_free.bias[h] = 100.0
+        after = residual.masked_logits(obs)
+    assert int(after[b].argmax()) == other
+    assert float(after.softmax(-1)[~allowed].max()) == 0.0
+
+
+def test_heading_residual_needs_the_stop_head() -> None:
+    with pytest.raises(ValueError, match="heading_residual"):
+        NetConfig(variant="de_msfea", action_head="headings", heading_residual=True)
+
+
+def _flown(venv: VectorEnv, expert: ReplanExpert, deviate_at: int | None = None) -> tuple[float, int]:
+    """Fly the expert's labels (a forced other heading at step ``deviate_at``); (distance flown m, steps)."""
+    venv.reset(seed=0)
+    released = ((venv.state.pax_status != HIDDEN) & venv.state.pax_exists).sum(-1)
+    for t in range(venv.cfg.time_limit_steps):
+        label = expert.labels(venv)
+        assert label[0] != NO_LABEL
+        action = label.copy()
+        if t == deviate_at:
+            allowed = np.flatnonzero(venv.state.action_mask[0, 0])
+            action[0] = next(h for h in allowed if h != label[0])
+        _, _, terminated, truncated, info = venv.step(action[:, None])
+        now = ((venv.state.pax_status != HIDDEN) & venv.state.pax_exists).sum(-1)
+        expert.advance(action, now != released, terminated | truncated)
+        released = now
+        if terminated[0] or truncated[0]:
+            return float(info["episode"]["distance_m"][0].sum()), t + 1
+    raise AssertionError("the expert did not finish")
+
+
+def test_one_solve_labels_a_whole_plan_that_replays_to_the_distance_it_promised() -> None:
+    requests = (Request(0, (380.0, 560.0), (600.0, 330.0)), Request(0, (230.0, 400.0), (470.0, 420.0)))
+    cfg = small_config(OPEN_7, starts_m=((110.0, 620.0),), requests=requests, time_limit_steps=40)
+    venv = VectorEnv(cfg, 1, autoreset=False)
+    venv.reset(seed=0)
+    promised = StepSearch(cfg).solve(venv.state, [SearchSettings(beam=32, rank_slack=0.5)])
+    assert promised is not None and promised.moves >= 4
+    expert = ReplanExpert(cfg, 1, beam=32)
+    distance, steps = _flown(venv, expert)
+    assert distance == promised.moves * cfg.step_m and steps == promised.steps
+    assert expert.solves == 1  # every later step was labelled by the same plan
+
+
+def test_a_release_and_a_deviation_each_cost_one_solve() -> None:
+    requests = (Request(0, (380.0, 560.0), (600.0, 130.0)), Request(6, (230.0, 300.0), (470.0, 420.0)))
+    cfg = small_config(OPEN_7, starts_m=((110.0, 620.0),), requests=requests, time_limit_steps=60)
+    venv = VectorEnv(cfg, 1, autoreset=False)
+    expert = ReplanExpert(cfg, 1, beam=32)
+    _flown(venv, expert)
+    assert expert.solves == 2  # the start and the release at step 6
+    expert = ReplanExpert(cfg, 1, beam=32)
+    _flown(venv, expert, deviate_at=2)
+    assert expert.solves == 3
+
+
+def test_dagger_fit_moves_the_policy_toward_the_expert() -> None:
+    """Collect the expert's own flights (beta 1) on Berlin instance envs and fit: the greedy policy agrees with
+    the expert's headings on more of those states than before."""
+    cfg = make_config("berlin_instances", sinr_min_db=-5.0, time_limit_steps=200)
+    venv = VectorEnv(cfg, num_envs=4)
+    obs, _ = venv.reset(seed=1)
+    torch.manual_seed(0)
+    net = MSHAActorCritic(
+        venv.single_observation_space,
+        NetConfig(variant="de_msfea", d_model=16, num_heads=2, action_head="stops", heading_residual=True),
+    )
+    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    normalizer = ObservationNormalizer(shapes)
+    normalizer.update({k: v.reshape(4, *v.shape[2:]) for k, v in obs.items()})
+    policy = GreedyPolicy(net, normalizer, torch.device("cpu"), shapes, 1, cfg.num_passengers, cfg)
+    group = Group(venv, ReplanExpert(cfg, 4, beam=16), obs, np.zeros(4, np.int64))
+    rng = np.random.default_rng(0)
+    data = collect([group], policy, beta=1.0, steps=25, rng=rng)
+    assert len(data) >= 50 and group.expert.solves >= 4
+    x, y = data.arrays()
+
+    def agreement() -> float:
+        with torch.no_grad():
+            return float((net.masked_logits(obs_to_torch(x, "cpu")).argmax(-1).numpy() == y).mean())
+
+    before = agreement()
+    args = ImitationArgs(epochs=30, minibatch=64, learning_rate=3e-3)
+    stats = fit(net, data, args, torch.optim.Adam(net.parameters(), lr=3e-3), rng)
+    assert agreement() > max(before, 0.5) and stats["bc_agreement"] > before
+    assert (y >= 0).all() and (y < NUM_HEADINGS).all()
+
+
+def test_with_heading_residual_keeps_the_policy() -> None:
+    import uamfleet
+
+    policy = uamfleet.pretrained("berlin")
+    flying = with_heading_residual(policy)
+    assert flying.net.cfg.heading_residual
+    _, obs = _berlin_batch(steps=3)
+    raw = {k: v.numpy().reshape(8, 1, *v.shape[1:]) for k, v in obs.items()}
+    assert np.array_equal(policy(raw), flying(raw))
+
+
+def test_a_proposal_is_kept_exactly_when_brute_force_says_it_is_as_short() -> None:
+    """Every allowed first heading proposed in turn from the start of a tiny instance: the expert keeps the
+    proposal as its label if and only if a brute-force search of every move sequence finds no shorter flight
+    than the one that starts with it."""
+    start = (110.0, 620.0)
+    requests = (Request(0, (380.0, 560.0), (600.0, 330.0)), Request(0, (230.0, 400.0), (470.0, 420.0)))
+    cfg = small_config(OPEN_7, starts_m=(start,), requests=requests, time_limit_steps=40)
+    venv = VectorEnv(cfg, 1, autoreset=False)
+    venv.reset(seed=0)
+    rules = (cfg.side_m, cfg.step_m, cfg.radius_m, cfg.seats)
+    optimum = brute_force_moves(start, requests, *rules, max_moves=7)
+    assert optimum == 5
+    kept = []
+    for heading in np.flatnonzero(venv.state.action_mask[0, 0]):
+        child = np.asarray(start) + cfg.step_m * heading_vectors()[heading]
+        stops = [p for r in requests for p in (r.origin_m, r.destination_m)]
+        assert min(np.hypot(*(child - np.asarray(p))) for p in stops) > cfg.radius_m  # nothing served on move 1
+        after = brute_force_moves(tuple(child), requests, *rules, max_moves=optimum)
+        expert = ReplanExpert(cfg, 1, beam=256)
+        label = expert.labels(venv, np.array([heading]))[0]
+        assert (label == heading) == (after is not None and 1 + after <= optimum), heading
+        kept.append(label == heading)
+    assert 1 <= sum(kept) < len(kept)  # some headings tie with the best, others are longer

@@ -1,0 +1,135 @@
+"""Search at decision time, guided by a trained policy (an option beside greedy decoding, not the default).
+
+At the start and at every release, :class:`GuidedSearchPolicy` rolls several candidate flights forward in a
+scratch copy of the env (the env's own step, so every rule is the core's) over the requests released so far:
+
+- the policy's greedy flight after each of its ``top_k`` most likely first headings (the first of them is the
+  greedy flight itself), and
+- ``samples`` flights drawn from the policy (softmax of its logits at ``temperature``),
+
+and flies the one that delivers every known passenger in the fewest moves (then the fewest steps) until the next
+release, when it plans again. Between releases a decision costs a list pop. Because the greedy flight is always a
+candidate and the scratch core reproduces the env exactly until a release, on an instance whose requests are all
+known at the start it never flies longer than greedy decoding.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+
+from uamfleet.config import EnvConfig
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.rl.networks import obs_to_torch
+from uamfleet.rl.trainer import GreedyPolicy
+from uamfleet.rollout import Trajectory, fly
+from uamfleet.types import HIDDEN
+
+
+class GuidedSearchPolicy:
+    """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
+    (module docstring). ``plans`` keeps (release step, candidates, chosen moves, seconds) of every search."""
+
+    def __init__(
+        self, policy: GreedyPolicy, top_k: int = 4, samples: int = 12, temperature: float = 1.0, seed: int = 0
+    ) -> None:
+        if top_k < 1 or samples < 0 or not temperature > 0:
+            raise ValueError(
+                f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}): need top_k >= 1, "
+                "samples >= 0 and temperature > 0 (e.g. top_k=4, samples=12, temperature=1)."
+            )
+        self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
+        self.rng = np.random.default_rng(seed)
+        self.env: VectorEnv | None = None
+        self.scratch: VectorEnv | None = None
+        self.queue: list[int] = []
+        self.plans: list[tuple[int, int, int, float]] = []
+
+    def layout(self, cfg: EnvConfig) -> EnvConfig:
+        """``cfg`` laid out for the policy (:meth:`GreedyPolicy.layout`)."""
+        return self.policy.layout(cfg)
+
+    def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
+        """One recorded episode on ``cfg`` laid out for the policy."""
+        return fly(self.layout(cfg), self, seed=seed)
+
+    def reset(self, env: VectorEnv) -> None:
+        if env.num_envs != 1 or env.num_taxis != 1:
+            raise ValueError(
+                f"GuidedSearchPolicy flies one taxi in one env; got {env.num_envs} env(s) x {env.num_taxis} taxi(s)."
+            )
+        self.env = env
+        if self.scratch is None or self.scratch.cfg is not env.cfg:
+            self.scratch = VectorEnv(env.cfg, num_envs=self.top_k + self.samples, autoreset=True)
+            self.scratch.reset(seed=0)
+        self.queue, self.plans = [], []
+        self._released = self._released_rows()
+        self.queue = self._search()
+
+    def _released_rows(self) -> np.ndarray:
+        assert self.env is not None
+        s = self.env.state
+        return (s.pax_status[0] != HIDDEN) & s.pax_exists[0]
+
+    def _logits(self, obs: dict[str, np.ndarray]) -> torch.Tensor:
+        """Masked logits [K, 16] of the policy for the scratch envs' observations [K, 1, ...]."""
+        p = self.policy
+        known = p.obs_shapes or obs
+        flat = {k: v.reshape(v.shape[0], *v.shape[2:]) for k, v in obs.items() if k in known}
+        if p.normalizer is not None:
+            flat = p.normalizer(flat)
+        with torch.no_grad():
+            return p.net.masked_logits(obs_to_torch(flat, p.device))
+
+    def _search(self) -> list[int]:
+        """Roll the candidates forward from the env's state over the released requests; the best one's actions."""
+        assert self.env is not None and self.scratch is not None
+        start = time.perf_counter()
+        scratch, K = self.scratch, self.scratch.num_envs
+        for target, source in zip(scratch.state, self.env.state, strict=True):
+            target[:] = source[0:1]  # every scratch env starts as the env does
+        scratch.state.pax_exists[:] &= scratch.state.pax_status != HIDDEN  # the future is unknown
+        if not scratch.state.pax_exists.any():
+            return []
+        obs = scratch.observer.observe(scratch.state)
+        actions: list[list[int]] = [[] for _ in range(K)]
+        moves, steps = np.zeros(K, np.int64), np.full(K, -1)
+        finished = np.zeros(K, bool)
+        limit = int(self.env.cfg.time_limit_steps - self.env.state.t[0])
+        for depth in range(limit):
+            logits = self._logits(obs)  # [K, 16]
+            chosen = logits.argmax(-1).numpy()  # [K] greedy
+            if depth == 0:  # the top_k first headings (the greedy one first)
+                chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
+            if self.samples:
+                probs = torch.softmax(logits[self.top_k :] / self.temperature, -1).double().numpy()
+                chosen[self.top_k :] = [self.rng.choice(16, p=p / p.sum()) for p in probs]
+            obs, _, terminated, truncated, info = scratch.step(chosen[:, None])
+            live = ~finished
+            moves[live] += info["events"].moved[live, 0]
+            for k in np.flatnonzero(live):
+                actions[k].append(int(chosen[k]))
+            ended = live & (terminated | truncated)
+            steps[ended & terminated] = depth + 1
+            finished |= ended
+            if finished.all():
+                break
+        done = np.flatnonzero(steps >= 0)
+        best = int(done[np.lexsort((steps[done], moves[done]))[0]]) if len(done) else 0
+        self.plans.append((int(self.env.state.t[0]), K, int(moves[best]), time.perf_counter() - start))
+        return actions[best] if len(done) else []
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
+        released = self._released_rows()
+        if (released & ~self._released).any():
+            self._released = released
+            self.queue = self._search()
+        if self.queue:
+            return np.array([[self.queue.pop(0)]])
+        return self.policy(obs)
+
+
+__all__ = ["GuidedSearchPolicy"]

@@ -1,0 +1,396 @@
+"""Learning from the search: DAgger with the online step-level search (``replan``'s solver) as the expert.
+
+The stop head's prior fixes the order of the known stops; what it cannot do is fly differently from each stop's
+single progress heading. ``replan`` can: it searches over the env's own moves, approaching a stop from the side of
+the next one and using the pick-up radius. This module teaches a policy with a heading residual
+(``NetConfig(heading_residual=True)``) to fly like it, on the states the policy itself visits (Ross et al. 2011):
+
+1. **Roll out** a mixture: in round ``r`` each step's action is the expert's with probability
+   ``beta0 * beta_decay ** r`` (round 0: the expert's own flights), else the policy's greedy heading.
+2. **Label** every visited state that has a plan with the expert's heading. A plan is valid until a request is
+   released, the episode ends or the executed heading leaves it, so one solve labels many steps
+   (:class:`ReplanExpert`); the policy's own deviations are what cost solves.
+3. **Fit** the network to the aggregated labels (cross-entropy on the masked logits), then score the greedy
+   policy on the validation instances and keep the best checkpoint (``best.pt``), never the test ones.
+
+The expert plans over the requests released so far, as ``replan`` does; it never sees the future. States with
+no plan (every known passenger delivered, the next request not yet released) are not labelled: there the expert
+only waits. The result is a checkpoint that :func:`uamfleet.rl.trainer.load_policy` and
+:func:`uamfleet.zoo.export_policy` read like any other.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from gymnasium import spaces
+
+from uamfleet.baselines.step_planner import SEARCH_STATE_FIELDS, SearchSettings, StepSearch
+from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import family_of, validation_metrics
+from uamfleet.io import write_text_atomic
+from uamfleet.paths import table_for
+from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
+from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy, make_env_config
+from uamfleet.types import HIDDEN, FleetState
+from uamfleet.zoo import PRETRAINED, pretrained_path
+
+NO_LABEL = -1
+
+
+@dataclass
+class ImitationArgs:
+    """DAgger from the online step-level search (every option is a flag of ``train/imitate.py``)."""
+
+    init: str = "berlin"
+    """checkpoint to start from: a shipped policy's name (uamfleet.zoo.PRETRAINED) or a file; its network,
+    normaliser and training scenario are kept and a heading residual is added"""
+    thresholds: tuple[float, ...] = (-7.0, -6.0, -5.0, -4.0, -3.0)
+    """SINR thresholds to roll out on (dB), one group of envs each"""
+    envs_per_threshold: int = 8
+    rounds: int = 6
+    steps_per_round: int = 120
+    """env steps per round, each over every env of every threshold"""
+    beta0: float = 1.0
+    """share of the expert's actions in round 0 (1: the expert's own flights)"""
+    beta_decay: float = 0.5
+    expert_beam: int = 32
+    """beam of the expert's search (``replan`` runs 64 in the benchmark; smaller is cheaper and close)"""
+    epochs: int = 3
+    minibatch: int = 512
+    learning_rate: float = 3e-4
+    train: Literal["residual", "all"] = "residual"
+    """parameters fitted: the heading residual alone (the prior and the encoders frozen: the order of the stops
+    stays the prior's) or the whole network"""
+    max_samples: int = 300_000
+    """the aggregated data set's size limit; the oldest samples go first"""
+    eval_instances: int = 50
+    run_dir: Path = Path("runs")
+    run_name: str = "berlin_imitation"
+    overwrite: bool = False
+    seed: int = 0
+    threads: int = 1
+    max_wall_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("envs_per_threshold", "rounds", "steps_per_round", "expert_beam", "epochs", "minibatch"):
+            setattr(self, name, check_integer(f"--{name.replace('_', '-')}", getattr(self, name), minimum=1))
+        self.max_samples = check_integer("--max-samples", self.max_samples, minimum=self.minibatch)
+        self.eval_instances = check_integer("--eval-instances", self.eval_instances, minimum=1, maximum=10_000)
+        self.threads = check_integer("--threads", self.threads, minimum=1, maximum=256)
+        for name in ("beta0", "beta_decay"):
+            value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), minimum=0.0)
+            if value > 1:
+                raise ConfigError(f"--{name.replace('_', '-')}={value} is a probability: use a value in [0, 1].")
+            setattr(self, name, value)
+        self.learning_rate = check_number("--learning-rate", self.learning_rate, positive=True)
+        self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
+        if not self.thresholds or len(set(self.thresholds)) != len(self.thresholds):
+            raise ConfigError(f"--thresholds={list(self.thresholds)} must name one or more distinct dB values.")
+        self.run_dir = Path(self.run_dir)
+
+    def beta(self, round_index: int) -> float:
+        """Probability that a step of round ``round_index`` flies the expert's heading."""
+        return self.beta0 * self.beta_decay**round_index
+
+
+class ReplanExpert:
+    """``replan``'s solver as a labeller for one group of envs (one config).
+
+    Each env keeps its plan and is re-solved only when the plan no longer holds: after a release, a new episode,
+    or an executed heading other than the plan's. A plan's remaining moves are its length (the search keeps no
+    move that stays in place once every known request is released).
+
+    Many headings are often equally good (the plan's first heading is one of several ties), and a label that picks
+    one of them at random teaches noise. So where the policy proposes another heading than the plan's, the expert
+    also solves from where that heading leads; if the policy's heading is not longer, it becomes the label and the
+    plan (the policy is corrected only where the search is strictly shorter)."""
+
+    def __init__(self, cfg: EnvConfig, num_envs: int, beam: int) -> None:
+        self.search = StepSearch(cfg)
+        self.settings = (SearchSettings(beam=beam, rank_slack=0.5),)
+        self.plans: list[list[int]] = [[] for _ in range(num_envs)]
+        self.valid = np.zeros(num_envs, bool)
+        self.solves = 0
+        self.solve_s = 0.0
+        self.corrections = 0  # labels that differ from the proposal because the search was strictly shorter
+        self._child_env = VectorEnv(self.search.scratch_cfg, 1, autoreset=True)
+        self._child_env.reset(seed=0)
+
+    def _solve(self, state: FleetState, e: int) -> list[int]:
+        start = time.perf_counter()
+        plan = self.search.solve(state, self.settings, env_index=e)
+        self.solve_s += time.perf_counter() - start
+        self.solves += 1
+        return list(plan.actions) if plan is not None else []
+
+    def _after(self, known: FleetState, e: int, heading: int) -> list[int] | None:
+        """The plan that starts with ``heading`` from env ``e`` of ``known``: the heading, then the search from
+        where it leads; None if that heading does not move or no plan is found from there."""
+        env = self._child_env
+        for name in SEARCH_STATE_FIELDS:
+            getattr(env.state, name)[:] = getattr(known, name)[e : e + 1]
+        _, _, terminated, _, info = env.step(np.array([[heading]]))
+        if not info["events"].moved[0, 0]:
+            return None
+        if terminated[0]:
+            return [heading]
+        rest = self._solve(env.state.take(np.array([0])), 0)
+        return [heading, *rest] if rest else None
+
+    def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
+        """[E] the expert's heading in each env's current state (:data:`NO_LABEL` where it has no plan);
+        ``proposals`` [E] (the policy's headings) are kept where they are as short as the plan."""
+        stale = ~self.valid
+        challenged = np.zeros_like(stale)
+        if proposals is not None:
+            first = np.array([p[0] if p else NO_LABEL for p in self.plans])
+            challenged = self.valid & (first != NO_LABEL) & (first != proposals)
+        if not (stale | challenged).any():
+            return np.array([p[0] if p else NO_LABEL for p in self.plans], np.int64)
+        known = venv.state.copy()  # the search sees the released requests only, as replan does
+        known.pax_exists[:] &= known.pax_status != HIDDEN
+        for e in np.flatnonzero(stale):
+            self.plans[e] = self._solve(known, int(e))
+            self.valid[e] = True
+            challenged[e] = proposals is not None and bool(self.plans[e]) and self.plans[e][0] != proposals[e]
+        for e in np.flatnonzero(challenged):
+            alternative = self._after(known, int(e), int(proposals[e]))  # type: ignore[index]
+            if alternative is not None and len(alternative) <= len(self.plans[e]):
+                self.plans[e] = alternative
+            else:
+                self.corrections += 1
+        return np.array([p[0] if p else NO_LABEL for p in self.plans], np.int64)
+
+    def advance(self, executed: np.ndarray, released: np.ndarray, ended: np.ndarray) -> None:
+        """After a step: a plan whose first heading was flown, with no release and no episode end, moves on by one;
+        every other plan is re-solved at the next :meth:`labels`."""
+        for e, plan in enumerate(self.plans):
+            if not self.valid[e]:
+                continue
+            followed = not plan or int(executed[e]) == plan[0]
+            if released[e] or ended[e] or not followed:
+                self.valid[e] = False
+            elif plan:
+                plan.pop(0)
+
+
+@dataclass
+class Group:
+    """One threshold's envs, its expert and the number of requests released in each env."""
+
+    venv: VectorEnv
+    expert: ReplanExpert
+    obs: dict[str, np.ndarray]
+    released: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+
+@dataclass
+class Dataset:
+    """The aggregated labelled states (normalised observations, as the network reads them)."""
+
+    obs: list[dict[str, np.ndarray]] = field(default_factory=list)
+    labels: list[np.ndarray] = field(default_factory=list)
+
+    def add(self, obs: dict[str, np.ndarray], labels: np.ndarray) -> None:
+        self.obs.append(obs)
+        self.labels.append(labels)
+
+    def __len__(self) -> int:
+        return int(sum(len(x) for x in self.labels))
+
+    def trim(self, limit: int) -> None:
+        while len(self) - len(self.labels[0]) >= limit:
+            self.obs.pop(0)
+            self.labels.pop(0)
+
+    def arrays(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        keys = self.obs[0].keys()
+        return {k: np.concatenate([o[k] for o in self.obs]) for k in keys}, np.concatenate(self.labels)
+
+
+def _released_count(venv: VectorEnv) -> np.ndarray:
+    s = venv.state
+    return ((s.pax_status != HIDDEN) & s.pax_exists).sum(-1)  # [E]
+
+
+def with_heading_residual(policy: GreedyPolicy) -> GreedyPolicy:
+    """The policy with a zero heading residual added to its stop head (it still flies exactly as before)."""
+    net = policy.net
+    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
+    new = MSHAActorCritic(space, dataclasses.replace(net.cfg, heading_residual=True))
+    missing, unexpected = new.load_state_dict(net.state_dict(), strict=False)
+    if unexpected or any(not k.startswith("stop_head.residual_") for k in missing):
+        raise ValueError(f"the initial network does not carry over: missing {missing}, unexpected {unexpected}.")
+    new.eval()
+    return GreedyPolicy(
+        new, policy.normalizer, policy.device, policy.obs_shapes, policy.num_taxis, policy.passenger_slots,
+        policy.trained_on,
+    )  # fmt: skip
+
+
+def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, rng: np.random.Generator) -> Dataset:
+    """``steps`` steps of every group under the DAgger mixture; the labelled states of all of them."""
+    data = Dataset()
+    known = policy.obs_shapes or {}
+    for _ in range(steps):
+        for g in groups:
+            E = g.venv.num_envs
+            flat = {k: v.reshape(E, *v.shape[2:]) for k, v in g.obs.items() if k in known}
+            normalised = policy.normalizer(flat) if policy.normalizer is not None else flat
+            own = policy(g.obs)[:, 0]  # [E] the policy's greedy heading
+            labels = g.expert.labels(g.venv, own)  # [E]
+            labelled = labels != NO_LABEL
+            if labelled.any():
+                data.add({k: v[labelled].copy() for k, v in normalised.items()}, labels[labelled])
+            take_expert = labelled & (rng.random(E) < beta)
+            executed = np.where(take_expert, labels, own)
+            g.obs, _, terminated, truncated, _ = g.venv.step(executed[:, None])
+            ended = terminated | truncated
+            released = _released_count(g.venv)
+            g.expert.advance(executed, (released != g.released) & ~ended, ended)
+            g.released = released
+    return data
+
+
+def fitted_parameters(net: MSHAActorCritic, which: str) -> list[torch.nn.Parameter]:
+    """The parameters DAgger fits: the stop head's heading residual, or all of them."""
+    if which == "all":
+        return list(net.parameters())
+    if which != "residual":
+        raise ValueError(f"train={which!r} is unknown; use 'residual' or 'all'.")
+    return [p for name, p in net.named_parameters() if name.startswith("stop_head.residual_")]
+
+
+def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: torch.optim.Optimizer,
+        rng: np.random.Generator) -> dict[str, float]:  # fmt: skip
+    """``args.epochs`` passes of cross-entropy between the masked logits and the expert's headings."""
+    obs, labels = data.arrays()
+    net.train()
+    n, losses, hits = len(labels), [], []
+    for _ in range(args.epochs):
+        order = rng.permutation(n)
+        for start in range(0, n, args.minibatch):
+            idx = order[start : start + args.minibatch]
+            batch = obs_to_torch({k: v[idx] for k, v in obs.items()}, "cpu")
+            target = torch.as_tensor(labels[idx])
+            logits = net.masked_logits(batch)  # [b, 16]
+            loss = F.cross_entropy(logits, target)
+            net.zero_grad(set_to_none=True)  # frozen parameters too: their gradients are never used
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_([p for g in optimizer.param_groups for p in g["params"]], 0.5)
+            optimizer.step()
+            losses.append(float(loss.detach()))
+            hits.append(float((logits.argmax(-1) == target).float().mean()))
+    net.eval()
+    tail = max(1, len(losses) // max(args.epochs, 1))  # the last epoch
+    return {"bc_loss": float(np.mean(losses[-tail:])), "bc_agreement": float(np.mean(hits[-tail:]))}
+
+
+def imitate(args: ImitationArgs) -> dict[str, float]:
+    """Run DAgger (module docstring); writes ``best.pt``, ``last.pt`` and ``progress.csv`` in the run folder and
+    returns the best validation row."""
+    folder = args.run_dir / args.run_name
+    if folder.exists() and any(folder.iterdir()) and not args.overwrite:
+        raise ConfigError(f"run folder {folder} exists; pass --overwrite to replace it, or choose another --run-name.")
+    torch.set_num_threads(args.threads)
+    torch.manual_seed(args.seed)
+    rng = np.random.default_rng(args.seed)
+    start = time.time()
+    init = pretrained_path(args.init) if args.init in PRETRAINED else Path(args.init)
+    ckpt = Checkpoint.load(init)
+    source_args = ckpt.train_args()
+    prior, _ = load_policy(init)
+    policy = with_heading_residual(prior)
+    base = make_env_config(source_args.scenario, source_args, training=True)
+    family = family_of(source_args.scenario)
+    eval_like = make_env_config(source_args.scenario, source_args, training=False)
+    groups = []
+    for i, threshold in enumerate(args.thresholds):
+        cfg = base.replace(sinr_min_db=threshold)
+        venv = VectorEnv(cfg, num_envs=args.envs_per_threshold)
+        table_for(venv.world).fill()
+        obs, _ = venv.reset(seed=args.seed + 1000 * i)
+        groups.append(Group(venv, ReplanExpert(cfg, venv.num_envs, args.expert_beam), obs, _released_count(venv)))
+    optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
+    folder.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, float]] = []
+    best: dict[str, float] = {}
+    first = validation_metrics(policy, family, args.eval_instances, eval_like)
+    rows.append({"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)})
+    best = dict(rows[-1])
+    _save(folder / "best.pt", ckpt, policy, args, best)
+    data = Dataset()
+    for r in range(args.rounds):
+        if args.max_wall_s is not None and time.time() - start > args.max_wall_s:
+            break
+        solves_before = sum(g.expert.solves for g in groups)
+        corrections_before = sum(g.expert.corrections for g in groups)
+        new = collect(groups, policy, args.beta(r), args.steps_per_round, rng)
+        for o, lab in zip(new.obs, new.labels, strict=True):
+            data.add(o, lab)
+        data.trim(args.max_samples)
+        stats = fit(policy.net, data, args, optimizer, rng)
+        val = validation_metrics(policy, family, args.eval_instances, eval_like)
+        row = {
+            "round": r, "beta": args.beta(r), "samples": len(data), "new_samples": len(new),
+            "solves": sum(g.expert.solves for g in groups) - solves_before,
+            "corrections": sum(g.expert.corrections for g in groups) - corrections_before,
+            "solve_s": sum(g.expert.solve_s for g in groups), "wall_s": time.time() - start, **stats, **_val(val),
+        }  # fmt: skip
+        rows.append(row)
+        print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
+        write_text_atomic(folder / "progress.csv", _csv(rows))
+        _save(folder / "last.pt", ckpt, policy, args, row)
+        if (row["val_pr_pct"], -row["val_td_m"]) > (best["val_pr_pct"], -best["val_td_m"]):
+            best = dict(row)
+            _save(folder / "best.pt", ckpt, policy, args, best)
+    write_text_atomic(folder / "progress.csv", _csv(rows))
+    return best
+
+
+def _val(m: dict[str, float]) -> dict[str, float]:
+    return {"val_pr_pct": m["pr_pct"], "val_solved_pct": m["solved_pct"], "val_td_m": m["td_m"]}
+
+
+def _save(path: Path, source: Checkpoint, policy: GreedyPolicy, args: ImitationArgs, row: dict[str, float]) -> None:
+    """The source checkpoint with this policy's network: loads with load_policy like any trained checkpoint."""
+    out = dataclasses.replace(
+        source,
+        model={k: v.detach().clone() for k, v in policy.net.state_dict().items()},
+        net_config=dataclasses.asdict(policy.net.cfg),
+        args={**source.args, "imitation": {k: _plain(v) for k, v in dataclasses.asdict(args).items()}},
+        best_eval={k: float(v) for k, v in row.items()},
+        optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
+    )  # fmt: skip
+    out.save(path)
+
+
+def _plain(v: object) -> object:
+    if isinstance(v, Path):
+        return str(v)
+    if isinstance(v, tuple):
+        return list(v)
+    return v
+
+
+def _csv(rows: list[dict[str, float]]) -> str:
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    out = io.StringIO()
+    writer = csv.DictWriter(out, columns, restval="")
+    writer.writeheader()
+    writer.writerows(rows)
+    return out.getvalue()
+
+
+__all__ = ["NO_LABEL", "ImitationArgs", "ReplanExpert", "collect", "fit", "imitate", "with_heading_residual"]
