@@ -46,7 +46,7 @@ from uamfleet.config import (
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
-from uamfleet.instances import family_of, validation_metrics
+from uamfleet.instances import VALIDATION_SEEDS, family_of, validation_metrics
 from uamfleet.io import write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import (
@@ -232,10 +232,21 @@ class TrainArgs:
         if isinstance(self.thresholds, str | bytes) or not hasattr(self.thresholds, "__iter__"):
             raise ConfigError(f"--thresholds={self.thresholds!r} must be a list of dB values, e.g. -7 -6 -5.")
         self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
+        repeated = sorted({t for t in self.thresholds if self.thresholds.count(t) > 1})
+        if repeated:
+            raise ConfigError(
+                f"--thresholds={list(self.thresholds)} repeats {repeated}: each threshold is one share of the envs; "
+                "give each once."
+            )
         if self.thresholds and self.sinr_min_db is not None:
             raise ConfigError(
                 f"--sinr-min-db={self.sinr_min_db} and --thresholds={list(self.thresholds)} both set the threshold; "
                 "give one of them."
+            )
+        if self.eval_instances > len(VALIDATION_SEEDS):
+            raise ConfigError(
+                f"--eval-instances={self.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
+                f"validation split; give at most {len(VALIDATION_SEEDS):,} (e.g. 50)."
             )
         if self.eval_instances and not self.scenario.endswith(("_instances", "_fleet")):
             raise ConfigError(
