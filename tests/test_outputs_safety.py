@@ -186,3 +186,18 @@ def test_render_refuses_an_existing_page(tmp_path, capsys):
     assert page.read_text() == "mine" and figure.read_text() == "mine too" and not (tmp_path / "new.html").exists()
     assert exit_status(render.cli, ["--out", str(page), "--overwrite", "--policy", "straight"]) == 0
     assert page.stat().st_size > 10_000
+
+
+def test_torch_threads_are_bounded(capsys):
+    assert exit_status(train_cli.cli, ["--threads", "1000"]) == 2
+    assert "--threads=1000 is too large" in capsys.readouterr().err
+
+
+def test_msha_table_continues_an_interrupted_run_instead_of_deleting_it(tmp_path):
+    [exp] = [e for e in msha_table.experiments((1,), "de_msfea", 1000, 1000) if e.name.startswith("berlin_p4_-3dB")][:1]
+    args = msha_table.Args(run_dir=tmp_path)
+    assert "--overwrite" not in msha_table.train_command(exp, args)
+    fake_run(tmp_path / exp.name)  # interrupted: last.pt, no best.pt
+    command = msha_table.train_command(exp, args)
+    assert "--resume" in command and "--overwrite" not in command
+    assert "--overwrite" in msha_table.train_command(exp, msha_table.Args(run_dir=tmp_path, retrain=True))

@@ -113,11 +113,15 @@ class Args:
 
 
 def train_command(exp: Experiment, args: Args) -> list[str]:
+    """The training of ``exp``: retrained from scratch with --retrain, else continued where an interrupted run
+    left its last.pt (never deleted), else new."""
+    folder = args.run_dir / exp.name
+    start = ["--overwrite"] if args.retrain else ["--resume"] if (folder / "last.pt").exists() else []
     return [
         sys.executable, "-m", "uamfleet.cli.train", "--scenario", exp.scenario,
         "--sinr-min-db", f"{exp.threshold_db:g}", "--variant", exp.variant, "--seed", str(exp.seed),
         "--feasibility", args.feasibility, "--total-timesteps", str(exp.total_timesteps),
-        "--run-dir", str(args.run_dir), "--run-name", exp.name, "--overwrite", "--threads", "1", "--no-progress",
+        "--run-dir", str(args.run_dir), "--run-name", exp.name, *start, "--threads", "1", "--no-progress",
         *args.extra,
     ]  # fmt: skip
 

@@ -19,6 +19,7 @@ import csv
 import dataclasses
 import io
 import math
+import os
 import re
 import shutil
 import time
@@ -218,6 +219,8 @@ class TrainArgs:
         so a typo fails before any env is built, not after training (``checkpoint_every=0``)."""
         for name, minimum in _COUNTS.items():
             check_integer(_flag(name), getattr(self, name), minimum)
+        most = 4 * (os.cpu_count() or 1)
+        check_integer("--threads", self.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
         for name in ("num_taxis", "eval_time_limit_steps"):
             if getattr(self, name) is not None:
                 check_integer(_flag(name), getattr(self, name), 1)
