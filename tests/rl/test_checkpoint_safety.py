@@ -189,3 +189,20 @@ def test_commands_print_one_line_and_exit_2(tmp_path, capsys, cli, argv):
     assert code == 2
     assert err.count("\n") == 0 and "d_model=1048576" in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["huge.pt"]  # nothing written
+
+
+def test_normaliser_statistics_must_fit_and_make_sense(tmp_path):
+    stats = Checkpoint.load(SHIPPED).obs_normalizer
+    assert stats is not None
+    field = next(iter(stats))
+    negative = {**stats, field: {**stats[field], "var": -stats[field]["var"] - 1.0}}
+    with pytest.raises(CheckpointError, match=rf"normaliser '{field}' var is negative"):
+        load_policy(altered(tmp_path, "negative.pt", obs_normalizer=negative))
+    wider = {**stats, field: {k: torch.cat([v, v]) if k != "count" else v for k, v in stats[field].items()}}
+    with pytest.raises(CheckpointError, match=rf"the observation normaliser of '{field}' has shape"):
+        load_policy(altered(tmp_path, "wider.pt", obs_normalizer=wider))
+    with pytest.raises(CheckpointError, match=r"its obs_normalizer is a list, not a dict"):
+        load_policy(altered(tmp_path, "list.pt", obs_normalizer=[1, 2]))
+    words = {**stats, field: {**stats[field], "count": "many"}}
+    with pytest.raises(CheckpointError, match=rf"normaliser '{field}' count is not numbers"):
+        load_policy(altered(tmp_path, "words.pt", obs_normalizer=words))

@@ -134,9 +134,10 @@ class Checkpoint:
     def validate(self, source: str) -> NetConfig:
         """Raise CheckpointError unless the parts are of the right types, the network config is known and
         bounded, and every weight and normalisation statistic is finite; the network's config."""
-        for name, kind in (("model", dict), ("net_config", dict), ("args", dict), ("obs_shapes", dict)):
-            if not isinstance(getattr(self, name), kind):
-                raise CheckpointError(f"{source}: its {name} is a {type(getattr(self, name)).__name__}, not a dict.")
+        for name in ("model", "net_config", "args", "obs_shapes", "obs_normalizer", "reward_scaler"):
+            value = getattr(self, name)
+            if not isinstance(value, dict) and not (value is None and name in ("obs_normalizer", "reward_scaler")):
+                raise CheckpointError(f"{source}: its {name} is a {type(value).__name__}, not a dict.")
         for key, shape in self.obs_shapes.items():
             if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
                 raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
@@ -151,6 +152,10 @@ class Checkpoint:
                     f"{source}: {name} holds {bad} NaN or infinite value(s) of {value.numel()}; the run diverged or "
                     "the file is damaged: use an earlier checkpoint (best.pt) or train again."
                 )
+            if name.startswith("normaliser") and not name.endswith(" mean") and bool((value < 0).any()):
+                raise CheckpointError(
+                    f"{source}: {name} is negative; a variance or count never is: the file was altered."
+                )
         return cfg
 
     def statistics(self, source: str) -> Iterator[tuple[str, torch.Tensor]]:
@@ -162,7 +167,11 @@ class Checkpoint:
             if not isinstance(rms, Mapping) or any(k not in rms for k in ("mean", "var", "count")):
                 raise CheckpointError(f"{source}: normaliser {field_name!r} lacks mean, var or count.")
             for key in ("mean", "var", "count"):
-                yield f"normaliser {field_name!r} {key}", torch.as_tensor(np.asarray(rms[key], dtype=np.float64))
+                try:
+                    value = torch.as_tensor(np.asarray(rms[key], dtype=np.float64))
+                except (TypeError, ValueError, RuntimeError):
+                    raise CheckpointError(f"{source}: normaliser {field_name!r} {key} is not numbers.") from None
+                yield f"normaliser {field_name!r} {key}", value
 
     def check_matches(
         self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
