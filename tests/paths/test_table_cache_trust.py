@@ -133,22 +133,32 @@ def test_an_old_format_file_is_left_alone(tmp_path, monkeypatch):
     assert old.exists()
 
 
-def test_a_fleet_flies_the_same_over_a_poisoned_cache(tmp_path, monkeypatch):
-    """Issue 22's case (an ``inf`` table made the Berlin policy deliver nobody) on a small map: a fleet whose
-    stop features read the table flies exactly as with no cache."""
-    from uamfleet.baselines import make_policy
-    from uamfleet.rollout import fly
+def stop_paths(cfg) -> np.ndarray:
+    """The stop features a learned policy reads (they come from the distance table) after a reset."""
+    from uamfleet.env.vector_env import VectorEnv
 
-    cfg = small_config(SPLIT.replace("#", "."), starts_m=((50.0, 50.0), (450.0, 450.0)), stop_features=True)
-    monkeypatch.setenv("UAMFLEET_CACHE", str(tmp_path))
-    clean = fly(cfg, make_policy("greedy", num_taxis=2), seed=3)
-    world = World(cfg)
-    table = DistanceTable(table_graph(world), world.blocks.block_m, world.blocks.shape).fill()
-    [path] = tmp_path.glob("table*")
-    write(path, np.full_like(table.distance_m, np.inf), table.cache_key)
+    obs, _ = VectorEnv(cfg, num_envs=1).reset(seed=3)
+    return obs["stop_paths"]
+
+
+@pytest.mark.parametrize("damage", ["inf", "zeros", "truncated", "wrong checksum"])
+def test_what_a_policy_reads_is_unchanged_over_a_damaged_cache(tmp_path, monkeypatch, damage):
+    """Issue 22's case (a table of ``inf`` made the Berlin policy deliver nobody) on a small map: the stop
+    features a policy reads are those of a fresh table, whatever the cache file holds."""
     from uamfleet.paths import distance_table
 
+    cfg = small_config(SPLIT, starts_m=((50.0, 50.0), (450.0, 450.0)), stop_features=True)
+    monkeypatch.setenv("UAMFLEET_CACHE", str(tmp_path))
+    clean = stop_paths(cfg)
+    world = World(cfg)
+    good = DistanceTable(table_graph(world), world.blocks.block_m, world.blocks.shape).fill()
+    [path] = tmp_path.glob("table*")
+    DAMAGES[damage][0](path, good)
     distance_table._TABLES.clear()  # as in a new process: the next env reads the disk cache
     with pytest.warns(RuntimeWarning, match="is not used"):
-        poisoned = fly(cfg, make_policy("greedy", num_taxis=2), seed=3)
-    np.testing.assert_array_equal(poisoned.positions_m, clean.positions_m)
+        np.testing.assert_array_equal(stop_paths(cfg), clean)
+    # the features do read the table: had the file been trusted, they would differ
+    distance_table._TABLES.clear()
+    trusted = distance_table.table_for(World(cfg))  # what the old loader did with the file's entries
+    trusted.distance_m[:], trusted.filled[:] = (np.inf if damage == "inf" else 0.0), True
+    assert not np.array_equal(stop_paths(cfg), clean)
