@@ -35,7 +35,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uamfleet.config import EnvConfig, FeasibilityRule, Request, make_config
+from uamfleet.config import (
+    MAX_PASSENGERS,
+    MAX_TAXIS,
+    EnvConfig,
+    FeasibilityRule,
+    Request,
+    check_integer,
+    check_number,
+    make_config,
+)
 from uamfleet.env.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.world import World
@@ -70,6 +79,15 @@ FAMILIES: dict[str, InstanceFamily] = {
 }
 
 
+MAX_SEED = 2**63 - 1
+"""Largest instance seed (NumPy's SeedSequence takes any non-negative integer; this keeps seeds plain int64)."""
+
+
+def check_family(family: str) -> None:
+    if family not in FAMILIES:
+        raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
+
+
 def split_seeds(split: str, count: int, first: int = 0) -> list[int]:
     """``count`` seeds of a split (``train``, ``validation``, ``test``), starting at its ``first``-th seed."""
     if split not in SPLITS:
@@ -85,10 +103,8 @@ def make_instance(
 ) -> EnvConfig:
     """The instance of ``seed`` in ``family`` (:data:`FAMILIES`): a one-taxi config with a fixed start, fixed
     requests and a fixed threshold. ``max_passengers`` pads the passenger axis (e.g. 6 for a learned policy)."""
-    if family not in FAMILIES:
-        raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed={seed!r} must be an integer >= 0.")
+    check_family(family)
+    seed = check_integer("seed", seed, 0, MAX_SEED)
     fam = FAMILIES[family]
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode())]))
     threshold = float(rng.choice(fam.thresholds_db))
@@ -140,14 +156,14 @@ def make_fleet_instance(
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
     ``max_passengers`` pads the passenger axis (a learned policy's observation size)."""
-    if family not in FAMILIES:
-        raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed={seed!r} must be an integer >= 0.")
-    if num_taxis < 1 or num_requests < 1:
-        raise ValueError(f"num_taxis={num_taxis} and num_requests={num_requests} must both be >= 1.")
-    if num_vertiports == 1 or num_vertiports < 0:
+    check_family(family)
+    seed = check_integer("seed", seed, 0, MAX_SEED)
+    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
+    num_requests = check_integer("num_requests", num_requests, 1, MAX_PASSENGERS, fix=" (one passenger slot each)")
+    num_vertiports = check_integer("num_vertiports", num_vertiports, 0)
+    if num_vertiports == 1:
         raise ValueError(f"num_vertiports={num_vertiports} must be 0 (random sites) or >= 2.")
+    check_number("arrival_window_s", arrival_window_s, positive=True)
     fam = FAMILIES[family]
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))

@@ -58,6 +58,18 @@ def replace_section(path: str | os.PathLike[str], name: str, body: str) -> Path:
     return write_text_atomic(path, text)
 
 
+def has_section(path: str | os.PathLike[str], name: str) -> bool:
+    """Whether the Markdown file ``path`` exists and holds the marked section ``name``."""
+    path = Path(path)
+    return path.is_file() and f"<!-- {name}:begin -->" in path.read_text(encoding="utf-8")
+
+
+def partial_path(path: str | os.PathLike[str]) -> Path:
+    """Where a long run keeps its partial results: ``<stem>.partial<suffix>`` beside ``path``, never over it."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.partial{path.suffix}")
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -9,7 +9,7 @@ import pytest
 
 from tests.conftest import small_config
 from uamfleet.env.world import World
-from uamfleet.paths.distance_table import DistanceTable, table_graph
+from uamfleet.paths.distance_table import CACHE_FORMAT, DistanceTable, table_graph
 
 WALLED = """
 .....
@@ -30,8 +30,8 @@ def test_a_filled_table_is_loaded_by_the_next_one(tmp_path: Path, monkeypatch: p
     first = _table(-3.0)
     assert not first.filled.any()
     first.fill()
-    files = list(tmp_path.glob("table-*.npy"))
-    assert [f.name for f in files] == [f"table-{first.cache_key}.npy"]
+    files = list(tmp_path.glob("table*"))
+    assert [f.name for f in files] == [f"table{CACHE_FORMAT}-{first.cache_key}.npz"]
     second = _table(-3.0)
     assert second.filled.all()
     np.testing.assert_array_equal(second.distance_m, first.distance_m)
@@ -43,12 +43,13 @@ def test_a_filled_table_is_loaded_by_the_next_one(tmp_path: Path, monkeypatch: p
 def test_a_damaged_file_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("UAMFLEET_CACHE", str(tmp_path))
     table = _table(-3.0)
-    (tmp_path / f"table-{table.cache_key}.npy").write_bytes(b"not a table")
-    assert not _table(-3.0).filled.any()
+    (tmp_path / f"table{CACHE_FORMAT}-{table.cache_key}.npz").write_bytes(b"not a table")
+    with pytest.warns(RuntimeWarning, match="cannot be read"):
+        assert not _table(-3.0).filled.any()
 
 
 def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("UAMFLEET_CACHE", "off")
     monkeypatch.setenv("HOME", str(tmp_path))
     _table(-3.0).fill()
-    assert not any(tmp_path.rglob("*.npy"))
+    assert not any(tmp_path.rglob("*.np[yz]"))

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 import tyro
 
 from uamfleet.baselines import POLICIES
+from uamfleet.io import has_section
 from uamfleet.config import FEASIBILITY_RULES, SCENARIOS
 from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.rl.networks import VARIANTS
@@ -74,6 +75,38 @@ def output_path(path: Path, flag: str) -> Path:
     return path
 
 
+def check_outputs(
+    overwrite: bool, files: Sequence[Path | None] = (), md: Path | None = None, section: str | None = None
+) -> None:
+    """Refuse, before any work, to replace an existing output (a file of ``files``, or the marked ``section`` of
+    the Markdown file ``md``) unless ``--overwrite`` was given: committed results are never replaced silently."""
+    held = [str(path) for path in files if path is not None and path.exists()]
+    if md is not None and section is not None and has_section(md, section):
+        held.append(f"the {section!r} section of {md}")
+    if held and not overwrite:
+        verb = "hold" if len(held) > 1 else "holds"
+        raise UsageError(
+            f"{' and '.join(held)} already {verb} results; pass --overwrite to replace them, or write elsewhere "
+            "(--out-csv / --out-md / --section / --out). Nothing was written."
+        )
+
+
+def earlier_rows(read: Callable[[Path], list[T]], path: Path) -> list[T]:
+    """The rows ``read`` finds in ``--from-csv path``; a UsageError when there are none (nothing to render)."""
+    rows = read(path)
+    if not rows:
+        raise UsageError(f"--from-csv {path} holds no rows: nothing to render.")
+    return rows
+
+
+def check_jobs(jobs: int, flag: str = "--jobs") -> int:
+    """``jobs`` worker processes, checked: at least 1, at most 4 per CPU core (more only thrash)."""
+    most = 4 * (os.cpu_count() or 1)
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or not 1 <= jobs <= most:
+        raise UsageError(f"{flag} {jobs}: give 1 ... {most} worker processes (4 per CPU core at most), e.g. {flag} 2.")
+    return jobs
+
+
 def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
     """A subclass of a dataclass whose ``__post_init__`` keeps its ValueError for :func:`run` to report as one
     line (tyro would wrap it in a box of its own)."""
@@ -85,7 +118,7 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
         def __post_init__(self) -> None:
             try:
                 super().__post_init__()
-            except (ValueError, FileNotFoundError) as err:
+            except (ValueError, FileNotFoundError, FileExistsError) as err:
                 object.__setattr__(self, "_cli_error", err)  # also for a frozen dataclass
 
     return dataclasses.dataclass(Checked)
@@ -130,7 +163,7 @@ def run(
     main: Callable[[T], Any], args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, doc: str | None
 ) -> int:
     """Parse ``argv`` into ``args_type`` and call ``main``; the exit status. Bad input (any ``ValueError``, the
-    type of every documented input error of the package, or a missing input file) prints ``prog: error:
+    type of every documented input error of the package, a missing input file, or an existing run) prints ``prog: error:
     <message>`` on stderr and returns 2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1``
     re-raises instead, for debugging."""
     description = (doc or "").strip()
@@ -139,7 +172,7 @@ def run(
         if (error := getattr(args, "_cli_error", None)) is not None:
             raise error
         status = main(args)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, FileExistsError) as err:
         if os.environ.get("UAMFLEET_TRACEBACK"):
             raise
         message = " ".join(str(err).split())  # one line

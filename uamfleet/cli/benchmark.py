@@ -9,7 +9,9 @@ Every policy is flown through the same env and scored by :mod:`uamfleet.metrics`
 ATT, AWT and connectivity as means with 95 % intervals (normal approximation, 1.96 standard errors), TD /
 best-known per instance (mean, p95, worst; instances where both delivered everyone), the mean lower bound
 (:func:`uamfleet.baselines.step_planner.lower_bound_m`) and ``replan``'s decision latency. Outputs: a CSV of
-every (instance, policy) row and the marked section ``benchmark`` (or ``--section``) of ``docs/results.md``.
+every (instance, policy) row and the marked section ``benchmark`` (or ``--section``) of ``docs/results.md``,
+written once, at the end of a complete run, and replacing existing results only with ``--overwrite``; a long
+run keeps its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders them).
 """
 
 from __future__ import annotations
@@ -28,7 +30,18 @@ from typing import Any
 import numpy as np
 
 import uamfleet
-from uamfleet.cli._common import Family, Feasibility, Scenario, Split, UsageError, fmt, run
+from uamfleet.cli._common import (
+    Family,
+    Feasibility,
+    Scenario,
+    Split,
+    UsageError,
+    check_jobs,
+    check_outputs,
+    earlier_rows,
+    fmt,
+    run,
+)
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
 from uamfleet.baselines.step_planner import (
     STEP_PLANNERS,
@@ -40,7 +53,7 @@ from uamfleet.config import EnvConfig
 from uamfleet.env.generator import InfeasibleInstanceError, validate_instance
 from uamfleet.env.world import World
 from uamfleet.instances import make_instance, split_seeds
-from uamfleet.io import replace_section, write_csv_atomic
+from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
@@ -94,6 +107,8 @@ class Args:
     """with --from-csv: the wall-clock minutes of that run, for the table's note"""
     command: str = ""
     """the command line to print above the table (empty: this one, reconstructed)"""
+    overwrite: bool = False
+    """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
 Task = tuple[str, str, Any, float | None, str]  # (set label, family or scenario, seed, threshold, feasibility)
@@ -309,21 +324,43 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
-def main(args: Args) -> list[dict[str, Any]]:
+def check_args(args: Args) -> list[Task]:
+    """The instances to fly, once every option is valid, the selection is not empty and no existing result would
+    be replaced without --overwrite: all checked before anything is flown or written."""
     if args.from_csv is not None:
-        earlier = read_rows(args.from_csv)
-        write_outputs(args, earlier, 60.0 * args.wall_min)
-        return earlier
+        return []
+    check_jobs(args.jobs)
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:
         raise ValueError(f"unknown --methods {unknown}; choose from {METHODS}.")
+    if not args.methods and args.checkpoint is None:
+        raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
+    selected = tasks(args)
+    if not selected:
+        raise UsageError(
+            f"no instance selected (--count {args.count}"
+            + (", and --fixed-rules / --fixed-scenarios / --fixed-thresholds match none of the fixed instances"
+               if args.fixed else " without --fixed")
+            + "): fly at least one instance, e.g. --count 20."
+        )  # fmt: skip
     if args.checkpoint is not None:
         check_checkpoint(args.checkpoint)
+    check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
+    return selected
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    selected = check_args(args)
+    if args.from_csv is not None:
+        earlier = earlier_rows(read_rows, args.from_csv)
+        check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
+        write_outputs(args, earlier, 60.0 * args.wall_min)
+        return earlier
     methods = tuple(args.methods) + (("learned",) if args.checkpoint is not None else ())
-    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam) for t in tasks(args)]
+    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam) for t in selected]
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
-    with mp.get_context("spawn").Pool(args.jobs) as pool:
+    with mp.get_context("spawn").Pool(min(args.jobs, len(jobs))) as pool:
         for i, result in enumerate(pool.imap(run_instance, jobs)):
             rows += result
             if not result:
@@ -332,10 +369,10 @@ def main(args: Args) -> list[dict[str, Any]]:
             print(f"[{i + 1}/{len(jobs)}] {result[0]['instance']} {result[0]['feasibility']}: "
                   + "  ".join(f"{r['method']} {r['td_m']:.0f}" for r in result)
                   + (f"  (LB {best['lower_bound_m']:.0f})" if best else ""), flush=True)  # fmt: skip
-            if ((i + 1) % 10 == 0 or len(jobs) < 50) and i + 1 < len(
-                jobs
-            ):  # partial results survive an interrupted run
-                write_outputs(args, rows, time.perf_counter() - start, f" (partial: {i + 1} of {len(jobs)} instances)")
+            if ((i + 1) % 10 == 0 or len(jobs) < 50) and i + 1 < len(jobs):  # survive an interruption, beside
+                write_csv_atomic(partial_path(args.out_csv), rows, COLUMNS)
+    if not rows:
+        raise UsageError(f"none of the {len(jobs)} selected instances could be flown (see above); nothing written.")
     if args.merge_csv is not None:  # the earlier run's rows on the instances flown now, of the other methods
         flown = {r["method"] for r in rows}
         instances = {(r["set"], r["instance"], r["feasibility"]) for r in rows}
@@ -345,10 +382,12 @@ def main(args: Args) -> list[dict[str, Any]]:
         ]  # fmt: skip
         rows = earlier + rows
     write_outputs(args, rows, time.perf_counter() - start)
+    partial_path(args.out_csv).unlink(missing_ok=True)
     return rows
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
+    """The CSV and the Markdown section of a complete run (each written atomically)."""
     write_csv_atomic(args.out_csv, rows, COLUMNS)
     command = args.command or (
         f"uamfleet-benchmark --family {args.family} --split {args.split} --count {args.count} "
@@ -358,6 +397,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
+        + (" --overwrite" if args.overwrite else "")
     )
     replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock

@@ -12,7 +12,9 @@ detour, TD per delivered passenger, occupancy, separation violations and connect
 taxi per step (policy wall time of a step ÷ taxis; median and maximum over all steps; the feasible-path distance
 field of every stop, which all dispatchers share, is computed once per instance before they fly and is not in it:
 ``fields_s`` in the CSV). Outputs: a CSV of every
-(episode, dispatcher) row and the marked section ``fleet`` (or ``--section``) of ``docs/results.md``.
+(episode, dispatcher) row and the marked section ``fleet`` (or ``--section``) of ``docs/results.md``, written
+once, at the end of a complete run, and replacing existing results only with ``--overwrite``; a long run keeps
+its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders them).
 """
 
 from __future__ import annotations
@@ -29,13 +31,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from uamfleet.cli._common import fmt, run
+from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
-from uamfleet.baselines import make_policy
+from uamfleet.baselines import POLICIES, make_policy
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_SETTINGS, make_fleet_instance, split_seeds
-from uamfleet.io import replace_section, write_csv_atomic
+from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
@@ -74,6 +76,8 @@ class Args:
     """the command line to print above the table (default: reconstructed)"""
     note: str = ""
     """with --from-csv: a line printed under the command (e.g. what ran and its wall-clock)"""
+    overwrite: bool = False
+    """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
 Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...]]  # (family, setting, seed, dispatchers, checkpoints)
@@ -178,6 +182,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
+        + (" --overwrite" if args.overwrite else "")
     )
     body = markdown(rows, command, wall, note)
     if args.note:
@@ -188,32 +193,62 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     print(f"wrote {written}the {args.section} section of {args.out_md} ({minutes}){note}")
 
 
-def main(args: Args) -> list[dict[str, Any]]:
+def check_args(args: Args) -> list[Job]:
+    """The episodes to fly, once every option is valid, the selection is not empty, every checkpoint loads and
+    flies at least one setting, and no existing result would be replaced without --overwrite: all checked before
+    anything is flown or written."""
+    if args.from_csv is not None:
+        return []
+    check_jobs(args.jobs)
     unknown = [s for s in args.settings if s not in FLEET_SETTINGS]
     if unknown:
         raise ValueError(f"unknown --settings {unknown}; choose from {tuple(FLEET_SETTINGS)}.")
-    if args.from_csv is not None:
-        earlier = read_rows(args.from_csv)
-        write_outputs(args, earlier, math.nan)
-        return earlier
-    jobs = [
+    unknown = [d for d in args.dispatchers if d not in POLICIES]
+    if unknown:
+        raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
+    if not args.settings or args.count < 1:
+        raise UsageError(
+            f"no episode selected (--settings {' '.join(args.settings) or '(none)'}, --count {args.count}): give at "
+            "least one setting and --count >= 1."
+        )
+    if not args.dispatchers and not args.checkpoints:
+        raise UsageError("--dispatchers is empty and no --checkpoints are given: nothing to fly.")
+    for checkpoint in args.checkpoints:
+        flies = [s for s in args.settings if _learned(checkpoint, FLEET_SETTINGS[s][0]) is not None]
+        if not flies:
+            raise UsageError(
+                f"--checkpoints {checkpoint} cannot fly any of the settings {list(args.settings)} (it reads "
+                f"{learned_policy(checkpoint).num_taxis} taxi(s) by position); give a fleet policy of a designed "
+                "variant or settings of its fleet size."
+            )
+        if len(flies) < len(args.settings):
+            print(f"{learned_name(checkpoint)} flies only the settings {flies} (the others need another fleet size)")
+    check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
+    return [
         (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints))
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    jobs = check_args(args)
+    if args.from_csv is not None:
+        earlier = earlier_rows(read_rows, args.from_csv)
+        check_outputs(args.overwrite, [], args.out_md, args.section)
+        write_outputs(args, earlier, math.nan)
+        return earlier
     start = last = time.perf_counter()
     rows: list[dict[str, Any]] = []
-    with mp.get_context("spawn").Pool(args.jobs) as pool:
+    with mp.get_context("spawn").Pool(min(args.jobs, len(jobs))) as pool:
         for i, result in enumerate(pool.imap(run_episode_set, jobs)):
             rows += result
             print(f"[{i + 1}/{len(jobs)}] {result[0]['setting']} seed {result[0]['seed']}: "
                   + "  ".join(f"{r['dispatcher']} PR {r['service_pct']:.0f} wait {r['awt_s']:.0f}s "
                               f"TD/pax {r['td_per_delivered_m']:.0f}" for r in result), flush=True)  # fmt: skip
-            if time.perf_counter() - last > 60.0 and i + 1 < len(jobs):  # partial results survive an interruption
+            if time.perf_counter() - last > 60.0 and i + 1 < len(jobs):  # survive an interruption, beside
                 last = time.perf_counter()
-                done = (i + 1) // len(args.settings)
-                write_outputs(args, rows, time.perf_counter() - start,
-                              f" (partial: {done} of {args.count} episodes per setting)")  # fmt: skip
+                write_csv_atomic(partial_path(args.out_csv), rows, COLUMNS)
     if args.merge_csv is not None:  # the earlier run's rows on the episodes flown now, of the other dispatchers
         flown = {r["dispatcher"] for r in rows}
         episodes = {(r["family"], r["setting"], int(r["seed"])) for r in rows}
@@ -223,6 +258,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         ]  # fmt: skip
         rows = earlier + rows
     write_outputs(args, rows, time.perf_counter() - start)
+    partial_path(args.out_csv).unlink(missing_ok=True)
     return rows
 
 

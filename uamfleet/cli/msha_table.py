@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 
 import uamfleet
-from uamfleet.cli._common import Variant, run
+from uamfleet.cli._common import UsageError, Variant, check_jobs, check_outputs, run
 from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
@@ -108,14 +108,20 @@ class Args:
     section: str = "msha_table"
     """name of that section (<!-- name:begin --> ... <!-- name:end -->)"""
     out_csv: Path = Path("docs/results/msha_table.csv")
+    overwrite: bool = False
+    """replace an existing --out-csv or --section of --out-md (else the command refuses before training)"""
 
 
 def train_command(exp: Experiment, args: Args) -> list[str]:
+    """The training of ``exp``: retrained from scratch with --retrain, else continued where an interrupted run
+    left its last.pt (never deleted), else new."""
+    folder = args.run_dir / exp.name
+    start = ["--overwrite"] if args.retrain else ["--resume"] if (folder / "last.pt").exists() else []
     return [
         sys.executable, "-m", "uamfleet.cli.train", "--scenario", exp.scenario,
         "--sinr-min-db", f"{exp.threshold_db:g}", "--variant", exp.variant, "--seed", str(exp.seed),
         "--feasibility", args.feasibility, "--total-timesteps", str(exp.total_timesteps),
-        "--run-dir", str(args.run_dir), "--run-name", exp.name, "--overwrite", "--threads", "1", "--no-progress",
+        "--run-dir", str(args.run_dir), "--run-name", exp.name, *start, "--threads", "1", "--no-progress",
         *args.extra,
     ]  # fmt: skip
 
@@ -255,7 +261,8 @@ def markdown(rows: list[dict[str, object]], planners: dict[tuple[str, float], di
 
 def main(args: Args) -> list[dict[str, object]]:
     if args.main_variant not in VARIANTS:
-        raise SystemExit(f"--main-variant {args.main_variant!r} is unknown; use one of {VARIANTS}.")
+        raise UsageError(f"--main-variant {args.main_variant!r} is unknown; use one of {VARIANTS}.")
+    check_jobs(args.jobs)
     chosen = [
         e
         for e in experiments(args.seeds, args.main_variant, args.total_timesteps, args.detroit_timesteps)
@@ -263,6 +270,12 @@ def main(args: Args) -> list[dict[str, object]]:
         and e.scenario in args.scenarios
         and (args.ablation or e.group == "main")
     ]
+    if not chosen:
+        raise UsageError(
+            "no run selected: --only / --scenarios / --no-ablation match none of the experiments; nothing trained "
+            "or written."
+        )
+    check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     if args.train:
         todo = [e for e in chosen if args.retrain or not (args.run_dir / e.name / "best.pt").exists()]
         train_all(todo, args)
@@ -284,7 +297,7 @@ def main(args: Args) -> list[dict[str, object]]:
               f"paper {row['paper_td_m']:.0f})  conn {row['connectivity_pct']:5.1f} %  "
               f"to paper TD: {steps_s(row['steps_to_paper_td'], row['wall_to_paper_td_s'])}")  # fmt: skip
     if not rows:
-        raise SystemExit(f"no trained runs under {args.run_dir}; nothing to tabulate.")
+        raise UsageError(f"no trained runs under {args.run_dir}; nothing to tabulate (and nothing written).")
     write_csv_atomic(args.out_csv, rows, list(rows[0]))
     replace_section(args.out_md, args.section, markdown(rows, planners))
     print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md}")

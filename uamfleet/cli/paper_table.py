@@ -7,12 +7,15 @@ Writes ``docs/results/paper_table.csv``, the marked section ``paper_table`` of `
 figures under ``docs/figures/``. Every planner is flown through the same environment (same rules, same
 metrics); TD is the distance flown in 100 m (Berlin) / 320 m (Detroit) steps, ``TD exact`` the shortest
 feasible path through the exact stops in the order they were served (what the paper's baselines report).
+Rows of an earlier table that this run does not produce (e.g. the learned ``msha-*`` rows of ``--checkpoints``
+given then) are kept; existing results are replaced only with ``--overwrite``, and figures are byte-stable.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +24,7 @@ import numpy as np
 
 import uamfleet
 from uamfleet.cli._common import fmt as fmt_value
-from uamfleet.cli._common import run
+from uamfleet.cli._common import check_outputs, run
 from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import (
     PLANNERS,
@@ -58,6 +61,8 @@ class Args:
     """only Berlin at -3 dB (smoke test)"""
     checkpoints: tuple[Path, ...] = ()
     """trained policies (runs/<name>/best.pt) to add as rows at the scenario and threshold they were trained on"""
+    overwrite: bool = False
+    """replace an existing --out-csv and paper_table section of --out-md (else the command refuses before flying)"""
 
 
 def fly(scenario: str, threshold: float, planner: str) -> tuple[Trajectory, PlannerPolicy, uamfleet.EnvConfig]:
@@ -145,7 +150,32 @@ def markdown(rows: list[dict[str, object]]) -> str:
     return "\n".join(lines)
 
 
+def read_rows(path: Path) -> list[dict[str, object]]:
+    """The rows of an earlier table's CSV (numbers as floats; none when the file is absent)."""
+    if not path.is_file():
+        return []
+    text = ("setting", "method", "source")
+    with path.open(encoding="utf-8") as f:
+        return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def keep_other_rows(rows: list[dict[str, object]], earlier: list[dict[str, object]]) -> list[dict[str, object]]:
+    """This run's rows with every earlier row it did not produce (same setting, threshold, method and source),
+    ordered by setting (as in :data:`SETTINGS`) and threshold; within one, this run's rows first."""
+    key = ("setting", "threshold_db", "method", "source")
+    produced = {tuple(r[k] for k in key) for r in rows}
+    merged = rows + [r for r in earlier if tuple(r[k] for k in key) not in produced]
+    labels = [label for *_, label in SETTINGS]
+
+    def place(r: dict[str, object]) -> tuple[int, float]:
+        label = str(r["setting"])
+        return (labels.index(label) if label in labels else len(labels), float(r["threshold_db"]))  # type: ignore[arg-type]
+
+    return sorted(merged, key=place)
+
+
 def main(args: Args) -> list[dict[str, object]]:
+    check_outputs(args.overwrite, [args.out_csv], args.out_md, "paper_table")
     settings = ((SETTINGS[0][0], SETTINGS[0][1], (-3.0,), SETTINGS[0][3]),) if args.quick else SETTINGS
     rows: list[dict[str, object]] = []
     learned: dict[tuple[str, float], list[Learned]] = {}
@@ -185,6 +215,7 @@ def main(args: Args) -> list[dict[str, object]]:
         if len(thresholds) > 1:
             plot_connectivity(list(thresholds), connectivity, f"{label}: connectivity along the flown path",
                               args.figures / f"connectivity_{scenario}.png")  # fmt: skip
+    rows = keep_other_rows(rows, read_rows(args.out_csv))
     write_csv_atomic(args.out_csv, rows, COLUMNS)
     replace_section(args.out_md, "paper_table", markdown(rows))
     print(f"wrote {args.out_csv}, the paper_table section of {args.out_md}, figures in {args.figures}/")

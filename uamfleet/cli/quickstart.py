@@ -33,6 +33,9 @@ from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
 
 
+DEFAULT_RUN = "quickstart"
+
+
 @dataclass
 class Args:
     total_timesteps: int = 150_000
@@ -51,7 +54,11 @@ class Args:
     this instance is seed-sensitive (a 2-thread run of seed 1 stalled at 1 of 4 passengers)"""
     run_dir: Path = Path("runs")
     """folder of the run (relative to the current folder)"""
-    run_name: str = "quickstart"
+    run_name: str = DEFAULT_RUN
+    """name of the run; the quickstart's own (the default) is retrained on a rerun, any other existing run is kept
+    unless --overwrite is given"""
+    overwrite: bool = False
+    """replace an existing run of another --run-name"""
     generalist: bool = True
     """then fly the shipped Berlin generalist (uamfleet.pretrained("berlin")) on Berlin P4 at -7 ... -3 dB and on
     the held-out test instances"""
@@ -72,7 +79,8 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
     train_args = TrainArgs(
         scenario="berlin_p4", sinr_min_db=args.sinr_min_db, seed=args.seed, run_dir=args.run_dir,
         run_name=args.run_name, max_wall_s=60.0 * args.minutes, total_timesteps=args.total_timesteps,
-        variant=args.variant, feasibility=args.feasibility, threads=args.threads, overwrite=True,  # a rerun retrains
+        variant=args.variant, feasibility=args.feasibility, threads=args.threads,
+        overwrite=args.overwrite or args.run_name == DEFAULT_RUN,  # a rerun retrains its own run, never another
     )  # fmt: skip
     print(f"training MSHA-PPO ({args.variant}) on Berlin P4 at {args.sinr_min_db:g} dB for "
           f"{args.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip

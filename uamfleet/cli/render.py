@@ -22,7 +22,16 @@ from cycler import cycler
 
 import uamfleet
 from uamfleet.baselines import make_policy, planner_configs
-from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, fmt, output_path, run
+from uamfleet.cli._common import (
+    SCENARIO_DEFAULT,
+    Policy,
+    Scenario,
+    UsageError,
+    check_outputs,
+    fmt,
+    output_path,
+    run,
+)
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.trainer import load_policy
 from uamfleet.rollout import Trajectory
@@ -56,6 +65,8 @@ class Args:
     checkpoint: Path | None = None
     """a policy trained by train/ppo.py (runs/<name>/best.pt); flies it greedily instead of --policy, on its
     training scenario and threshold unless --scenario / --sinr-min-db say otherwise"""
+    overwrite: bool = False
+    """replace an existing --out (and its PNG figures): else the command refuses before flying"""
 
 
 def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
@@ -74,12 +85,19 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
     return fly_episode(flown, policy, seed=args.seed), shown
 
 
+def figure_paths(out: Path) -> dict[str, Path]:
+    """The PNG figures of ``--png`` beside the page: ``<stem>_routes.png`` and ``<stem>_sinr.png``."""
+    stem = out.with_suffix("")
+    return {kind: stem.with_name(f"{stem.name}_{kind}.png") for kind in ("routes", "sinr")}
+
+
 def main(args: Args) -> dict[str, Path]:
     if args.seed < 0:
         raise UsageError(f"--seed {args.seed}: seeds are integers >= 0 (e.g. --seed 0).")
     if not args.seconds_per_step > 0:
         raise UsageError(f"--seconds-per-step {args.seconds_per_step}: give a positive playback time (e.g. 0.25).")
     output_path(args.out, "--out")
+    check_outputs(args.overwrite, [args.out, *(figure_paths(args.out).values() if args.png else ())])
     if args.checkpoint is not None:
         args.policy = "msha"
     traj, cfg = fly(args)
@@ -92,16 +110,14 @@ def main(args: Args) -> dict[str, Path]:
         viewer.show_trajectory(traj)
         written["html"] = viewer.export_html(args.out)
     if args.png:
-        stem = args.out.with_suffix("")
         routes = {f"taxi {a}" if cfg.num_taxis > 1 else args.policy: traj.positions_m[a] for a in range(cfg.num_taxis)}
         exists = traj.pax_exists
-        written["routes"] = stem.with_name(stem.name + "_routes.png")
+        written.update(figure_paths(args.out))
         # Fleet routes take the taxis' colours of the 3-D page (plot_routes colours unnamed routes by the cycle).
         with matplotlib.rc_context({"axes.prop_cycle": cycler(color=list(TAXI_HEX))}):
             plot_routes(radio, threshold, routes, traj.origin_m[exists], traj.destination_m[exists],
                         traj.start_pos_m[0], f"{title}\n{m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
                         f"connectivity {m.connectivity_pct:.1f} %", written["routes"])  # fmt: skip
-        written["sinr"] = stem.with_name(stem.name + "_sinr.png")
         plot_sinr_strip(traj, radio, threshold, written["sinr"])
     end = "all delivered" if traj.terminated else "truncated"
     print(

@@ -21,9 +21,13 @@ the step and the lookup into numba:
   rule, block size), like the graphs.
 - **On disk**: a table completed by :meth:`DistanceTable.fill` is saved under :func:`cache_dir`
   (``$UAMFLEET_CACHE``, default ``~/.cache/uamfleet``; ``UAMFLEET_CACHE=off`` disables it), named by a hash of
-  everything its entries depend on (the graph's flyable cells, resolution and origin, the blocks); a later
-  process with the same table loads it whole instead of running its Dijkstras again (training on random demand
-  at five thresholds otherwise spends its first minutes filling tables).
+  everything its entries depend on (the key: the graph's flyable cells, i.e. the map's content at this threshold
+  and rule, its resolution and origin, the blocks, :data:`CACHE_FORMAT`); a later process with the same table
+  loads it whole instead of running its Dijkstras again (training on random demand at five thresholds otherwise
+  spends its first minutes filling tables). A cache file is an input like any other: it holds its key and a
+  SHA-256 of its entries, and a loaded table must be plausible (:meth:`DistanceTable.implausible`: finite exactly
+  between connected blocks, symmetric, the diagonal twice the centre's gap, never shorter than the straight
+  line); a file failing any check is deleted with a warning and the rows are computed again.
 - **Lookup** (:func:`table_distance`, compiled): from a point a to a stop b, the entries ``distance_m[j, i]``
   between the 4 block centres j around b (their rows) and the 4 around a, interpolated bilinearly in both
   points (16 entries), and at least ``|a - b|``. Bilinear interpolation is exact where the distance varies
@@ -42,7 +46,9 @@ import hashlib
 import io
 import math
 import os
+import warnings
 import weakref
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +61,8 @@ from uamfleet.paths.grid_graph import GridGraph, feasible_raster
 from uamfleet.radio import RadioMap
 
 _CHUNK = 32  # Dijkstra sources per scipy call: [chunk, nx * ny] float64 rows (~27 MB on Berlin)
-CACHE_FORMAT = 1  # raise when the entries' definition changes: older files then no longer match
+CACHE_FORMAT = 2  # raise when the entries' definition or the file changes: older files then no longer match
+# 2: an .npz holding the key and a SHA-256 of the entries beside them (1: a bare .npy, trusted as it was)
 
 
 def cache_dir() -> Path | None:
@@ -106,19 +113,64 @@ class DistanceTable:
 
     def _cache_file(self) -> Path | None:
         folder = cache_dir()
-        return None if folder is None else folder / f"table-{self.cache_key}.npy"
+        return None if folder is None else folder / f"table{CACHE_FORMAT}-{self.cache_key}.npz"
 
     def _load_cached(self) -> None:
+        """Use the cached table when its key, checksum and entries all check out; else delete it and warn (the
+        rows are then computed on demand, and :meth:`fill` writes a good file)."""
         path = self._cache_file()
         if path is None or not path.is_file():
             return
         try:
-            table = np.load(path, allow_pickle=False)
-        except (OSError, ValueError):
-            return  # unreadable (e.g. a partial copy): compute rows as usual
-        if table.shape == self.distance_m.shape and table.dtype == np.float32 and not np.isnan(table).any():
-            self.distance_m[:] = table
-            self.filled[:] = True
+            with np.load(path, allow_pickle=False) as saved:
+                key, checksum, table = str(saved["key"]), str(saved["sha256"]), saved["distance_m"]
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:  # truncated, not an npz, ...
+            return self._reject(path, f"it cannot be read ({type(err).__name__}: {err})")
+        if key != self.cache_key:
+            return self._reject(path, f"it holds the key {key[:12]}..., not this table's {self.cache_key[:12]}...")
+        if table.shape != self.distance_m.shape or table.dtype != np.float32:
+            return self._reject(path, f"it holds a {table.dtype} table of shape {table.shape}")
+        if hashlib.sha256(table.tobytes()).hexdigest() != checksum:
+            return self._reject(path, "its entries do not match their SHA-256 checksum")
+        why = self.implausible(table)
+        if why:
+            return self._reject(path, why)
+        self.distance_m[:] = table
+        self.filled[:] = True
+
+    def _reject(self, path: Path, why: str) -> None:
+        warnings.warn(
+            f"the cached distance table {path} is not used: {why}; it is deleted and its rows are computed again.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        path.unlink(missing_ok=True)
+
+    def implausible(self, table: np.ndarray) -> str:
+        """Why ``table`` (a complete ``distance_m``) cannot be this table's, or "" when it can: every entry is a
+        number; finite exactly where the two blocks' nodes are connected in the graph; symmetric (the graph's
+        edges are undirected); the diagonal is twice the block centre's gap to its node; no entry is shorter than
+        the straight line between the two centres."""
+        if np.isnan(table).any():
+            return f"{int(np.isnan(table).sum())} entries are NaN (rows never computed)"
+        labels = csgraph.connected_components(self.graph.adjacency, directed=False)[1]
+        component = np.where(self.nodes >= 0, labels[np.maximum(self.nodes, 0)], -1)
+        joined = (component[:, None] == component[None, :]) & (component[:, None] >= 0)
+        finite = np.isfinite(table)
+        if (finite != joined).any():
+            wrong = int((finite != joined).sum())
+            return f"{wrong} entries are finite where the blocks are not connected, or infinite where they are"
+        if not np.allclose(table[finite], table.T[finite], rtol=1e-5, atol=1e-3):
+            return "it is not symmetric"
+        node = self.nodes >= 0
+        if not np.allclose(np.diag(table)[node], 2.0 * self.gap_m[node], rtol=1e-5, atol=1e-3):
+            return "its diagonal is not twice each block centre's gap to its node"
+        nbx, nby = self.shape
+        bx, by = np.divmod(np.arange(nbx * nby), nby)
+        straight = self.block_m * np.hypot(bx[:, None] - bx[None, :], by[:, None] - by[None, :])
+        if (table[finite] < straight[finite] * (1.0 - 1e-5) - 1e-3).any():
+            return "some entries are shorter than the straight line between their block centres"
+        return ""
 
     def __repr__(self) -> str:
         return (
@@ -140,9 +192,10 @@ class DistanceTable:
         missing = np.flatnonzero(~self.filled)
         self._compute(missing)
         path = self._cache_file()
-        if missing.size and path is not None:
+        if path is not None and (missing.size or not path.is_file()):
             buffer = io.BytesIO()
-            np.save(buffer, self.distance_m, allow_pickle=False)
+            checksum = hashlib.sha256(self.distance_m.tobytes()).hexdigest()
+            np.savez(buffer, distance_m=self.distance_m, key=np.array(self.cache_key), sha256=np.array(checksum))
             try:
                 write_bytes_atomic(path, buffer.getvalue())
             except OSError:

@@ -19,6 +19,7 @@ import csv
 import dataclasses
 import io
 import math
+import os
 import re
 import shutil
 import time
@@ -46,9 +47,19 @@ from uamfleet.config import (
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
-from uamfleet.instances import family_of, validation_metrics
-from uamfleet.io import write_bytes_atomic, write_text_atomic
+from uamfleet.instances import VALIDATION_SEEDS, family_of, validation_metrics
+from uamfleet.io import write_text_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
+from uamfleet.rl.checkpoint import (
+    ARCHITECTURE_FIELDS,
+    CHECKPOINT_FORMAT,
+    ENVIRONMENT_FIELDS,
+    Checkpoint,
+    CheckpointError,
+    check_network,
+    check_state_dict,
+    upgrade_checkpoint,
+)
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.distributed import World, sample_actions
 from uamfleet.rl.networks import VARIANTS, DesignedTorso, MSHAActorCritic, NetConfig, obs_to_torch
@@ -208,6 +219,8 @@ class TrainArgs:
         so a typo fails before any env is built, not after training (``checkpoint_every=0``)."""
         for name, minimum in _COUNTS.items():
             check_integer(_flag(name), getattr(self, name), minimum)
+        most = 4 * (os.cpu_count() or 1)
+        check_integer("--threads", self.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
         for name in ("num_taxis", "eval_time_limit_steps"):
             if getattr(self, name) is not None:
                 check_integer(_flag(name), getattr(self, name), 1)
@@ -222,10 +235,21 @@ class TrainArgs:
         if isinstance(self.thresholds, str | bytes) or not hasattr(self.thresholds, "__iter__"):
             raise ConfigError(f"--thresholds={self.thresholds!r} must be a list of dB values, e.g. -7 -6 -5.")
         self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
+        repeated = sorted({t for t in self.thresholds if self.thresholds.count(t) > 1})
+        if repeated:
+            raise ConfigError(
+                f"--thresholds={list(self.thresholds)} repeats {repeated}: each threshold is one share of the envs; "
+                "give each once."
+            )
         if self.thresholds and self.sinr_min_db is not None:
             raise ConfigError(
                 f"--sinr-min-db={self.sinr_min_db} and --thresholds={list(self.thresholds)} both set the threshold; "
                 "give one of them."
+            )
+        if self.eval_instances > len(VALIDATION_SEEDS):
+            raise ConfigError(
+                f"--eval-instances={self.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
+                f"validation split; give at most {len(VALIDATION_SEEDS):,} (e.g. 50)."
             )
         if self.eval_instances and not self.scenario.endswith(("_instances", "_fleet")):
             raise ConfigError(
@@ -432,15 +456,6 @@ def _score(m: dict[str, float]) -> tuple[float, float]:
 
 # ---- checkpoints ----------------------------------------------------------------------------------------------
 
-CHECKPOINT_FORMAT = 2
-"""2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
-NumPy RNG state inside."""
-ARCHITECTURE_FIELDS = (
-    "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
-    "stop_free_move", "stop_prior",
-)  # fmt: skip
-ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "thresholds", "num_taxis", "feasibility", "norm_obs", "norm_reward")
-
 
 def _plain_args(args: TrainArgs) -> dict[str, Any]:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()}
@@ -457,129 +472,12 @@ def _set_numpy_rng_state(state: dict[str, Any]) -> None:
     np.random.set_state((state["name"], keys, state["pos"], state["has_gauss"], state["cached_gaussian"]))
 
 
-@dataclass
-class Checkpoint:
-    """Everything to continue a run or fly its policy: tensors, numbers, strings, lists and dicts only, so
-    ``torch.load(path, weights_only=True)`` loads it and loading never runs code."""
-
-    model: dict[str, torch.Tensor]
-    optimizer: dict[str, Any]
-    net_config: dict[str, Any]
-    args: dict[str, Any]
-    obs_shapes: dict[str, list[int]]
-    iteration: int  # iterations completed
-    global_step: int  # agent-steps trained on (all ranks)
-    wall_s: float
-    obs_normalizer: dict[str, Any] | None
-    reward_scaler: dict[str, Any] | None
-    best_eval: dict[str, float]
-    best_step: int
-    target_step: int | None
-    target_s: float | None
-    torch_rng: torch.Tensor
-    numpy_rng: dict[str, Any]
-    cuda_rng: torch.Tensor | None = None
-    format: int = CHECKPOINT_FORMAT
-
-    def to_bytes(self) -> bytes:
-        data = io.BytesIO()
-        torch.save({f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, data)
-        return data.getvalue()
-
-    def save(self, path: Path) -> None:
-        write_bytes_atomic(path, self.to_bytes())
-
-    @classmethod
-    def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"checkpoint {path} does not exist; train one with uamfleet-train (or python train/ppo.py)."
-            )
-        return cls.from_bytes(path.read_bytes(), str(path), map_location)
-
-    @classmethod
-    def from_bytes(cls, data: bytes, source: str, map_location: str | torch.device = "cpu") -> Checkpoint:
-        try:
-            payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)
-        except Exception as err:  # torch raises UnpicklingError, RuntimeError or ValueError by cause
-            raise ValueError(
-                f"{source} is not a checkpoint uamfleet loads safely (torch.load(weights_only=True) refused it: "
-                f"{_load_error(err)}). Checkpoints of uamfleet before format {CHECKPOINT_FORMAT} held a pickled "
-                "NumPy RNG state: train the run again, or re-save a file you trust with "
-                "uamfleet.rl.trainer.upgrade_checkpoint()."
-            ) from None
-        names = [f.name for f in dataclasses.fields(cls)]
-        required = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING]
-        if not isinstance(payload, dict) or any(k not in payload for k in required):
-            got = sorted(payload) if isinstance(payload, dict) else type(payload).__name__
-            raise ValueError(f"{source} is not a uamfleet training checkpoint (expected keys {required}, got {got}).")
-        return cls(**{k: v for k, v in payload.items() if k in names})
-
-    def train_args(self) -> TrainArgs:
-        known = {f.name for f in dataclasses.fields(TrainArgs)}
-        saved = {k: v for k, v in self.args.items() if k in known}
-        saved["run_dir"] = Path(saved.get("run_dir", "runs"))
-        return TrainArgs(**saved)
-
-    def check_matches(
-        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
-    ) -> None:
-        """Raise ValueError naming every architecture, scenario or observation-layout field that differs;
-        ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
-        diffs = []
-        if args is not None:
-            for key in (*ARCHITECTURE_FIELDS, *ENVIRONMENT_FIELDS):
-                if key in self.args and self.args[key] != getattr(args, key):
-                    diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {getattr(args, key)!r}")
-        for key in sorted(set(self.obs_shapes) | set(obs_shapes)):
-            saved, now = self.obs_shapes.get(key), obs_shapes.get(key)
-            if saved is None and extra_ok:
-                continue
-            if saved is None or now is None or tuple(saved) != tuple(now):
-                diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
-        if diffs:
-            raise ValueError(
-                "the checkpoint was trained with another setup: " + "; ".join(diffs) + ". Use the same options "
-                "(or a new --run-name for a new run)."
-            )
-
-
-def _load_error(err: Exception) -> str:
-    """The one line of torch's refusal that says why (it also advises weights_only=False: not for us)."""
-    text = re.sub(r"\x1b\[[0-9;]*m", "", str(err))
-    why = r"Unsupported global: GLOBAL \S+|unsupported GLOBAL [^\n]*blocked|Unsupported operand \S+"
-    found = re.search(f"({why})", text)
-    if found:
-        return found.group(1)
-    lines = [line.strip() for line in text.splitlines() if line.strip()]
-    return lines[0].split(". ")[0] if lines else type(err).__name__
-
-
-def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None) -> Path:
-    """Re-save a checkpoint of format 1 (pickled NumPy RNG state) in the safe format, in place (pass the
-    ``env_config`` it was trained on, if not its named scenario).
-
-    This unpickles the file once with ``weights_only=False``: run it only on files you wrote yourself."""
-    path = Path(path)
-    old = torch.load(path, map_location="cpu", weights_only=False)
-    if not isinstance(old.get("numpy_rng"), dict):
-        name, keys, pos, has_gauss, cached = old["numpy_rng"]
-        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
-                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
-    for key in ("obs_normalizer", "reward_scaler"):
-        if old.get(key) is not None:
-            fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
-            for rms in fields.values():
-                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
-                rms["count"] = float(rms["count"])
-    old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
-    args = Checkpoint(**{**old, "obs_shapes": {}}).train_args()
-    base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    venv = VectorEnv(make_env_config(base, args, training=False), num_envs=1)
-    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    Checkpoint(**{k: v for k, v in old.items() if k != "format"}).save(path)
-    return path
+def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
+    """The training arguments a checkpoint was written with (options added since take their defaults)."""
+    known = {f.name for f in dataclasses.fields(TrainArgs)}
+    saved = {k: v for k, v in ckpt.args.items() if k in known}
+    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
+    return TrainArgs(**saved)
 
 
 # ---- the run: its folder, its parts, and the state a checkpoint restores ------------------------------------
@@ -749,6 +647,8 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
 
 def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
     ckpt.check_matches(run.args, run.obs_shapes)
+    shapes = {k: tuple(v.shape) for k, v in learner.net.state_dict().items()}
+    check_state_dict(ckpt.model, shapes, str(run.folder / "last.pt"), run.args.variant)
     learner.net.load_state_dict(ckpt.model)
     learner.optimizer.load_state_dict(ckpt.optimizer)
     if learner.normalizer is not None and ckpt.obs_normalizer is not None:
@@ -1155,7 +1055,7 @@ def load_policy(
     ``env_config`` when it was trained on one). Loads with ``weights_only=True``: a foreign or pickle-only
     file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
     ckpt = Checkpoint.load(path, map_location=device)
-    args = ckpt.train_args()
+    args = checkpoint_args(ckpt)
     cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
     venv = VectorEnv(cfg, num_envs=1)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
@@ -1170,7 +1070,7 @@ def load_policy(
         ) from None
     space = _only(venv.single_observation_space, ckpt.obs_shapes)  # fields added to the env since are not read
     shapes = {k: tuple(s.shape or ()) for k, s in space.spaces.items()}
-    net = MSHAActorCritic(space, NetConfig(**ckpt.net_config)).to(device)
+    net = MSHAActorCritic(space, check_network(ckpt, space, str(path))).to(device)
     net.load_state_dict(ckpt.model)
     net.eval()
     normalizer = None
@@ -1186,10 +1086,15 @@ def load_policy(
 
 
 __all__ = [
+    "ARCHITECTURE_FIELDS",
+    "CHECKPOINT_FORMAT",
+    "ENVIRONMENT_FIELDS",
     "Checkpoint",
+    "CheckpointError",
     "GreedyPolicy",
     "TrainArgs",
     "TrainResult",
+    "checkpoint_args",
     "collect_rollout",
     "compute_advantages",
     "evaluate",

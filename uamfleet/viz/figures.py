@@ -139,5 +139,5 @@ def plot_connectivity(
 def save_figure(fig: Figure, path: str | Path) -> None:
     """Write a PNG atomically (temp file + rename), creating the folder."""
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png")
+    fig.savefig(buffer, format="png", metadata={"Software": None})  # no version stamp: same input, same bytes
     write_bytes_atomic(path, buffer.getvalue())

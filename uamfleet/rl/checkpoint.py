@@ -1,0 +1,388 @@
+"""Training checkpoints: saved atomically, loaded without running code, and checked before anything is built.
+
+A :class:`Checkpoint` holds tensors, numbers, strings, lists and dicts only, so ``torch.load(weights_only=True)``
+reads it and loading never runs code. A file is an input like any other, so before a network is built from it:
+
+- :meth:`Checkpoint.from_bytes` refuses a file torch will not read safely, a file without the checkpoint's keys, a
+  ``net_config`` of unknown fields or of sizes far beyond any trained policy (:data:`NET_LIMITS`: a crafted file
+  asking for ``d_model=10**6`` is refused in milliseconds, before allocating anything), and NaN or infinite
+  weights or normalisation statistics (they fly silently and deliver nobody);
+- :func:`check_network` builds the network on PyTorch's ``meta`` device (shapes only, no memory) and compares
+  every tensor's shape with the checkpoint's before ``load_state_dict``, so a mismatch is one line naming the
+  tensor, not a RuntimeError listing them all.
+
+Every refusal is a :class:`CheckpointError` (a ValueError: one line and exit status 2 on the command line).
+:func:`upgrade_checkpoint` converts a checkpoint of format 1 (NumPy objects pickled inside) reading only NumPy
+arrays and scalars; unpickling anything else happens only with ``trust=True``, which warns what it means.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import re
+import warnings
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+from gymnasium import spaces
+
+from uamfleet.config import EnvConfig, make_config
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.io import write_bytes_atomic
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig
+
+if TYPE_CHECKING:
+    from uamfleet.rl.trainer import TrainArgs
+
+CHECKPOINT_FORMAT = 2
+"""2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
+NumPy RNG state inside."""
+ARCHITECTURE_FIELDS = (
+    "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
+    "stop_free_move", "stop_prior",
+)  # fmt: skip
+ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "thresholds", "num_taxis", "feasibility", "norm_obs", "norm_reward")
+
+NET_LIMITS: dict[str, int] = {"d_model": 4096, "num_heads": 256, "local_window": 256, "hidden": 16384,
+                              "critic_state_dim": 1_000_000}  # fmt: skip
+"""Largest size each integer field of a checkpoint's ``net_config`` may ask for: far above any policy trained here
+(d_model 16 ... 128, hidden 128), low enough that a crafted file cannot make the loader allocate gigabytes."""
+
+try:  # NumPy 2 renamed numpy.core to numpy._core
+    from numpy._core import multiarray as _multiarray
+except ImportError:  # pragma: no cover - NumPy 1
+    from numpy.core import multiarray as _multiarray  # type: ignore[no-redef]
+
+NUMPY_GLOBALS: list[Any] = [
+    np.ndarray, np.dtype, _multiarray._reconstruct, _multiarray.scalar,
+    *(type(np.dtype(kind)) for kind in "?bBhHiIlLqQefdg"),  # numeric dtypes only: never object arrays
+    *((getattr(_multiarray, f), f"numpy.{core}.multiarray.{f}")  # the names files of either NumPy use
+      for core in ("core", "_core") for f in ("_reconstruct", "scalar")),
+]  # fmt: skip
+"""What a format-1 checkpoint pickled besides tensors: NumPy arrays and scalars (the RNG state, the normaliser's
+statistics). Rebuilding them runs no code of the file; :func:`upgrade_checkpoint` allows these and nothing else."""
+
+
+class CheckpointError(ValueError):
+    """A file that is not a checkpoint uamfleet loads safely, or one that does not fit the network or env."""
+
+
+@dataclass
+class Checkpoint:
+    """Everything to continue a run or fly its policy: tensors, numbers, strings, lists and dicts only, so
+    ``torch.load(path, weights_only=True)`` loads it and loading never runs code."""
+
+    model: dict[str, torch.Tensor]
+    optimizer: dict[str, Any]
+    net_config: dict[str, Any]
+    args: dict[str, Any]
+    obs_shapes: dict[str, list[int]]
+    iteration: int  # iterations completed
+    global_step: int  # agent-steps trained on (all ranks)
+    wall_s: float
+    obs_normalizer: dict[str, Any] | None
+    reward_scaler: dict[str, Any] | None
+    best_eval: dict[str, float]
+    best_step: int
+    target_step: int | None
+    target_s: float | None
+    torch_rng: torch.Tensor
+    numpy_rng: dict[str, Any]
+    cuda_rng: torch.Tensor | None = None
+    format: int = CHECKPOINT_FORMAT
+
+    def to_bytes(self) -> bytes:
+        data = io.BytesIO()
+        torch.save({f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, data)
+        return data.getvalue()
+
+    def save(self, path: Path) -> None:
+        write_bytes_atomic(path, self.to_bytes())
+
+    @classmethod
+    def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"checkpoint {path} does not exist; train one with uamfleet-train (or python train/ppo.py)."
+            )
+        return cls.from_bytes(path.read_bytes(), str(path), map_location)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, source: str, map_location: str | torch.device = "cpu") -> Checkpoint:
+        """The checkpoint in ``data`` (read from ``source``), checked: keys, net_config, finite values."""
+        try:
+            payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)
+        except Exception as err:  # torch raises UnpicklingError, RuntimeError or ValueError by cause
+            raise CheckpointError(f"{source} is not a checkpoint uamfleet loads safely ({_refusal(err)}).") from None
+        names = [f.name for f in dataclasses.fields(cls)]
+        required = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING]
+        if not isinstance(payload, dict) or any(k not in payload for k in required):
+            got = sorted(map(str, payload)) if isinstance(payload, dict) else type(payload).__name__
+            raise CheckpointError(
+                f"{source} is not a uamfleet training checkpoint (expected keys {required}, got {got})."
+            )
+        ckpt = cls(**{k: v for k, v in payload.items() if k in names})
+        ckpt.validate(source)
+        return ckpt
+
+    def validate(self, source: str) -> NetConfig:
+        """Raise CheckpointError unless the parts are of the right types, the network config is known and
+        bounded, and every weight and normalisation statistic is finite; the network's config."""
+        for name in ("model", "net_config", "args", "obs_shapes", "obs_normalizer", "reward_scaler"):
+            value = getattr(self, name)
+            if not isinstance(value, dict) and not (value is None and name in ("obs_normalizer", "reward_scaler")):
+                raise CheckpointError(f"{source}: its {name} is a {type(value).__name__}, not a dict.")
+        for key, shape in self.obs_shapes.items():
+            if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
+                raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
+        cfg = check_net_config(self.net_config, source)
+        for name, value in self.model.items():
+            if not isinstance(value, torch.Tensor):
+                raise CheckpointError(f"{source}: model entry {name!r} is a {type(value).__name__}, not a tensor.")
+        for name, value in self.statistics(source):
+            if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+                bad = int((~torch.isfinite(value)).sum())
+                raise CheckpointError(
+                    f"{source}: {name} holds {bad} NaN or infinite value(s) of {value.numel()}; the run diverged or "
+                    "the file is damaged: use an earlier checkpoint (best.pt) or train again."
+                )
+            if name.startswith("normaliser") and not name.endswith(" mean") and bool((value < 0).any()):
+                raise CheckpointError(
+                    f"{source}: {name} is negative; a variance or count never is: the file was altered."
+                )
+        return cfg
+
+    def statistics(self, source: str) -> Iterator[tuple[str, torch.Tensor]]:
+        """(name, tensor) of every weight and normalisation statistic a policy flies with."""
+        for name, value in self.model.items():
+            yield f"model tensor {name!r}", value
+        normalisers = {**(self.obs_normalizer or {}), **({"reward": self.reward_scaler} if self.reward_scaler else {})}
+        for field_name, rms in normalisers.items():
+            if not isinstance(rms, Mapping) or any(k not in rms for k in ("mean", "var", "count")):
+                raise CheckpointError(f"{source}: normaliser {field_name!r} lacks mean, var or count.")
+            for key in ("mean", "var", "count"):
+                try:
+                    value = torch.as_tensor(np.asarray(rms[key], dtype=np.float64))
+                except (TypeError, ValueError, RuntimeError):
+                    raise CheckpointError(f"{source}: normaliser {field_name!r} {key} is not numbers.") from None
+                yield f"normaliser {field_name!r} {key}", value
+
+    def check_matches(
+        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
+    ) -> None:
+        """Raise ValueError naming every architecture, scenario or observation-layout field that differs;
+        ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
+        diffs = []
+        if args is not None:
+            for key in (*ARCHITECTURE_FIELDS, *ENVIRONMENT_FIELDS):
+                if key in self.args and self.args[key] != getattr(args, key):
+                    diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {getattr(args, key)!r}")
+        for key in sorted(set(self.obs_shapes) | set(obs_shapes)):
+            saved, now = self.obs_shapes.get(key), obs_shapes.get(key)
+            if saved is None and extra_ok:
+                continue
+            if saved is None or now is None or tuple(saved) != tuple(now):
+                diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
+        if diffs:
+            raise ValueError(
+                "the checkpoint was trained with another setup: " + "; ".join(diffs) + ". Use the same options "
+                "(or a new --run-name for a new run)."
+            )
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def check_net_config(net_config: Mapping[str, Any], source: str) -> NetConfig:
+    """The :class:`NetConfig` of a checkpoint's ``net_config``, refused (CheckpointError) when a field is unknown,
+    of the wrong type, or larger than :data:`NET_LIMITS` allows: nothing is allocated here."""
+    fields = {f.name: f for f in dataclasses.fields(NetConfig)}
+    unknown = sorted(set(map(str, net_config)) - set(fields))
+    if unknown:
+        raise CheckpointError(
+            f"{source}: net_config has field(s) {unknown} this uamfleet does not know (it knows {sorted(fields)}); "
+            "it was written by another version or altered."
+        )
+    for name, value in net_config.items():
+        default = fields[name].default
+        if name in NET_LIMITS:
+            if value is None and default is None:
+                continue
+            if not _is_int(value) or not 1 <= value <= NET_LIMITS[name]:
+                raise CheckpointError(
+                    f"{source}: net_config {name}={value!r} must be an integer in 1 ... {NET_LIMITS[name]:,}; "
+                    "the file was not written by a uamfleet training run (or was altered)."
+                )
+        elif not isinstance(value, type(default)):
+            raise CheckpointError(
+                f"{source}: net_config {name}={value!r} must be a {type(default).__name__} (e.g. {default!r})."
+            )
+    try:
+        return NetConfig(**net_config)
+    except ValueError as err:
+        raise CheckpointError(f"{source}: net_config is not a valid network: {err}") from None
+
+
+def check_network(ckpt: Checkpoint, space: spaces.Dict, source: str) -> NetConfig:
+    """The network config of ``ckpt``, once its tensors fit the network it builds for ``space`` (one agent's
+    observation space, the fields the policy reads) and its normaliser fits those fields. The network is built
+    on the ``meta`` device: shapes only, nothing allocated. Raises CheckpointError naming the first tensor that
+    is missing, extra or of another shape."""
+    cfg = ckpt.validate(source)
+    try:
+        with torch.device("meta"):
+            expected = {k: tuple(v.shape) for k, v in MSHAActorCritic(space, cfg).state_dict().items()}
+    except (ValueError, RuntimeError) as err:
+        raise CheckpointError(f"{source}: its network does not fit this observation layout: {err}") from None
+    check_state_dict(ckpt.model, expected, source, cfg.variant)
+    for field_name, rms in (ckpt.obs_normalizer or {}).items():
+        shape = space.spaces[field_name].shape if field_name in space.spaces else None
+        mean_shape = tuple(np.shape(rms["mean"]))
+        if shape is None or mean_shape != tuple(shape) or tuple(np.shape(rms["var"])) != mean_shape:
+            raise CheckpointError(
+                f"{source}: the observation normaliser of {field_name!r} has shape {list(np.shape(rms['mean']))}; "
+                f"the observation has {None if shape is None else list(shape)}: the file was altered."
+            )
+    return cfg
+
+
+def check_state_dict(
+    model: Mapping[str, torch.Tensor], expected: Mapping[str, tuple[int, ...]], source: str, variant: str
+) -> None:
+    """Raise CheckpointError naming the first tensor of ``model`` that is missing, extra or of another shape than
+    ``expected`` (the network's), so ``load_state_dict`` never meets a mismatch."""
+    saved = {k: tuple(v.shape) for k, v in model.items()}
+    for name in sorted(set(expected) | set(saved)):
+        want, got = expected.get(name), saved.get(name)
+        if want == got:
+            continue
+        if got is None:
+            why = f"lacks tensor {name!r} of shape {list(want or ())}"
+        elif want is None:
+            why = f"holds tensor {name!r} (shape {list(got)}) that its network ({variant!r}) does not have"
+        else:
+            why = f"tensor {name!r} has shape {list(got)}; its network needs {list(want)}"
+        raise CheckpointError(
+            f"{source}: {why} (of {len(expected)} tensors); the file does not match its own net_config: it was "
+            "altered or written by another version."
+        )
+
+
+def _refusal(err: Exception) -> str:
+    """Why torch refused a file, and what to do, in one line, never advising to unpickle it."""
+    why = _load_error(err)
+    found = re.search(r"GLOBAL (\S+)", why)
+    if found and found.group(1).startswith("numpy"):
+        return (
+            f"torch.load(weights_only=True) refused it: {why}. It is a checkpoint of uamfleet before format "
+            f"{CHECKPOINT_FORMAT}, with NumPy objects pickled inside: convert it with "
+            "uamfleet.rl.checkpoint.upgrade_checkpoint(path), which reads only NumPy arrays and runs no code"
+        )
+    if found:
+        return (
+            f"torch.load(weights_only=True) refused it: {why}, an object no uamfleet checkpoint holds; the file "
+            "was not written by uamfleet or was altered, and loading it otherwise could run code in it"
+        )
+    return f"torch.load(weights_only=True) refused it: {why}; it is damaged, truncated or not a torch file"
+
+
+def _load_error(err: Exception) -> str:
+    """The one line of torch's refusal that says why (it also advises weights_only=False: not for us)."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(err))
+    why = (
+        r"Unsupported global: GLOBAL \S+|unsupported GLOBAL [^\n]*blocked|Unsupported operand \S+"
+        r"|but got <class '[^']+'>"
+    )
+    found = re.search(f"({why})", text)
+    if found:
+        return found.group(1)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[0].split(". ")[0] if lines else type(err).__name__
+
+
+TRUST_WARNING = (
+    "upgrade_checkpoint(trust=True) unpickles {path} with torch.load(weights_only=False): any code the file holds "
+    "runs now, with your permissions. Trust only a file you wrote yourself and kept where nobody else could "
+    "change it."
+)
+
+
+def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *, trust: bool = False) -> Path:
+    """Re-save a checkpoint of format 1 (NumPy RNG state and statistics pickled inside) in the safe format, in
+    place (pass the ``env_config`` it was trained on, if not its named scenario).
+
+    It reads the file with ``torch.load(weights_only=True)`` allowing NumPy arrays and scalars only
+    (:data:`NUMPY_GLOBALS`): no code of the file runs, and a file holding anything else is refused. ``trust=True``
+    unpickles the file fully instead, which runs any code in it (it warns): only for a file you wrote yourself.
+    The result is checked like every checkpoint before it is saved."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} does not exist.")
+    if trust:
+        warnings.warn(TRUST_WARNING.format(path=path), UserWarning, stacklevel=2)
+        old = torch.load(path, map_location="cpu", weights_only=False)
+    else:
+        try:
+            with torch.serialization.safe_globals(NUMPY_GLOBALS):  # torch >= 2.5
+                old = torch.load(path, map_location="cpu", weights_only=True)
+        except AttributeError:  # pragma: no cover - older torch
+            raise CheckpointError("upgrade_checkpoint needs torch >= 2.5 (torch.serialization.safe_globals).") from None
+        except Exception as err:
+            raise CheckpointError(
+                f"{path} holds more than tensors and NumPy arrays, so upgrade_checkpoint will not read it "
+                f"({_load_error(err)}): it is not a uamfleet checkpoint of format 1; train the run again."
+            ) from None
+    if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
+        raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
+    if not isinstance(old["numpy_rng"], dict):
+        name, keys, pos, has_gauss, cached = old["numpy_rng"]
+        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
+                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
+    for key in ("obs_normalizer", "reward_scaler"):
+        if old.get(key) is not None:
+            fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
+            for rms in fields.values():
+                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
+                rms["count"] = float(rms["count"])
+    old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
+    venv = VectorEnv(_evaluation_config(old["args"], env_config), num_envs=1)
+    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
+    upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
+    upgraded.validate(str(path))
+    upgraded.save(path)
+    return path
+
+
+def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) -> EnvConfig:
+    """The config a run evaluated on, from its saved arguments (the observation layout is all that matters
+    here: the same overrides as ``TrainArgs.env_overrides(training=False)``)."""
+    overrides: dict[str, Any] = {"feasibility": args.get("feasibility", "endpoint_block")}
+    for key in ("sinr_min_db", "num_taxis"):
+        if args.get(key) is not None:
+            overrides[key] = args[key]
+    limit = args.get("eval_time_limit_steps") or args.get("time_limit_steps")
+    if limit is not None:
+        overrides["time_limit_steps"] = limit
+    return make_config(env_config if env_config is not None else str(args["scenario"]), **overrides)
+
+
+__all__ = [
+    "ARCHITECTURE_FIELDS",
+    "CHECKPOINT_FORMAT",
+    "ENVIRONMENT_FIELDS",
+    "NET_LIMITS",
+    "Checkpoint",
+    "CheckpointError",
+    "check_net_config",
+    "check_network",
+    "check_state_dict",
+    "upgrade_checkpoint",
+]
