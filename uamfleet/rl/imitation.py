@@ -41,7 +41,7 @@ from uamfleet.instances import family_of, validation_metrics
 from uamfleet.io import write_text_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
-from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy, make_env_config
+from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy, make_env_config
 from uamfleet.types import HIDDEN, FleetState
 from uamfleet.zoo import PRETRAINED, pretrained_path
 
@@ -309,7 +309,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     start = time.time()
     init = pretrained_path(args.init) if args.init in PRETRAINED else Path(args.init)
     ckpt = Checkpoint.load(init)
-    source_args = ckpt.train_args()
+    source_args = checkpoint_args(ckpt)
     prior, _ = load_policy(init)
     policy = with_heading_residual(prior)
     base = make_env_config(source_args.scenario, source_args, training=True)
