@@ -87,6 +87,12 @@ class Args:
     methods: tuple[str, ...] = METHODS
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
+    guided: bool = False
+    """with --checkpoint: also fly that policy with search at decision time (method learned_guided,
+    uamfleet/rl/guided.py): at each release its greedy flights after its --guided-top-k first headings and
+    --guided-samples sampled flights, rolled forward over the known requests; the shortest is flown"""
+    guided_top_k: int = 4
+    guided_samples: int = 12
     best_known_beams: tuple[int, ...] = (256,)
     """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
     replan_beam: int = 64
@@ -121,7 +127,9 @@ def _config(task: Task) -> EnvConfig:
     return make_instance(source, int(seed), feasibility=rule)  # type: ignore[arg-type]
 
 
-def _policy(method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int) -> Any:
+def _policy(
+    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int, guided: tuple[int, int]
+) -> Any:
     if method in PLANNERS:
         return PlannerPolicy(method)
     if method == "best_known":
@@ -130,6 +138,10 @@ def _policy(method: str, checkpoint: Path | None, beams: tuple[int, ...], replan
     if method == "replan":
         return StepPlannerPolicy(method, [SearchSettings(replan_beam, rank_slack=1.0)])
     assert checkpoint is not None
+    if method == "learned_guided":
+        from uamfleet.rl.guided import GuidedSearchPolicy
+
+        return GuidedSearchPolicy(learned_policy(checkpoint), top_k=guided[0], samples=guided[1])
     return learned_policy(checkpoint)
 
 
@@ -151,12 +163,12 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int]
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int]]
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
     """Every method on one instance (one worker process)."""
-    task, methods, checkpoint, beams, replan_beam = job
+    task, methods, checkpoint, beams, replan_beam, guided = job
     try:
         cfg = _config(task)
         validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
@@ -170,8 +182,8 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     for method in methods:
         overrides = planner_env_overrides(method) if method in PLANNERS else {}
         run_cfg = cfg.replace(**overrides) if overrides else cfg
-        policy = _policy(method, checkpoint, beams, replan_beam)
-        if method == "learned":  # the policy's passenger axis: pad the instance's to it
+        policy = _policy(method, checkpoint, beams, replan_beam, guided)
+        if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
             if run_cfg.num_passengers > policy.passenger_slots:
                 print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
                       f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
@@ -335,6 +347,13 @@ def check_args(args: Args) -> list[Task]:
         raise ValueError(f"unknown --methods {unknown}; choose from {METHODS}.")
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
+    if args.guided and args.checkpoint is None:
+        raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
+    if args.guided_top_k < 1 or args.guided_samples < 0:
+        raise UsageError(
+            f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples}: need top-k >= 1 and "
+            "samples >= 0 (e.g. 4 and 12)."
+        )
     selected = tasks(args)
     if not selected:
         raise UsageError(
@@ -356,8 +375,10 @@ def main(args: Args) -> list[dict[str, Any]]:
         check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
         write_outputs(args, earlier, 60.0 * args.wall_min)
         return earlier
-    methods = tuple(args.methods) + (("learned",) if args.checkpoint is not None else ())
-    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam) for t in selected]
+    learned = ("learned", "learned_guided") if args.guided else ("learned",)
+    methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
+    guided = (args.guided_top_k, args.guided_samples)
+    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
     with mp.get_context("spawn").Pool(min(args.jobs, len(jobs))) as pool:
@@ -396,6 +417,11 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (" --fixed" if args.fixed else "")
         + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
+        + (
+            f" --guided --guided-top-k {args.guided_top_k} --guided-samples {args.guided_samples}"
+            if args.guided
+            else ""
+        )
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )

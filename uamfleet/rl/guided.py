@@ -47,6 +47,11 @@ class GuidedSearchPolicy:
         self.queue: list[int] = []
         self.plans: list[tuple[int, int, int, float]] = []
 
+    @property
+    def passenger_slots(self) -> int | None:
+        """The policy's passenger axis (an instance with more requests cannot be flown)."""
+        return self.policy.passenger_slots
+
     def layout(self, cfg: EnvConfig) -> EnvConfig:
         """``cfg`` laid out for the policy (:meth:`GreedyPolicy.layout`)."""
         return self.policy.layout(cfg)
