@@ -38,7 +38,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
     (6, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
-    (7, ("uamfleet.rl.trainer", "uamfleet.zoo")),
+    # So does the greedy policy (GreedyPolicy.fly), which the loop evaluates and the zoo ships.
+    (7, ("uamfleet.rl.trainer", "uamfleet.rl.policy", "uamfleet.zoo")),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
