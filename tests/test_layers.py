@@ -37,9 +37,10 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
     (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
     (6, ("uamfleet.rollout", "uamfleet.metrics")),
-    # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz; imitation
-    # learning labels with the baselines' step-level search and fits the trainer's policies.
-    (7, ("uamfleet.rl.trainer", "uamfleet.rl.imitation", "uamfleet.rl.guided", "uamfleet.zoo")),
+    # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
+    # So does the greedy policy (GreedyPolicy.fly), which the loop evaluates and the zoo ships; imitation learning
+    # labels with the baselines' step-level search, and guided search rolls the greedy policy forward.
+    (7, ("uamfleet.rl.trainer", "uamfleet.rl.policy", "uamfleet.rl.imitation", "uamfleet.rl.guided", "uamfleet.zoo")),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in

@@ -279,7 +279,8 @@ class EnvConfig:
     min_separation_m: float = 50.0
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
     stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
-    stop_claims: bool = False  # with stop_features: "stop_rivals" and "stop_claims" for any fleet size (docs/rules.md)
+    stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
+    stop_claims: bool = False  # with stop_features: "stop_rivals", "stop_claims" and "hover_heading_mask" (rules.md)
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -352,8 +353,11 @@ class EnvConfig:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
         if not isinstance(self.stop_features, bool):
             raise ConfigError(f"stop_features={self.stop_features!r} must be True or False.")
-        if not isinstance(self.stop_claims, bool):
-            raise ConfigError(f"stop_claims={self.stop_claims!r} must be True or False.")
+        for name in ("stop_rivals", "stop_claims"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name}={getattr(self, name)!r} must be True or False.")
+        if self.stop_rivals and not self.stop_features:
+            raise ConfigError("stop_rivals=True needs stop_features=True (the rivals use the same path distances).")
         if self.stop_claims and not self.stop_features:
             raise ConfigError("stop_claims=True needs stop_features=True (the claims use the same path distances).")
         if not isinstance(self.scenario, str):
@@ -400,10 +404,11 @@ class EnvConfig:
 
     def with_layout_of(self, like: EnvConfig) -> EnvConfig:
         """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
-        passenger axis, stop features and claims, patch, history and time limit (the observation's time feature is
-        a fraction of the limit). How a policy trained on ``like`` flies another instance."""
+        passenger axis, stop fields (features, rivals, claims), patch, history and time limit (the observation's time
+        feature is a fraction of the limit). How a policy trained on ``like`` flies another instance."""
         return self.replace(
-            max_passengers=like.num_passengers, stop_features=like.stop_features, stop_claims=like.stop_claims,
+            max_passengers=like.num_passengers, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
+            stop_claims=like.stop_claims,
             time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
         )  # fmt: skip
 

@@ -19,10 +19,22 @@ WAITING = 1  # released, waiting at its origin
 ON_BOARD = 2  # in taxi pax_taxi
 DELIVERED = 3
 
-# ---- observation layout (docs/rules.md "Observation"): feature names, and their indices derived from them ----
+# ---- observation columns (docs/rules.md "Observation"): the names of each field's last axis, and the indices the
+# kernels write through, derived from them. Which fields a config observes, with shapes, bounds and kinds:
+# uamfleet.env.layout.observation_layout (the one spec; it names these tuples as the fields' columns).
 SELF_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "time")  # x, y / side; seats / capacity; t / limit
-HISTORY_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
-OTHER_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")
+SELF_X = SELF_FEATURES.index("x")
+SELF_Y = SELF_FEATURES.index("y")
+SELF_FREE_SEATS = SELF_FEATURES.index("free_seats")
+SELF_TIME = SELF_FEATURES.index("time")
+HISTORY_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")  # (position then - now) / side; seats then / capacity
+HIST_DX = HISTORY_FEATURES.index("dx")
+HIST_DY = HISTORY_FEATURES.index("dy")
+HIST_FREE_SEATS = HISTORY_FEATURES.index("free_seats")
+OTHER_FEATURES: tuple[str, ...] = ("dx", "dy", "free_seats")  # (other taxi - this one) / side; its seats / capacity
+OTHER_DX = OTHER_FEATURES.index("dx")
+OTHER_DY = OTHER_FEATURES.index("dy")
+OTHER_FREE_SEATS = OTHER_FEATURES.index("free_seats")
 PASSENGER_FEATURES: tuple[str, ...] = (
     "origin_dx",  # (origin - taxi) / side
     "origin_dy",
@@ -54,16 +66,27 @@ STOP_PATH_FEATURES: tuple[str, ...] = (
     "path_to_stop",  # feasible-path distance from the taxi to the row's stop / side (0: no actionable stop)
     "ride_path",  # feasible-path distance from the row's origin to its destination / side
     "tour_via_stop",  # the shortest tour through every known stop that flies to this one first / side
-)  # the "stop_paths" field, only with EnvConfig.stop_features
+)  # the "stop_paths" field, with EnvConfig.stop_features
+STOP_PATH_TO_STOP = STOP_PATH_FEATURES.index("path_to_stop")
+STOP_RIDE_PATH = STOP_PATH_FEATURES.index("ride_path")
+STOP_TOUR_VIA_STOP = STOP_PATH_FEATURES.index("tour_via_stop")
 STOP_RIVAL_FEATURES: tuple[str, ...] = (
     "rival_path",  # feasible-path distance from a waiting row's origin to the nearest other taxi with a seat / side
     "rivals_nearer",  # share of the other taxis with a seat that are nearer to it than this taxi
-)  # the "stop_rivals" field, with EnvConfig.stop_features and more than one taxi
-STOP_CLAIM_FEATURES: tuple[str, ...] = (  # with stop_claims, "stop_rivals" is observed for any fleet size
+)  # the "stop_rivals" field, with EnvConfig.stop_features and stop_rivals (or stop_claims), for any fleet size
+STOP_RIVAL_PATH = STOP_RIVAL_FEATURES.index("rival_path")
+STOP_RIVALS_NEARER = STOP_RIVAL_FEATURES.index("rivals_nearer")
+STOP_CLAIM_FEATURES: tuple[str, ...] = (
     "claimed_by_me",  # 1: the nearest-first matching of free taxis to waiting rows gives this row to this taxi
     "claimed_by_other",  # 1: ... to another taxi
-)  # the "stop_claims" field (int8), with EnvConfig.stop_claims and more than one taxi
+)  # the "stop_claims" field (int8), with EnvConfig.stop_claims, for any fleet size
+STOP_CLAIMED_BY_ME = STOP_CLAIM_FEATURES.index("claimed_by_me")
+STOP_CLAIMED_BY_OTHER = STOP_CLAIM_FEATURES.index("claimed_by_other")
+STOP_PATH_CLIP = 16.0
+"""Upper bound of the ``stop_paths`` and ``stop_rivals`` distances (map sides): an unreachable stop (``inf``) reads
+as this."""
 STATE_TAXI_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "index")  # rows of state(), per taxi
+STATE_TAXI_INDEX = STATE_TAXI_FEATURES.index("index")
 STATE_PASSENGER_FEATURES: tuple[str, ...] = (
     "origin_x",
     "origin_y",

@@ -166,7 +166,7 @@ def test_rivals_name_the_nearest_other_free_taxi_and_the_share_nearer() -> None:
     )
     cfg = small_config(
         "\n".join(["......."] * 7), starts_m=((150.0, 150.0), (350.0, 350.0), (550.0, 250.0)), requests=reqs,
-        seats=1, stop_features=True, patch_size=4,
+        seats=1, stop_features=True, stop_rivals=True, patch_size=4,
     )  # fmt: skip
     env = VectorEnv(cfg, num_envs=1)
     obs, _ = env.reset(seed=0)

@@ -153,15 +153,15 @@ def test_pooled_normaliser_moments_equal_the_moments_of_the_joined_batch():
     a, b = rng.normal(500.0, 30.0, size=(6, 3)), rng.normal(520.0, 10.0, size=(10, 3))
     joined = RunningMeanStd((3,))
     joined.update(np.concatenate([a, b]))
-    norm = ObservationNormalizer({"x": (3,), "x_mask": (3,)})
+    norm = ObservationNormalizer({"self": (3,), "action_mask": (3,)})  # a feature and a mask (their kinds)
     # rank 0's view: its own batch a, plus rank 1's shifted count / sums (the running mean is 0 on both)
     other = np.concatenate([[len(b)], b.sum(0), (b * b).sum(0)])
     world = _FakeWorld(active=True)
     object.__setattr__(world, "other", other)
-    norm.update({"x": a, "x_mask": np.ones((6, 3))}, world)
-    np.testing.assert_allclose(norm.fields["x"].mean, joined.mean, rtol=1e-12)
-    np.testing.assert_allclose(norm.fields["x"].var, joined.var, rtol=1e-9)
-    assert norm.fields["x"].count == pytest.approx(joined.count)
+    norm.update({"self": a, "action_mask": np.ones((6, 3))}, world)
+    np.testing.assert_allclose(norm.fields["self"].mean, joined.mean, rtol=1e-12)
+    np.testing.assert_allclose(norm.fields["self"].var, joined.var, rtol=1e-9)
+    assert norm.fields["self"].count == pytest.approx(joined.count)
 
 
 def test_rollout_reward_scaling_in_one_all_reduce_equals_scaling_step_by_step():

@@ -24,9 +24,15 @@ from uamfleet.radio._sampling import segment_min
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
+    HIST_DX,
+    HIST_DY,
+    HIST_FREE_SEATS,
     NUM_HEADINGS,
     NUM_PASSENGER_FEATURES,
     ON_BOARD,
+    OTHER_DX,
+    OTHER_DY,
+    OTHER_FREE_SEATS,
     PAX_AGE,
     PAX_DELIVERED,
     PAX_DEST_DX,
@@ -39,6 +45,18 @@ from uamfleet.types import (
     PAX_ORIGIN_DY,
     PAX_TRIP_LENGTH,
     PAX_WAITING,
+    SELF_FREE_SEATS,
+    SELF_TIME,
+    SELF_X,
+    SELF_Y,
+    STOP_CLAIMED_BY_ME,
+    STOP_CLAIMED_BY_OTHER,
+    STOP_PATH_CLIP,
+    STOP_PATH_TO_STOP,
+    STOP_RIDE_PATH,
+    STOP_RIVAL_PATH,
+    STOP_RIVALS_NEARER,
+    STOP_TOUR_VIA_STOP,
     WAITING,
     FleetState,
     StepEvents,
@@ -190,13 +208,13 @@ def observe(
     s: FleetState,
     w: WorldArrays,
     # outputs, [E, A, ...] (the fields of the observation dict)
-    o_self: np.ndarray,  # [E, A, 4]
-    o_history: np.ndarray,  # [E, A, H, 3]
+    o_self: np.ndarray,  # [E, A, len(SELF_FEATURES)]
+    o_history: np.ndarray,  # [E, A, H, len(HISTORY_FEATURES)]
     o_pax: np.ndarray,  # [E, A, P, NUM_PASSENGER_FEATURES]
     o_pax_mask: np.ndarray,  # [E, A, P] int8
     o_sinr: np.ndarray,  # [E, A, k, k]
     o_visit: np.ndarray,  # [E, A, k, k]
-    o_others: np.ndarray,  # [E, A, max(A-1, 1), 3]
+    o_others: np.ndarray,  # [E, A, max(A-1, 1), len(OTHER_FEATURES)]
     o_others_mask: np.ndarray,  # [E, A, max(A-1, 1)] int8
     o_mask: np.ndarray,  # [E, A, NUM_HEADINGS] int8
 ) -> None:
@@ -209,14 +227,14 @@ def observe(
         t = s.t[e]
         for a in range(num_taxis):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            o_self[e, a, 0] = x / side_m
-            o_self[e, a, 1] = y / side_m
-            o_self[e, a, 2] = s.free_seats[e, a] / seats
-            o_self[e, a, 3] = min(t / time_limit, 1.0)
+            o_self[e, a, SELF_X] = x / side_m
+            o_self[e, a, SELF_Y] = y / side_m
+            o_self[e, a, SELF_FREE_SEATS] = s.free_seats[e, a] / seats
+            o_self[e, a, SELF_TIME] = min(t / time_limit, 1.0)
             for h in range(hist_len):
-                o_history[e, a, h, 0] = (s.history_m[e, a, h, 0] - x) / side_m
-                o_history[e, a, h, 1] = (s.history_m[e, a, h, 1] - y) / side_m
-                o_history[e, a, h, 2] = s.history_seats[e, a, h] / seats
+                o_history[e, a, h, HIST_DX] = (s.history_m[e, a, h, 0] - x) / side_m
+                o_history[e, a, h, HIST_DY] = (s.history_m[e, a, h, 1] - y) / side_m
+                o_history[e, a, h, HIST_FREE_SEATS] = s.history_seats[e, a, h] / seats
             for p in range(num_pax):
                 row = o_pax[e, a, p]
                 status = s.pax_status[e, p]
@@ -246,15 +264,14 @@ def observe(
             for b in range(num_taxis):
                 if b == a:
                     continue
-                o_others[e, a, n, 0] = (s.pos_m[e, b, 0] - x) / side_m
-                o_others[e, a, n, 1] = (s.pos_m[e, b, 1] - y) / side_m
-                o_others[e, a, n, 2] = s.free_seats[e, b] / seats
+                o_others[e, a, n, OTHER_DX] = (s.pos_m[e, b, 0] - x) / side_m
+                o_others[e, a, n, OTHER_DY] = (s.pos_m[e, b, 1] - y) / side_m
+                o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / seats
                 o_others_mask[e, a, n] = 1
                 n += 1
             for m in range(n, o_others.shape[2]):
-                o_others[e, a, m, 0] = 0.0
-                o_others[e, a, m, 1] = 0.0
-                o_others[e, a, m, 2] = 0.0
+                for f in range(o_others.shape[3]):
+                    o_others[e, a, m, f] = 0.0
                 o_others_mask[e, a, m] = 0
             for h in range(NUM_HEADINGS):
                 o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
@@ -309,10 +326,6 @@ def separation(pos: np.ndarray, min_separation_m: float, out: np.ndarray) -> Non
                 if math.sqrt(dx * dx + dy * dy) < min_separation_m:
                     out[e, a] = True
                     out[e, b] = True
-
-
-STOP_PATH_CLIP = 16.0
-"""Upper bound of the ``stop_paths`` distances (map sides): an unreachable stop (``inf``) reads as this."""
 
 
 @njit(cache=True)
@@ -479,15 +492,15 @@ def stop_features(
     table: np.ndarray,  # DistanceTable.distance_m
     nbx: int,
     nby: int,
-    o_paths: np.ndarray,  # [E, A, P, 3] float32 out
+    o_paths: np.ndarray,  # [E, A, P, len(STOP_PATH_FEATURES)] float32 out
     o_heading: np.ndarray,  # [E, A, P, NUM_HEADINGS] int8 out
 ) -> bool:
     """Each taxi's feasible-path view of its stops (docs/rules.md "Observation", ``stop_features``).
 
     Row p of taxi a is *actionable* when p waits and a has a free seat (stop: p's origin) or p rides in a
-    (stop: p's destination). ``o_paths[..., 0]``: the feasible-path distance from the taxi to that stop;
-    ``o_paths[..., 1]``: from p's origin to p's destination (the ride still to fly once p is aboard);
-    ``o_paths[..., 2]``: the shortest whole tour through every stop the taxi knows of when that stop is flown
+    (stop: p's destination). ``o_paths[..., STOP_PATH_TO_STOP]``: the feasible-path distance from the taxi to that
+    stop; ``[..., STOP_RIDE_PATH]``: from p's origin to p's destination (the ride still to fly once p is aboard);
+    ``[..., STOP_TOUR_VIA_STOP]``: the shortest whole tour through every stop the taxi knows of when that stop is flown
     to first (:func:`_shortest_rests`, exact up to :data:`MAX_EXACT_STOPS` pending stops; beyond, the
     nearest-stop order after it, :func:`_nearest_stop_tour`); all in map sides, clipped to
     :data:`STOP_PATH_CLIP`. ``o_heading``: one-hot, the allowed heading that makes most
@@ -514,16 +527,16 @@ def stop_features(
             for p in range(num_pax):
                 for h in range(NUM_HEADINGS):
                     o_heading[e, a, p, h] = 0
-                o_paths[e, a, p, 0] = 0.0
-                o_paths[e, a, p, 1] = 0.0
-                o_paths[e, a, p, 2] = 0.0
+                o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
+                o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
+                o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
                 status = s.pax_status[e, p]
                 if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
                     continue
                 trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, table, block_m, nbx, nby)  # kept per episode
                 if math.isnan(trip):
                     return False
-                o_paths[e, a, p, 1] = min(trip / side, STOP_PATH_CLIP)
+                o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
                 point = row_stop(s, e, a, p)
                 if point < 0:
                     continue
@@ -531,14 +544,14 @@ def stop_features(
                 here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
                 if math.isnan(here):
                     return False
-                o_paths[e, a, p, 0] = min(here / side, STOP_PATH_CLIP)
+                o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
                 if exact == 1:
                     rest = s.stop_tour_m[e, a, point]
                 else:
                     rest = _nearest_stop_tour(s, e, a, point, memo, pts, table, block_m, nbx, nby, todo)
                 if math.isnan(rest):
                     return False
-                o_paths[e, a, p, 2] = min((here + rest) / side, STOP_PATH_CLIP)
+                o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
                 best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)
                 if best == -2:
                     return False
@@ -609,19 +622,20 @@ def stop_rivals(
     table: np.ndarray,  # DistanceTable.distance_m
     nbx: int,
     nby: int,
-    o_rivals: np.ndarray,  # [E, A, P, 2] float32 out
-    o_claims: np.ndarray,  # [E, A, P, 2] int8 out, or a 0-size array: no claims
+    o_rivals: np.ndarray,  # [E, A, P, len(STOP_RIVAL_FEATURES)] float32 out
+    o_claims: np.ndarray,  # [E, A, P, len(STOP_CLAIM_FEATURES)] int8 out, or a 0-size array: no claims
 ) -> bool:
     """What the other taxis of a fleet offer for each waiting passenger (docs/rules.md "Observation").
 
-    For taxi a and a ``WAITING`` row p: ``o_rivals[..., 0]`` is the feasible-path distance from p's origin to the
-    nearest *other* taxi with a free seat (map sides, :data:`STOP_PATH_CLIP` when there is none);
-    ``o_rivals[..., 1]`` the share of the other taxis with a free seat that are nearer to it than a (0: a is the
-    nearest, or the only one). Zero for rows that are not waiting.
+    For taxi a and a ``WAITING`` row p: ``o_rivals[..., STOP_RIVAL_PATH]`` is the feasible-path distance from p's
+    origin to the nearest *other* taxi with a free seat (map sides, :data:`STOP_PATH_CLIP` when there is none);
+    ``[..., STOP_RIVALS_NEARER]`` the share of the other taxis with a free seat that are nearer to it than a (0: a is
+    the nearest, or the only one). Zero for rows that are not waiting.
 
     ``o_claims`` (when not empty): the nearest-first matching of taxis with a free seat to waiting passengers
     (pairs taken in order of feasible-path distance, each taxi and each passenger at most once):
-    ``o_claims[e, a, p, 0]`` = 1 when p is matched to a, ``[..., 1]`` = 1 when p is matched to another taxi.
+    ``o_claims[e, a, p, STOP_CLAIMED_BY_ME]`` = 1 when p is matched to a, ``[..., STOP_CLAIMED_BY_OTHER]`` = 1
+    when p is matched to another taxi.
     Returns False when a table row is missing.
     """
     num_envs, num_taxis = s.free_seats.shape
@@ -643,8 +657,8 @@ def stop_rivals(
                 dist[b, p] = d
             for a in range(num_taxis):
                 if not waiting:
-                    o_rivals[e, a, p, 0] = 0.0
-                    o_rivals[e, a, p, 1] = 0.0
+                    o_rivals[e, a, p, STOP_RIVAL_PATH] = 0.0
+                    o_rivals[e, a, p, STOP_RIVALS_NEARER] = 0.0
                     continue
                 nearest, nearer, free_others = math.inf, 0, 0
                 for b in range(num_taxis):
@@ -654,8 +668,8 @@ def stop_rivals(
                     nearest = min(nearest, dist[b, p])
                     if dist[b, p] < dist[a, p]:
                         nearer += 1
-                o_rivals[e, a, p, 0] = min(nearest / side, STOP_PATH_CLIP)
-                o_rivals[e, a, p, 1] = nearer / free_others if free_others > 0 else 0.0
+                o_rivals[e, a, p, STOP_RIVAL_PATH] = min(nearest / side, STOP_PATH_CLIP)
+                o_rivals[e, a, p, STOP_RIVALS_NEARER] = nearer / free_others if free_others > 0 else 0.0
         if claims:
             _nearest_first_claims(dist, s.free_seats[e], o_claims[e])
     return True
@@ -686,7 +700,7 @@ def hover_headings(s: FleetState, w: WorldArrays, out: np.ndarray) -> None:
 @njit(cache=True)
 def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndarray) -> None:
     """Greedy matching of taxis with a free seat to waiting passengers, nearest pair first (ties: lower taxi,
-    then lower row); ``dist`` [A, P] is inf for rows that are not waiting. out [A, P, 2]: mine, another's."""
+    then lower row); ``dist`` [A, P] is inf for rows that are not waiting. out [A, P, STOP_CLAIM_FEATURES]."""
     num_taxis, num_pax = dist.shape
     out[:] = 0
     order = np.argsort(dist.ravel(), kind="mergesort")  # stable: ties in (taxi, row) order
@@ -701,4 +715,4 @@ def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndar
         taxi_done[a] = True
         pax_done[p] = True
         for b in range(num_taxis):
-            out[b, p, 0 if b == a else 1] = 1
+            out[b, p, STOP_CLAIMED_BY_ME if b == a else STOP_CLAIMED_BY_OTHER] = 1

@@ -12,22 +12,20 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.env import kernels
-from uamfleet.env.world import PATCH_CLIP_DB, PATCH_PAD_DB, World
+from uamfleet.env.layout import observation_layout, observation_space
+from uamfleet.env.world import World
 from uamfleet.paths import table_for
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
     HISTORY_FEATURES,
-    NUM_HEADINGS,
     ON_BOARD,
     OTHER_FEATURES,
     PASSENGER_FEATURES,
     SELF_FEATURES,
     STATE_PASSENGER_FEATURES,
     STATE_TAXI_FEATURES,
-    STOP_CLAIM_FEATURES,
-    STOP_PATH_FEATURES,
-    STOP_RIVAL_FEATURES,
+    STATE_TAXI_INDEX,
     WAITING,
     FleetState,
 )
@@ -44,95 +42,53 @@ __all__ = [
 
 
 class Observer:
-    """Builds the observation dict ``{name: [E, A, ...] array}`` and the global ``state`` [E, S]."""
+    """Builds the observation dict ``{name: [E, A, ...] array}`` and the global ``state`` [E, S]; its fields,
+    shapes and dtypes are :func:`uamfleet.env.layout.observation_layout`'s (``self.layout``)."""
 
     def __init__(self, world: World) -> None:
         cfg = world.cfg
         self.world = world
         self.cfg = cfg
         self.num_taxis = cfg.num_taxis
-        self.num_others = max(cfg.num_taxis - 1, 1)  # keep one masked row for a single taxi (no 0-size spaces)
-        self.observation_space = self._observation_space()
+        self.layout = observation_layout(cfg)
+        self.observation_space = observation_space(self.layout)
         taxi_size, pax_size = len(STATE_TAXI_FEATURES), len(STATE_PASSENGER_FEATURES)
         self.state_size = cfg.num_taxis * taxi_size + cfg.num_passengers * pax_size + 1  # + time
         self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
-        self.table = table_for(world) if cfg.stop_features else None
-
-    def _observation_space(self) -> spaces.Dict:
-        cfg = self.cfg
-        k, P, H = cfg.patch_size, cfg.num_passengers, cfg.history_len
-        f32 = np.float32
-        stop_fields: dict[str, spaces.Space] = {}
-        if cfg.stop_features:
-            stop_fields = {
-                "stop_paths": spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_PATH_FEATURES)), f32),
-                "stop_heading_mask": spaces.Box(0, 1, (P, NUM_HEADINGS), np.int8),
-            }
-            if cfg.num_taxis > 1 or cfg.stop_claims:  # claims: also a fleet of one (one layout for every size)
-                stop_fields["stop_rivals"] = spaces.Box(0.0, kernels.STOP_PATH_CLIP, (P, len(STOP_RIVAL_FEATURES)), f32)
-                if cfg.stop_claims:
-                    stop_fields["stop_claims"] = spaces.Box(0, 1, (P, len(STOP_CLAIM_FEATURES)), np.int8)
-                    stop_fields["hover_heading_mask"] = spaces.Box(0, 1, (NUM_HEADINGS,), np.int8)
-        return spaces.Dict(
-            {
-                **stop_fields,
-                "self": spaces.Box(-1.0, 1.0, (len(SELF_FEATURES),), f32),
-                "history": spaces.Box(-2.0, 2.0, (H, len(HISTORY_FEATURES)), f32),
-                "passengers": spaces.Box(-2.0, 2.0, (P, len(PASSENGER_FEATURES)), f32),
-                "passenger_mask": spaces.Box(0, 1, (P,), np.int8),
-                "sinr_patch": spaces.Box(PATCH_PAD_DB, PATCH_CLIP_DB, (k, k), f32),
-                "visit_patch": spaces.Box(0.0, 1.0, (k, k), f32),
-                "others": spaces.Box(-2.0, 2.0, (self.num_others, len(OTHER_FEATURES)), f32),
-                "others_mask": spaces.Box(0, 1, (self.num_others,), np.int8),
-                "action_mask": spaces.Box(0, 1, (NUM_HEADINGS,), np.int8),
-            }
-        )
+        self.table = table_for(world) if "stop_paths" in self.layout else None
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
-        cfg = self.cfg
         E, A = state.num_envs, state.num_taxis
-        P, H, k, n_others = cfg.num_passengers, cfg.history_len, cfg.patch_size, self.num_others
-        f32 = np.float32
-        obs: dict[str, np.ndarray] = {
-            "self": np.empty((E, A, len(SELF_FEATURES)), f32),
-            "history": np.empty((E, A, H, len(HISTORY_FEATURES)), f32),
-            "passengers": np.empty((E, A, P, len(PASSENGER_FEATURES)), f32),
-            "passenger_mask": np.empty((E, A, P), np.int8),
-            "sinr_patch": np.empty((E, A, k, k), f32),
-            "visit_patch": np.empty((E, A, k, k), f32),
-            "others": np.empty((E, A, n_others, len(OTHER_FEATURES)), f32),
-            "others_mask": np.empty((E, A, n_others), np.int8),
-            "action_mask": np.empty((E, A, NUM_HEADINGS), np.int8),
-        }
+        obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.layout.items()}
         kernels.observe(
             state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
+        if "hover_heading_mask" in obs:
+            kernels.hover_headings(state, self.world.arrays, obs["hover_heading_mask"])
         if self.table is not None:
-            obs["stop_paths"] = np.empty((E, A, P, len(STOP_PATH_FEATURES)), f32)
-            obs["stop_heading_mask"] = np.empty((E, A, P, NUM_HEADINGS), np.int8)
-            table, (nbx, nby) = self.table, self.table.shape
-            args = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_paths"], obs["stop_heading_mask"])
-            rivals = None
-            if A > 1 or cfg.stop_claims:
-                obs["stop_rivals"] = np.empty((E, A, P, len(STOP_RIVAL_FEATURES)), f32)
-                claims_shape = (E, A, P, len(STOP_CLAIM_FEATURES)) if cfg.stop_claims else (0, 0, 0, 0)
-                claims = np.zeros(claims_shape, np.int8)
-                if cfg.stop_claims:
-                    obs["stop_claims"] = claims
-                    obs["hover_heading_mask"] = np.empty((E, A, NUM_HEADINGS), np.int8)
-                    kernels.hover_headings(state, self.world.arrays, obs["hover_heading_mask"])
-                rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"], claims)
-            if not kernels.stop_features(*args) or (rivals is not None and not kernels.stop_rivals(*rivals)):
-                # a stop whose table rows are not computed yet (a new instance): compute them, then again
-                exists = state.pax_exists
-                table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
-                kernels.stop_features(*args)
-                if rivals is not None:
-                    kernels.stop_rivals(*rivals)
+            self._stop_fields(state, obs)
         return obs
+
+    def _stop_fields(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
+        """Write ``stop_paths`` and ``stop_heading_mask``, and ``stop_rivals`` (and ``stop_claims``) where the layout
+        has them; a stop whose table rows are not computed yet (a new instance) gets them, then all are written
+        again."""
+        assert self.table is not None
+        table, (nbx, nby) = self.table, self.table.shape
+        paths = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_paths"], obs["stop_heading_mask"])
+        rivals = None
+        if "stop_rivals" in obs:
+            claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
+            rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"], claims)
+        if not kernels.stop_features(*paths) or (rivals is not None and not kernels.stop_rivals(*rivals)):
+            exists = state.pax_exists
+            table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
+            kernels.stop_features(*paths)
+            if rivals is not None:
+                kernels.stop_rivals(*rivals)
 
     def state(self, state: FleetState) -> np.ndarray:
         """[E, S] float32 global state for centralised critics: taxis (x, y, seats, time in episode) and the
@@ -142,7 +98,7 @@ class Observer:
         taxis = np.concatenate(
             [state.pos_m / side, (state.free_seats / cfg.seats)[..., None], np.zeros((E, A, 1))], axis=-1
         )  # [E, A, STATE_TAXI_FEATURES]; last column: taxi index / A tells the taxis apart
-        taxis[..., 3] = np.arange(A) / A
+        taxis[..., STATE_TAXI_INDEX] = np.arange(A) / A
         status = state.pax_status
         visible = ((status != HIDDEN) & state.pax_exists)[..., None]
         pax = (

@@ -16,7 +16,9 @@ step in place and the ``blocked`` penalty (never a teleport, never a clamp).
 Observation space
 -----------------
 A ``Dict`` per taxi, tabulated in :class:`UAMFleetParallelEnv` (``self``, ``history``, ``passengers`` with
-``passenger_mask``, ``sinr_patch``, ``visit_patch``, ``others`` with ``others_mask``, ``action_mask``);
+``passenger_mask``, ``sinr_patch``, ``visit_patch``, ``others`` with ``others_mask``, ``action_mask``, and the
+stop fields of ``stop_features`` / ``stop_rivals`` / ``stop_claims``); one spec:
+:func:`uamfleet.env.layout.observation_layout`;
 ``state()`` returns the global state for centralised critics (``state_space``), tabulated there too. The rules
 behind every field: ``docs/rules.md``.
 
@@ -86,25 +88,35 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     """PettingZoo ParallelEnv of one env of the batched core (see the module docstring for the sections).
 
     Observation of each agent (``observation_space(agent)``), P = passenger slots, k = ``patch_size``,
-    H = ``history_len``, A = ``num_taxis``; positions relative to the taxi and divided by the map side:
+    H = ``history_len``, A = ``num_taxis``; positions relative to the taxi and divided by the map side. The spec of
+    every field (bounds, column names, how a learner treats it): :func:`uamfleet.env.layout.observation_layout`;
+    the column names in the meanings are its ``columns``. The last five fields are there with the config flags
+    their meaning starts with (the ``*_instances`` scenarios: ``stop_features``; ``*_fleet``: ``stop_claims``):
 
-    ==================  ================  =======  ====  =====================================================
-    field               shape             dtype    unit  meaning
-    ==================  ================  =======  ====  =====================================================
-    ``self``            (4,)              float32  --    x, y (/ side), free seats (/ seats), t / time limit
-    ``history``         (H, 3)            float32  --    last H positions - current (/ side), free seats then
-    ``passengers``      (P, 12)           float32  --    ``uamfleet.types.PASSENGER_FEATURES``; 0 while hidden
-    ``passenger_mask``  (P,)              int8     --    1 = released request
-    ``sinr_patch``      (k, k)            float32  dB    block SINR - threshold around the taxi, in [-30, 30]
-    ``visit_patch``     (k, k)            float32  --    this taxi's visits of those blocks / max(t, 1), <= 1
-    ``others``          (max(A-1, 1), 3)  float32  --    other taxis: dx, dy (/ side), free seats (/ seats)
-    ``others_mask``     (max(A-1, 1),)    int8     --    1 = a real other taxi
-    ``action_mask``     (16,)             int8     --    1 = heading allowed
-    ==================  ================  =======  ====  =====================================================
-
-    With ``stop_features=True`` also ``stop_paths`` (P, 2) float32: feasible-path distance taxi -> the row's
-    stop and origin -> destination (/ side), and ``stop_heading_mask`` (P, 16) int8: the heading that makes
-    most progress toward the row's stop (one-hot; zero where the row has no stop for this taxi).
+    ======================  ================  =======  =====  ========================================================
+    field                   shape             dtype    unit   meaning
+    ======================  ================  =======  =====  ========================================================
+    ``self``                (4,)              float32  --     x, y (/ side), free_seats (/ seats), time (t / limit)
+    ``history``             (H, 3)            float32  --     the last H steps: dx, dy (then - now, / side),
+                                                              free_seats then (/ seats)
+    ``passengers``          (P, 12)           float32  --     ``uamfleet.types.PASSENGER_FEATURES``; 0 while hidden
+    ``passenger_mask``      (P,)              int8     --     1 = released request
+    ``sinr_patch``          (k, k)            float32  dB     block SINR - threshold around the taxi, in [-30, 30]
+    ``visit_patch``         (k, k)            float32  --     this taxi's visits of those blocks / max(t, 1), <= 1
+    ``others``              (max(A-1, 1), 3)  float32  --     other taxis: dx, dy (/ side), free_seats (/ seats)
+    ``others_mask``         (max(A-1, 1),)    int8     --     1 = a real other taxi
+    ``action_mask``         (16,)             int8     --     1 = heading allowed
+    ``stop_paths``          (P, 3)            float32  sides  stop_features: feasible-path distances path_to_stop,
+                                                              ride_path, tour_via_stop (/ side, <= 16)
+    ``stop_heading_mask``   (P, 16)           int8     --     stop_features: one-hot, the heading that makes most
+                                                              progress toward the row's stop (0: no stop)
+    ``stop_rivals``         (P, 2)            float32  sides  stop_rivals or stop_claims: rival_path (<= 16),
+                                                              rivals_nearer (a share)
+    ``stop_claims``         (P, 2)            int8     --     stop_claims: nearest-first matching, claimed_by_me,
+                                                              claimed_by_other
+    ``hover_heading_mask``  (16,)             int8     --     stop_claims: one-hot, the allowed heading back toward
+                                                              where the taxi was a step ago
+    ======================  ================  =======  =====  ========================================================
 
     ``state()``: float32 [4 A + 9 P + 1], in this order:
 

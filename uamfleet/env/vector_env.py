@@ -46,6 +46,7 @@ class VectorEnv:
         self.world = World(cfg)
         self.observer = Observer(self.world)
         self.source = generator.InstanceSource(self.world)
+        self.layout = self.observer.layout  # the observation's spec (uamfleet.env.layout): fields, shapes, kinds
         self.single_observation_space: spaces.Dict = self.observer.observation_space
         self.single_action_space = spaces.Discrete(NUM_HEADINGS)
         self.state_space = self.observer.state_space

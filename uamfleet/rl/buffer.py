@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from uamfleet.env.layout import field_kind, field_row_mask
 from uamfleet.rl.distributed import World
 
 
@@ -108,18 +109,15 @@ def global_moments(
     return out
 
 
-RAW_FIELDS: tuple[str, ...] = ("stop_paths", "stop_rivals", "stop_claims")
-"""Fields passed through unchanged besides the masks: distances in map sides (already O(1)) that the stop head
-compares across passenger slots, which per-slot statistics would put on different scales, and 0/1 claims."""
-
-
 class ObservationNormalizer:
-    """Normalises the continuous observation fields with running statistics; masks and :data:`RAW_FIELDS` pass
-    through unchanged."""
+    """Normalises the observation fields of kind ``"feature"`` and ``"set"`` (:data:`uamfleet.env.layout.FIELD_KINDS`)
+    with running statistics, keeping the masked rows of a set at zero; ``"mask"`` and ``"raw"`` fields pass through
+    unchanged. ``shapes``: one agent's shape of each field, by name (ValueError for a name that is no field)."""
 
     def __init__(self, shapes: dict[str, tuple[int, ...]], clip: float = 10.0) -> None:
-        normalised = [k for k in shapes if not k.endswith("mask") and k not in RAW_FIELDS]
+        normalised = [k for k in shapes if field_kind(k) in ("feature", "set")]
         self.fields = {k: RunningMeanStd(shapes[k]) for k in normalised}
+        self.row_masks = {k: mask for k in normalised if (mask := field_row_mask(k)) is not None}
         self.clip = clip
 
     def update(self, obs: dict[str, np.ndarray], world: World | None = None) -> None:
@@ -137,10 +135,8 @@ class ObservationNormalizer:
         out = dict(obs)
         for key, rms in self.fields.items():
             x = (obs[key] - rms.mean) / np.sqrt(rms.var + 1e-8)
-            if key == "passengers":  # unreleased rows stay exactly zero: the network must not see them
-                x = x * obs["passenger_mask"][..., None]
-            if key == "others":
-                x = x * obs["others_mask"][..., None]
+            if key in self.row_masks:  # masked rows (unreleased passengers, absent taxis) stay exactly zero
+                x = x * obs[self.row_masks[key]][..., None]
             out[key] = np.clip(x, -self.clip, self.clip).astype(np.float32)
         return out
 
@@ -148,8 +144,8 @@ class ObservationNormalizer:
         return {k: v.state_dict() for k, v in self.fields.items()}
 
     def resized(self, shapes: dict[str, tuple[int, ...]]) -> ObservationNormalizer:
-        """These statistics for another layout of the same fields (another fleet size): a field whose first axis,
-        a set (passenger rows, other taxis), has another length gets the statistics pooled over that axis, the
+        """These statistics for another layout of the same fields (another fleet size): a field of kind ``"set"``
+        (passenger rows, other taxis) with another number of rows gets the statistics pooled over its rows, the
         same for every row; every other field keeps its own. Raises ValueError when a field changes otherwise."""
         out = ObservationNormalizer(shapes, self.clip)
         for key, rms in self.fields.items():
@@ -158,7 +154,7 @@ class ObservationNormalizer:
                 raise ValueError(f"field {key!r} is not in the new layout {sorted(shapes)}.")
             if new.shape == rms.shape:
                 mean, var = rms.mean, rms.var
-            elif len(new.shape) >= 2 and new.shape[1:] == rms.shape[1:]:
+            elif key in self.row_masks and len(new.shape) >= 2 and new.shape[1:] == rms.shape[1:]:
                 pooled = rms.mean.mean(0)  # the moments of all rows together
                 mean = np.broadcast_to(pooled, new.shape)
                 var = np.broadcast_to((rms.var + rms.mean**2).mean(0) - pooled**2, new.shape)

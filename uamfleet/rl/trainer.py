@@ -23,14 +23,13 @@ import os
 import re
 import shutil
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
-from gymnasium import spaces
 from torch.distributions import Categorical
 
 from uamfleet.config import (
@@ -44,6 +43,7 @@ from uamfleet.config import (
     check_number,
     make_config,
 )
+from uamfleet.env.layout import layout_shapes, observation_layout, observation_space
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
@@ -62,9 +62,10 @@ from uamfleet.rl.checkpoint import (
 )
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.distributed import World, sample_actions
-from uamfleet.rl.networks import VARIANTS, DesignedTorso, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
-from uamfleet.rollout import Trajectory, fly
+from uamfleet.rollout import fly
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
 if TYPE_CHECKING:
@@ -330,119 +331,6 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
         shaping_gamma=args.gamma if args.shaping_gamma is None else args.shaping_gamma,
     )
     return cfg.replace(reward=reward)
-
-
-class GreedyPolicy:
-    """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
-
-    ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
-    training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
-    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it."""
-
-    def __init__(
-        self,
-        net: MSHAActorCritic,
-        normalizer: ObservationNormalizer | None,
-        device: torch.device,
-        obs_shapes: dict[str, tuple[int, ...]] | None = None,
-        num_taxis: int | None = None,
-        passenger_slots: int | None = None,
-        trained_on: EnvConfig | None = None,
-    ) -> None:
-        self.net, self.normalizer, self.device = net, normalizer, device
-        self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
-        self.trained_on = trained_on
-
-    def layout(self, cfg: EnvConfig) -> EnvConfig:
-        """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
-        passenger axis (the instance's requests padded to it), its stop features and its time limit (the
-        observation's time feature is a fraction of the limit). The rules, threshold and instance are kept.
-        Raises ValueError when the instance has more requests than the policy has passenger slots, or another
-        fleet size."""
-        if self.trained_on is None:
-            return cfg
-        like = self.trained_on
-        if cfg.num_requests_max > like.num_passengers:
-            raise ValueError(
-                f"the instance has {cfg.num_requests_max} requests; this policy reads {like.num_passengers} "
-                "passenger slots: give it at most that many requests (or train one with a larger max_passengers)."
-            )
-        if cfg.num_taxis != like.num_taxis:
-            raise ValueError(
-                f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
-                f"num_taxis={like.num_taxis}, or fly policy.for_fleet({cfg.num_taxis}) (a designed variant reads "
-                "any fleet size zero-shot), or train a policy for this fleet."
-            )
-        return cfg.with_layout_of(like)
-
-    def for_fleet(self, num_taxis: int, passenger_slots: int | None = None) -> GreedyPolicy:
-        """This policy for a fleet of ``num_taxis`` (zero-shot: the same weights). The network reads the other
-        taxis and the passenger rows as sets, so only the observation layout changes: ``passenger_slots``
-        (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
-        their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
-        position (the linear encoder) or a policy without its training config."""
-        slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
-        if num_taxis == self.num_taxis and slots == self.passenger_slots:
-            return self
-        if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
-            raise ValueError(
-                "only a policy of a designed variant ('de', 'de_msfea', 'full') with its training config flies "
-                f"another fleet size; this one flies num_taxis={self.num_taxis} only."
-            )
-        # the layout's own random demand must fit its passenger axis
-        demand, most = self.trained_on.demand, min(self.trained_on.demand.max_requests, slots)
-        demand = dataclasses.replace(
-            demand, max_requests=most, min_requests=min(demand.min_requests, most),
-            num_initial=min(demand.num_initial, most),
-        )  # fmt: skip
-        like = self.trained_on.replace(
-            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand
-        )
-        venv = VectorEnv(like, num_envs=1)
-        shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-        shapes = {k: v for k, v in shapes.items() if k in (self.obs_shapes or shapes)}
-        if set(shapes) != set(self.obs_shapes or shapes):
-            raise ValueError(
-                f"a fleet of {num_taxis} observes fields {sorted(shapes)}, the policy was trained on "
-                f"{sorted(self.obs_shapes or {})}: fly it on fleets of more than one taxi (or train one)."
-            )
-        net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
-        net.shapes = shapes
-        normalizer = self.normalizer.resized(shapes) if self.normalizer is not None else None
-        return GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like)
-
-    def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
-        """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
-        :func:`uamfleet.metrics.episode_metrics`."""
-        return fly(self.layout(cfg), self, seed=seed)
-
-    def check_layout(self, obs: dict[str, np.ndarray]) -> None:
-        """ValueError naming every observation field whose shape differs from the training env's."""
-        if self.obs_shapes is None:
-            return
-        diffs = [
-            f"{k!r} {tuple(obs[k].shape[2:]) if k in obs else None} (trained on {shape})"
-            for k, shape in self.obs_shapes.items()
-            if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
-        ]
-        if diffs:
-            raise ValueError(
-                f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
-                f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
-                f"num_taxis={self.num_taxis} and max_passengers={self.passenger_slots} (a smaller instance is padded "
-                "by max_passengers), or train a policy for this one."
-            )
-
-    @torch.no_grad()
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        self.check_layout(obs)
-        E, A = obs["action_mask"].shape[:2]
-        known = self.obs_shapes or obs  # a field the policy was not trained on is not read
-        flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
-        if self.normalizer is not None:
-            flat = self.normalizer(flat)
-        logits = self.net.masked_logits(obs_to_torch(flat, self.device))  # [E * A, 16]; needs no critic state
-        return logits.argmax(-1).cpu().numpy().reshape(E, A)
 
 
 def evaluate(policy: GreedyPolicy, cfg: EnvConfig, seed: int = 0) -> EpisodeMetrics:
@@ -1044,10 +932,6 @@ def read_progress(path: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in r.items() if v not in ("", None)} for r in csv.DictReader(f)]
 
 
-def _only(space: spaces.Dict, fields: Iterable[str]) -> spaces.Dict:
-    return spaces.Dict({k: s for k, s in space.spaces.items() if k in set(fields)})
-
-
 def load_policy(
     path: str | Path, device: str = "cpu", env_config: EnvConfig | None = None
 ) -> tuple[GreedyPolicy, TrainArgs]:
@@ -1057,19 +941,18 @@ def load_policy(
     ckpt = Checkpoint.load(path, map_location=device)
     args = checkpoint_args(ckpt)
     cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
-    venv = VectorEnv(cfg, num_envs=1)
-    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    layout = observation_layout(cfg)  # the spec: no env is built
     try:
-        ckpt.check_matches(None, shapes, extra_ok=True)
+        ckpt.check_matches(None, layout_shapes(layout), extra_ok=True)
     except ValueError as err:
         raise ValueError(
             f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
             f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
             f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}, "
-            f"stop_claims={'stop_claims' in ckpt.obs_shapes}."
+            f"stop_rivals={'stop_rivals' in ckpt.obs_shapes}, stop_claims={'stop_claims' in ckpt.obs_shapes}."
         ) from None
-    space = _only(venv.single_observation_space, ckpt.obs_shapes)  # fields added to the env since are not read
-    shapes = {k: tuple(s.shape or ()) for k, s in space.spaces.items()}
+    read = {k: spec for k, spec in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
+    space, shapes = observation_space(read), layout_shapes(read)
     net = MSHAActorCritic(space, check_network(ckpt, space, str(path))).to(device)
     net.load_state_dict(ckpt.model)
     net.eval()

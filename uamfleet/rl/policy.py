@@ -1,0 +1,136 @@
+"""The trained policy at inference: :class:`GreedyPolicy` (greedy actions, the layout it reads, the same weights for
+another fleet size). Its shapes come from the observation spec (:func:`uamfleet.env.layout.observation_layout`),
+never from a built env. Loading one from a checkpoint: :func:`uamfleet.rl.trainer.load_policy`.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+import torch
+
+from uamfleet.config import EnvConfig
+from uamfleet.env.layout import layout_shapes, observation_layout
+from uamfleet.rl.buffer import ObservationNormalizer
+from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
+from uamfleet.rollout import Trajectory, fly
+
+
+class GreedyPolicy:
+    """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
+
+    ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
+    training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
+    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it."""
+
+    def __init__(
+        self,
+        net: MSHAActorCritic,
+        normalizer: ObservationNormalizer | None,
+        device: torch.device,
+        obs_shapes: dict[str, tuple[int, ...]] | None = None,
+        num_taxis: int | None = None,
+        passenger_slots: int | None = None,
+        trained_on: EnvConfig | None = None,
+    ) -> None:
+        self.net, self.normalizer, self.device = net, normalizer, device
+        self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
+        self.trained_on = trained_on
+
+    def layout(self, cfg: EnvConfig) -> EnvConfig:
+        """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
+        passenger axis (the instance's requests padded to it), its stop features and its time limit (the
+        observation's time feature is a fraction of the limit). The rules, threshold and instance are kept.
+        Raises ValueError when the instance has more requests than the policy has passenger slots, or another
+        fleet size."""
+        if self.trained_on is None:
+            return cfg
+        like = self.trained_on
+        if cfg.num_requests_max > like.num_passengers:
+            raise ValueError(
+                f"the instance has {cfg.num_requests_max} requests; this policy reads {like.num_passengers} "
+                "passenger slots: give it at most that many requests (or train one with a larger max_passengers)."
+            )
+        if cfg.num_taxis != like.num_taxis:
+            raise ValueError(
+                f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
+                f"num_taxis={like.num_taxis}, or fly policy.for_fleet({cfg.num_taxis}) (a designed variant reads "
+                "any fleet size zero-shot), or train a policy for this fleet."
+            )
+        return cfg.with_layout_of(like)
+
+    def for_fleet(self, num_taxis: int, passenger_slots: int | None = None) -> GreedyPolicy:
+        """This policy for a fleet of ``num_taxis`` (zero-shot: the same weights). The network reads the other
+        taxis and the passenger rows as sets, so only the observation layout changes: ``passenger_slots``
+        (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
+        their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
+        position (the linear encoder) or a policy without its training config."""
+        slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
+        if num_taxis == self.num_taxis and slots == self.passenger_slots:
+            return self
+        if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
+            raise ValueError(
+                "only a policy of a designed variant ('de', 'de_msfea', 'full') with its training config flies "
+                f"another fleet size; this one flies num_taxis={self.num_taxis} only."
+            )
+        # the layout's own random demand must fit its passenger axis
+        demand, most = self.trained_on.demand, min(self.trained_on.demand.max_requests, slots)
+        demand = dataclasses.replace(
+            demand, max_requests=most, min_requests=min(demand.min_requests, most),
+            num_initial=min(demand.num_initial, most),
+        )  # fmt: skip
+        like = self.trained_on.replace(
+            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand
+        )
+        layout = observation_layout(like)  # the spec: no env is built
+        read = self.obs_shapes or layout_shapes(layout)  # the fields this policy reads
+        missing = sorted(set(read) - set(layout))
+        if missing:
+            raise ValueError(
+                f"a fleet of {num_taxis} taxi(s) laid out as in training does not observe {missing}, which the "
+                f"policy reads (its fields: {sorted(read)}); train one for this layout."
+            )
+        shapes = {k: layout[k].shape for k in read}
+        net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
+        net.shapes = shapes
+        normalizer = self.normalizer.resized(shapes) if self.normalizer is not None else None
+        return GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like)
+
+    def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
+        """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
+        :func:`uamfleet.metrics.episode_metrics`."""
+        return fly(self.layout(cfg), self, seed=seed)
+
+    def check_layout(self, obs: dict[str, np.ndarray]) -> None:
+        """ValueError naming every observation field whose shape differs from the training env's."""
+        if self.obs_shapes is None:
+            return
+        diffs = [
+            f"{k!r} {tuple(obs[k].shape[2:]) if k in obs else None} (trained on {shape})"
+            for k, shape in self.obs_shapes.items()
+            if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
+        ]
+        if diffs:
+            raise ValueError(
+                f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
+                f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
+                f"num_taxis={self.num_taxis} and max_passengers={self.passenger_slots} (a smaller instance is padded "
+                "by max_passengers), or train a policy for this one."
+            )
+
+    @torch.no_grad()
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        self.check_layout(obs)
+        E, A = obs["action_mask"].shape[:2]
+        known = self.obs_shapes or obs  # a field the policy was not trained on is not read
+        flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
+        if self.normalizer is not None:
+            flat = self.normalizer(flat)
+        logits = self.net.masked_logits(obs_to_torch(flat, self.device))  # [E * A, 16]; needs no critic state
+        return logits.argmax(-1).cpu().numpy().reshape(E, A)
+
+
+__all__ = ["GreedyPolicy"]
