@@ -23,7 +23,7 @@ import torch
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.networks import obs_to_torch
-from uamfleet.rl.trainer import GreedyPolicy
+from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.types import HIDDEN
 
