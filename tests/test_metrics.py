@@ -44,6 +44,9 @@ def make_events(positions, picked, dropped, pax_taxi, num_pax, separation=None):
                 segment_min_sinr_db=np.zeros((1, num_taxis)),
                 all_delivered=np.array([False]),
                 t=np.array([t]),
+                heading_flown=np.where(moved, 0, -1)[None],
+                shield_intervened=np.zeros((1, num_taxis), bool),
+                hovered=np.zeros((1, num_taxis), bool),
             )
         )
     return events

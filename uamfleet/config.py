@@ -21,6 +21,9 @@ from uamfleet.types import NUM_HEADINGS  # defined there; imported here too by m
 
 FeasibilityRule = Literal["endpoint_block", "segment_raster"]
 FEASIBILITY_RULES: tuple[str, ...] = ("endpoint_block", "segment_raster")
+SEPARATION_MODES: tuple[str, ...] = ("none", "shield")
+"""Values of ``EnvConfig.separation`` (docs/rules.md "Separation shield"): ``"none"`` records losses of separation
+only; ``"shield"`` resolves every conflict before the moves are flown."""
 
 # Upper bounds of the sizes that set the memory of every observation (documented on EnvConfig): a 3,000 x 3,000
 # patch would be 72 MB per taxi and step, so a typo there fails at once instead of exhausting memory later.
@@ -127,7 +130,9 @@ class Request:
 SHAPING_METRICS: tuple[str, ...] = ("path", "path_exact", "euclidean")
 """Values of ``RewardConfig.shaping_metric`` (docs/rules.md "Rewards")."""
 
-REWARD_TERMS: tuple[str, ...] = ("step", "explore", "pickup", "dropoff", "blocked", "shaping", "separation")
+REWARD_TERMS: tuple[str, ...] = (
+    "step", "explore", "pickup", "dropoff", "blocked", "shaping", "separation", "shield", "hover",
+)  # fmt: skip
 """Names of the reward terms: term ``name`` is weighted by ``RewardConfig.<name>``, is column
 ``REWARD_TERMS.index(name)`` of ``info["reward_terms"]`` and is logged as ``reward/<name>`` (docs/rules.md
 "Rewards")."""
@@ -141,7 +146,9 @@ class RewardConfig:
     Per taxi and step: ``step`` every step; ``explore`` on entering a block it never visited, else
     ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
     allowed (the taxi stays where it is); ``separation`` per step that another taxi is closer than
-    ``EnvConfig.min_separation_m`` after the move (0 in the authors' reward: they fly one taxi). ``shaping`` > 0
+    ``EnvConfig.min_separation_m`` after the move (0 in the authors' reward: they fly one taxi); ``shield`` per move
+    the separation shield replaced and ``hover`` per step the shield held the taxi in place (both 0 by default;
+    ``EnvConfig.separation="shield"`` only). ``shaping`` > 0
     adds the potential-based term ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with
     ``Phi = -(distance to the taxi's nearest actionable stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999
     keep the optimal policy unchanged), the distance measured along feasible paths (``shaping_metric="path"``:
@@ -160,6 +167,8 @@ class RewardConfig:
     blocked: float = -50.0
     shaping: float = 0.0
     separation: float = 0.0
+    shield: float = 0.0
+    hover: float = 0.0
     shaping_gamma: float = 0.99
     shaping_metric: str = "path"  # along feasible paths: "path" (table), "path_exact"; "euclidean": straight line
     first_visit: InitVar[float | None] = None  # earlier name of `explore`
@@ -277,6 +286,7 @@ class EnvConfig:
     history_len: int = 3
     patch_size: int = 10
     min_separation_m: float = 50.0
+    separation: str = "none"  # "shield": conflicts resolved before moves (SEPARATION_MODES; the *_fleet presets)
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
     stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
     stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
@@ -362,6 +372,11 @@ class EnvConfig:
             raise ConfigError("stop_claims=True needs stop_features=True (the claims use the same path distances).")
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
+        if self.separation not in SEPARATION_MODES:
+            raise ConfigError(
+                f"separation={self.separation!r} is unknown; use 'shield' (moves deconflicted before they are "
+                "flown) or 'none' (losses of separation only recorded)."
+            )
 
     def _check_requests(self) -> None:
         reqs = as_requests(_sequence("requests", self.requests))
@@ -539,17 +554,20 @@ def _detroit3gpp_instances(**overrides: Any) -> EnvConfig:
     return _with_overrides(base, overrides)
 
 
-FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, separation=-20.0)
+FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, separation=-20.0, shield=-20.0)
 """The *_fleet scenarios' reward: the authors' pick-up / drop-off bonuses (200 / 300, so that a passenger left
 waiting costs about as much per step, through the discount, as a taxi's step) without the exploration bonus, and
--20 (ten steps' worth) per step a taxi flies closer than the separation minimum to another."""
+-20 (ten steps' worth) per step a taxi flies closer than the separation minimum to another. Under their separation
+shield that price falls on each move the shield replaces (``shield``), so a policy still learns to keep its
+distance rather than lean on the shield; a hover costs its time (the ``step`` term, the riders' wait), no more."""
 
 
 def _fleet(
     random_preset: Callable[..., EnvConfig], scenario: str, slot_s: float, overrides: dict[str, Any]
 ) -> EnvConfig:
     """A fleet with the demand of the held-out fleet instances (:func:`uamfleet.instances.make_fleet_instance`):
-    6 requests per taxi, released uniformly over the first 10 minutes, on flyable block centres."""
+    6 requests per taxi, released uniformly over the first 10 minutes, on flyable block centres; the separation
+    shield on (docs/rules.md "Separation shield")."""
     taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)
     min_trip = 2000.0 if scenario.startswith("detroit") else 500.0
     demand = DemandConfig(
@@ -557,7 +575,14 @@ def _fleet(
         horizon_steps=max(int(600.0 // slot_s) - 1, 0), min_trip_m=min_trip,
     )  # fmt: skip
     base = _fields(random_preset(num_taxis=taxis, demand=demand))
-    base.update(max_passengers=6 * taxis, stop_features=True, stop_claims=True, reward=FLEET_REWARD, scenario=scenario)
+    base.update(
+        max_passengers=6 * taxis,
+        stop_features=True,
+        stop_claims=True,
+        reward=FLEET_REWARD,
+        separation="shield",
+        scenario=scenario,
+    )
     base["time_limit_steps"] = max(base["time_limit_steps"], 3 * (demand.horizon_steps + 1))
     return _with_overrides(base, {k: v for k, v in overrides.items() if k != "num_taxis"})
 

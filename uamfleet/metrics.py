@@ -15,6 +15,9 @@ in seconds (steps × ``slot_s``), distances in metres.
 - Fleet: service rate, wait p50 / p95, ride detour (ride time ÷ direct straight-line flight time), occupancy
   (mean passengers on board per taxi-step ÷ seats), separation violations (taxi-steps closer than the
   minimum), decision latency per step.
+- Separation shield (``EnvConfig.separation="shield"``, docs/rules.md "Separation shield"): interventions (taxi-steps
+  whose allowed move the shield replaced, hovers included) and hovers (taxi-steps it held in place), over the same
+  span as TD; per taxi-hour they are ``count / (taxis * completion_s / 3600)``.
 """
 
 from __future__ import annotations
@@ -47,6 +50,8 @@ class EpisodeMetrics:
     separation_violations: int
     decision_ms_mean: float
     steps: int
+    shield_interventions: int = 0  # taxi-steps whose move the separation shield replaced (hovers included)
+    hovers: int = 0  # taxi-steps the shield held in place: time passes, no distance flown
 
     def as_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -143,4 +148,6 @@ def episode_metrics(
         separation_violations=int(traj.stacked("separation_violation")[:span].sum()),
         decision_ms_mean=1000.0 * float(np.mean(traj.decision_s)) if traj.decision_s else math.nan,
         steps=traj.num_steps,
+        shield_interventions=int(traj.stacked("shield_intervened")[:span].sum()),
+        hovers=int(traj.stacked("hovered")[:span].sum()),
     )

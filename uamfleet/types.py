@@ -165,3 +165,6 @@ class StepEvents(NamedTuple):
     segment_min_sinr_db: np.ndarray  # [E, A] min raster SINR along the flown segment (-inf: N.C./outside)
     all_delivered: np.ndarray  # [E] bool, every passenger of the instance has been delivered
     t: np.ndarray  # [E] int64 step index after the transition
+    heading_flown: np.ndarray  # [E, A] int64, the heading flown (the shield may change it), -1: stayed in place
+    shield_intervened: np.ndarray  # [E, A] bool, the separation shield replaced the allowed move asked for
+    hovered: np.ndarray  # [E, A] bool, the shield held the taxi in place (a subset of shield_intervened)

@@ -69,7 +69,17 @@ def test_blocked_action_stays_in_place_with_named_penalty():
     terms = dict(zip(uamfleet.REWARD_TERMS, info["reward_terms"][0, 0], strict=True))
     # step -2; same block visited a 2nd time: -0.1 * (2 - 1); blocked -50.
     assert terms == pytest.approx(
-        {"step": -2, "explore": -0.1, "pickup": 0, "dropoff": 0, "blocked": -50, "shaping": 0, "separation": 0}
+        {
+            "step": -2,
+            "explore": -0.1,
+            "pickup": 0,
+            "dropoff": 0,
+            "blocked": -50,
+            "shaping": 0,
+            "separation": 0,
+            "shield": 0,
+            "hover": 0,
+        }
     )
     assert rew[0, 0] == pytest.approx(-52.1)
 

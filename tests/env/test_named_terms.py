@@ -24,7 +24,17 @@ def test_each_term_is_weighted_by_the_field_of_its_name():
     # East: (250, 150), a new block (explore = +5), 100 m from P1's origin (350, 150): pick-up (+11).
     _, _, _, _, info = env.step(np.array([[EAST]]))
     terms = dict(zip(uamfleet.REWARD_TERMS, info["reward_terms"][0, 0], strict=True))
-    expected = {"step": -3, "explore": 5, "pickup": 11, "dropoff": 0, "blocked": 0, "shaping": 0, "separation": 0}
+    expected = {
+        "step": -3,
+        "explore": 5,
+        "pickup": 11,
+        "dropoff": 0,
+        "blocked": 0,
+        "shaping": 0,
+        "separation": 0,
+        "shield": 0,
+        "hover": 0,
+    }
     assert terms == pytest.approx(expected)  # one taxi: never closer than the separation minimum to another
     # West: back to the start block, visited twice now: explore = -0.7 * (2 - 1).
     _, _, _, _, info = env.step(np.array([[WEST]]))

@@ -197,7 +197,8 @@ def test_stops_are_attributed_to_the_taxi_that_made_them() -> None:
             block_visits=zeros.astype(np.int32), picked_up=np.array([picked]), dropped_off=np.array([dropped]),
             released=np.zeros((1, p), bool), pickups=np.array([ups]), dropoffs=np.array([downs]),
             separation_violation=zeros.astype(bool), segment_min_sinr_db=zeros, all_delivered=np.zeros(1, bool),
-            t=np.zeros(1, int),
+            t=np.zeros(1, int), heading_flown=-np.ones((1, a), int), shield_intervened=zeros.astype(bool),
+            hovered=zeros.astype(bool),
         )  # fmt: skip
 
     traj = Trajectory(

@@ -45,7 +45,7 @@ DISPATCHERS: tuple[str, ...] = ("greedy", "insertion", "batch_assignment")
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
            "service_pct", "wait_p50_s", "wait_p95_s", "awt_s", "detour", "td_m", "td_per_delivered_m", "occupancy",
            "separation_violations", "connectivity_pct", "steps", "decision_p50_ms", "decision_max_ms",
-           "policy_s", "fields_s")  # fmt: skip
+           "policy_s", "fields_s", "shield_interventions", "hovers", "interventions_per_taxi_h")  # fmt: skip
 
 
 @dataclass
@@ -130,6 +130,8 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
             "separation_violations": m.separation_violations, "connectivity_pct": m.connectivity_pct,
             "steps": m.steps, "decision_p50_ms": float(np.median(per_taxi_ms)),
             "decision_max_ms": float(per_taxi_ms.max()), "policy_s": elapsed, "fields_s": fields_s,
+            "shield_interventions": m.shield_interventions, "hovers": m.hovers,
+            "interventions_per_taxi_h": m.shield_interventions / (taxis * max(m.completion_s, flown.slot_s) / 3600.0),
         })  # fmt: skip
     return rows
 
@@ -138,9 +140,10 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
     lines = command_header(command, wall_s, note)
     lines += [
         "| family | setting (taxis x requests) | dispatcher | episodes | all delivered % | service % | wait p50 s "
-        "| wait p95 s | ride detour | TD / delivered m | occupancy | separation viol. | conn. % "
+        "| wait p95 s | ride detour | TD / delivered m | occupancy | separation viol. | shield interventions / taxi-h "
+        "| conn. % "
         "| decision / taxi / step p50 / max ms |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     keys = dict.fromkeys((r["family"], r["setting"], r["dispatcher"]) for r in rows)
     for key in sorted(keys, key=lambda k: (k[0], FLEET_SETTINGS.get(k[1], (0, 0)), DISPATCHERS.index(k[2])
@@ -148,14 +151,15 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
         sel = [r for r in rows if (r["family"], r["setting"], r["dispatcher"]) == key]
 
         def col(name: str, sel: list[dict[str, Any]] = sel) -> np.ndarray:
-            return np.array([float(r[name]) for r in sel])
+            return np.array([float(r.get(name, math.nan)) for r in sel])  # nan: a CSV from before the column
 
         all_delivered = 100.0 * float(np.mean(col("service_pct") >= 100.0))
         lines.append(
             f"| {key[0]} | {key[1]} | {key[2]} | {len(sel)} | {all_delivered:.0f} | {_ci(col('service_pct'))} | "
             f"{_ci(col('wait_p50_s'))} | {_ci(col('wait_p95_s'))} | {_ci(col('detour') * 100)} % | "
             f"{_ci(col('td_per_delivered_m'))} | {_ci(col('occupancy') * 100)} % | "
-            f"{_ci(col('separation_violations'))} | {_ci(col('connectivity_pct'))} | "
+            f"{_ci(col('separation_violations'))} | {_ci(col('interventions_per_taxi_h'))} | "
+            f"{_ci(col('connectivity_pct'))} | "
             f"{np.median(col('decision_p50_ms')):.1f} / {col('decision_max_ms').max():,.0f} |"
         )
     lines += [

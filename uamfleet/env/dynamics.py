@@ -1,6 +1,10 @@
-"""The one batched transition: moves, block visits, drop-offs, pick-ups, releases, separation.
+"""The one batched transition: the separation shield, moves, block visits, drop-offs, pick-ups, releases, separation.
 
 Order within a step (all taxis move simultaneously, one slot of ``slot_s`` seconds):
+0. with ``EnvConfig.separation == "shield"``, conflicts are resolved first: a move whose end would come within
+   ``min_separation_m`` of another taxi is replaced by the nearest clear allowed heading, else by a hover (the
+   taxi stays: time passes, no distance flown); events ``heading_flown``, ``shield_intervened``, ``hovered``
+   (docs/rules.md "Separation shield");
 1. each taxi flies one step along its heading if the move is allowed (``state.action_mask``); a move that is
    not allowed leaves the taxi in place (event ``blocked``: never a teleport, never a bounce);
 2. the time advances, visit counts of the taxi's block increase;
@@ -101,5 +105,6 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndar
 
 
 def step(state: FleetState, actions: np.ndarray, world: World) -> StepEvents:
-    """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated."""
-    return kernels.step(state, world.arrays, actions)
+    """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated. With
+    ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`kernels.shield_headings`)."""
+    return kernels.step(state, world.arrays, actions, world.cfg.separation == "shield")

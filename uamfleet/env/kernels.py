@@ -96,9 +96,79 @@ def action_mask(pos: np.ndarray, w: WorldArrays, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def step(s: FleetState, w: WorldArrays, actions: np.ndarray) -> StepEvents:  # noqa: C901 - the rules in order
+def _clear_of_others(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, pos: np.ndarray,
+                     min_separation_m: float) -> bool:  # fmt: skip
+    """Taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from pos[b]
+    to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from b's
+    end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
+    when the two start at least that far apart, they stay so throughout the slot (closest approach of two
+    straight flights at constant speed; two taxis never swap places through each other)."""
+    ax, ay = pos[a, 0], pos[a, 1]
+    for b in range(pos.shape[0]):
+        if b == a:
+            continue
+        bx, by = pos[b, 0], pos[b, 1]
+        ex, ey = (ends[b, 0], ends[b, 1]) if resolved[b] else (bx, by)
+        dx, dy = x - ex, y - ey
+        if math.sqrt(dx * dx + dy * dy) < min_separation_m:
+            return False
+        sx, sy = ax - bx, ay - by  # b -> a at the start of the slot; + t * (vx, vy) at time t in [0, 1]
+        if math.sqrt(sx * sx + sy * sy) < min_separation_m:
+            continue  # already too close (e.g. a shared start): only the end must be clear
+        vx, vy = (x - ax) - (ex - bx), (y - ay) - (ey - by)
+        vv = vx * vx + vy * vy
+        t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
+        cx, cy = sx + t * vx, sy + t * vy
+        if math.sqrt(cx * cx + cy * cy) < min_separation_m:
+            return False
+    return True
+
+
+@njit(cache=True)
+def shield_headings(
+    pos: np.ndarray,  # [A, 2] positions before the step
+    free_seats: np.ndarray,  # [A]
+    allowed: np.ndarray,  # [A, NUM_HEADINGS] bool, the action mask
+    requested: np.ndarray,  # [A] int64, validated headings
+    w: WorldArrays,
+    flown: np.ndarray,  # [A] int64 out: the heading flown, -1: the taxi stays where it is
+) -> None:
+    """The separation shield of one env (docs/rules.md "Separation shield"): the heading each taxi flies.
+
+    Taxis are resolved one at a time, fewest free seats (most riders) first, ties by index: a taxi's detour then
+    falls on the emptier taxi, whose delay holds up nobody on board. A requested heading that is not allowed stays
+    a blocked move (the taxi stays). An allowed one is kept when it is clear (:func:`_clear_of_others`) of the
+    moves already fixed and of the current positions of the taxis still to resolve; else the nearest allowed
+    heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...); else the taxi hovers
+    (stays). Staying is clear whenever the current positions are separated: each earlier taxi's move was checked
+    against this taxi staying where it is, and each later one is checked against what this one does.
+    """
+    num_taxis = pos.shape[0]
+    ends = pos.copy()
+    resolved = np.zeros(num_taxis, np.bool_)
+    half = NUM_HEADINGS // 2
+    for a in np.argsort(free_seats, kind="mergesort"):  # stable: ties in index order
+        k = requested[a]
+        flown[a] = -1
+        if allowed[a, k]:
+            for turn in range(2 * half):  # offsets 0, +1, -1, +2, -2, ..., +half
+                d = (turn + 1) // 2 if turn % 2 else -(turn // 2)
+                h = (k + d) % NUM_HEADINGS
+                if not allowed[a, h]:
+                    continue
+                x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
+                if _clear_of_others(a, x, y, ends, resolved, pos, w.min_separation_m):
+                    flown[a] = h
+                    ends[a, 0], ends[a, 1] = x, y
+                    break
+        resolved[a] = True
+
+
+@njit(cache=True)
+def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> StepEvents:  # noqa: C901 - the rules in order
     """Advance every env of ``s`` by one slot, in place, in the order of docs/rules.md "Motion" and "Release
-    and pick-up"; ``actions`` [E, A] int64 must be validated. Returns the step's events."""
+    and pick-up"; ``actions`` [E, A] int64 must be validated. ``shield``: resolve conflicts first
+    (:func:`shield_headings`). Returns the step's events."""
     num_envs, num_taxis, hist_len = s.history_m.shape[0], s.history_m.shape[1], s.history_m.shape[2]
     num_pax = s.pax_status.shape[1]
     nbx, nby = w.block_ok.shape
@@ -106,6 +176,9 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray) -> StepEvents:  # n
     prev_pos = pos.copy()
     moved = np.empty((num_envs, num_taxis), np.bool_)
     blocked = np.empty((num_envs, num_taxis), np.bool_)
+    flown = np.empty((num_envs, num_taxis), np.int64)  # the heading flown, -1: stayed
+    intervened = np.zeros((num_envs, num_taxis), np.bool_)
+    hovered = np.zeros((num_envs, num_taxis), np.bool_)
     first_visit = np.empty((num_envs, num_taxis), np.bool_)
     block_visits = np.empty((num_envs, num_taxis), np.int32)
     picked = np.empty((num_envs, num_pax), np.bool_)
@@ -119,7 +192,14 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray) -> StepEvents:  # n
         s.t[e] += 1
         now = s.t[e]
         for a in range(num_taxis):
-            # 1. move (or stay, when the move is not allowed)
+            flown[e, a] = actions[e, a] if s.action_mask[e, a, actions[e, a]] else -1
+        if shield:
+            shield_headings(pos[e], free_seats[e], s.action_mask[e], actions[e], w, flown[e])
+            for a in range(num_taxis):
+                intervened[e, a] = flown[e, a] != actions[e, a] and s.action_mask[e, a, actions[e, a]]
+                hovered[e, a] = flown[e, a] < 0 and s.action_mask[e, a, actions[e, a]]
+        for a in range(num_taxis):
+            # 1. move (or stay, when the move is not allowed or the shield holds the taxi)
             hist, hist_seats = s.history_m[e, a], s.history_seats[e, a]
             for h in range(hist_len - 1, 0, -1):
                 hist[h, 0] = hist[h - 1, 0]
@@ -128,11 +208,10 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray) -> StepEvents:  # n
             hist[0, 0] = pos[e, a, 0]
             hist[0, 1] = pos[e, a, 1]
             hist_seats[0] = free_seats[e, a]
-            k = actions[e, a]
-            ok = s.action_mask[e, a, k]
-            moved[e, a] = ok
-            blocked[e, a] = not ok
-            if ok:
+            k = flown[e, a]
+            moved[e, a] = k >= 0
+            blocked[e, a] = not s.action_mask[e, a, actions[e, a]]
+            if k >= 0:
                 pos[e, a, 0] += w.moves_m[k, 0]
                 pos[e, a, 1] += w.moves_m[k, 1]
                 s.distance_m[e, a] += w.step_m
@@ -199,7 +278,7 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray) -> StepEvents:  # n
             )
     return StepEvents(
         prev_pos, pos.copy(), actions, moved, blocked, first_visit, block_visits, picked, dropped, released, pickups,
-        dropoffs, separation_out, seg, all_delivered, s.t.copy(),
+        dropoffs, separation_out, seg, all_delivered, s.t.copy(), flown, intervened, hovered,
     )  # fmt: skip
 
 

@@ -32,6 +32,8 @@ DROPOFF = REWARD_TERMS.index("dropoff")
 BLOCKED = REWARD_TERMS.index("blocked")
 SHAPING = REWARD_TERMS.index("shaping")
 SEPARATION = REWARD_TERMS.index("separation")
+SHIELD = REWARD_TERMS.index("shield")
+HOVER = REWARD_TERMS.index("hover")
 
 
 def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray | None = None) -> np.ndarray:
@@ -40,11 +42,12 @@ def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray 
     ``step`` every step; ``explore``: ``explore`` on entering a new block, else ``explore_repeat * (visits - 1)``
     (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move; ``shaping`` as
     given (see :func:`shaping_term`); ``separation`` per taxi closer than the separation minimum to another after
-    the step. Each term is weighted by the :class:`RewardConfig` field of its name.
+    the step; ``shield`` per move the separation shield replaced, ``hover`` per step it held the taxi in place.
+    Each term is weighted by the :class:`RewardConfig` field of its name.
     """
     terms = _terms(
-        events.moved, events.block_visits, events.pickups, events.dropoffs, events.separation_violation,
-        *_weights(weights),
+        events.blocked, events.block_visits, events.pickups, events.dropoffs, events.separation_violation,
+        events.shield_intervened, events.hovered, *_weights(weights),
     )  # fmt: skip
     if shaping is not None:
         terms[..., SHAPING] = shaping
@@ -62,15 +65,17 @@ def _weights(weights: RewardConfig) -> tuple[np.ndarray, float]:
 
 @njit(cache=True)
 def _terms(
-    moved: np.ndarray,  # [E, A] bool
+    blocked: np.ndarray,  # [E, A] bool, the move asked for was not allowed (a hover is not blocked)
     block_visits: np.ndarray,  # [E, A]
     pickups: np.ndarray,  # [E, A]
     dropoffs: np.ndarray,  # [E, A]
     separation: np.ndarray,  # [E, A] bool
+    shield: np.ndarray,  # [E, A] bool
+    hovered: np.ndarray,  # [E, A] bool
     w: np.ndarray,  # [len(REWARD_TERMS)]
     explore_repeat: float,
 ) -> np.ndarray:
-    num_envs, num_taxis = moved.shape
+    num_envs, num_taxis = blocked.shape
     out = np.zeros((num_envs, num_taxis, len(REWARD_TERMS)))
     for e in range(num_envs):
         for a in range(num_taxis):
@@ -79,9 +84,24 @@ def _terms(
             out[e, a, EXPLORE] = w[EXPLORE] if visits == 1 else explore_repeat * (visits - 1)
             out[e, a, PICKUP] = w[PICKUP] * pickups[e, a]
             out[e, a, DROPOFF] = w[DROPOFF] * dropoffs[e, a]
-            out[e, a, BLOCKED] = 0.0 if moved[e, a] else w[BLOCKED]
+            out[e, a, BLOCKED] = w[BLOCKED] if blocked[e, a] else 0.0
             out[e, a, SEPARATION] = w[SEPARATION] if separation[e, a] else 0.0
+            out[e, a, SHIELD] = w[SHIELD] if shield[e, a] else 0.0
+            out[e, a, HOVER] = w[HOVER] if hovered[e, a] else 0.0
     return out
+
+
+def total_reward(terms: np.ndarray) -> np.ndarray:
+    """[E, A] the reward: the terms [E, A, T] summed left to right, in the order of :data:`REWARD_TERMS`.
+
+    Not ``terms.sum(-1)``: NumPy sums 8 or more values pairwise, in another order than fewer, so the terms added
+    after the first seven (``shield``, ``hover``) would change the last bits of every reward even where they are
+    0. Summed in order, a reward is bit for bit what it was with seven terms (the paper's scenarios reproduce).
+    """
+    total = terms[..., 0].copy()
+    for i in range(1, terms.shape[-1]):
+        total += terms[..., i]
+    return total
 
 
 DistanceTo = Callable[[np.ndarray, np.ndarray], np.ndarray]

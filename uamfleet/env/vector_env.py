@@ -102,7 +102,7 @@ class VectorEnv:
             shaping_values = reward.shaping_term(phi_before, phi_after, terminated, weights)
         terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
         self.episode_terms += terms
-        rewards = terms.sum(axis=-1)
+        rewards = reward.total_reward(terms)
 
         obs = self.observer.observe(state)
         info: dict[str, Any] = {"reward_terms": terms, "events": events}
@@ -130,7 +130,7 @@ class VectorEnv:
         delivered = np.sum(s.pax_status == DELIVERED, axis=1)
         num_requests = np.sum(s.pax_exists, axis=1)
         stats = {
-            "return": self.episode_terms.sum(-1).copy(),  # [E, A]
+            "return": reward.total_reward(self.episode_terms),  # [E, A]
             "length": s.t.copy(),  # [E]
             "delivered": delivered,  # [E]
             "num_requests": num_requests,  # [E]
