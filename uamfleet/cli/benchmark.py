@@ -91,8 +91,10 @@ class Args:
     """with --checkpoint: also fly that policy with search at decision time (method learned_guided,
     uamfleet/rl/guided.py): at each release its greedy flights after its --guided-top-k first headings and
     --guided-samples sampled flights, rolled forward over the known requests; the shortest is flown"""
-    guided_top_k: int = 4
-    guided_samples: int = 12
+    guided_top_k: int = 8
+    guided_samples: int = 24
+    guided_temperature: float = 2.0
+    """softmax temperature of the sampled flights (the defaults were chosen on 25 validation instances)"""
     best_known_beams: tuple[int, ...] = (256,)
     """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
     replan_beam: int = 64
@@ -128,7 +130,7 @@ def _config(task: Task) -> EnvConfig:
 
 
 def _policy(
-    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int, guided: tuple[int, int]
+    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int, guided: tuple[int, int, float]
 ) -> Any:
     if method in PLANNERS:
         return PlannerPolicy(method)
@@ -141,7 +143,8 @@ def _policy(
     if method == "learned_guided":
         from uamfleet.rl.guided import GuidedSearchPolicy
 
-        return GuidedSearchPolicy(learned_policy(checkpoint), top_k=guided[0], samples=guided[1])
+        top_k, samples, temperature = guided
+        return GuidedSearchPolicy(learned_policy(checkpoint), top_k=top_k, samples=samples, temperature=temperature)
     return learned_policy(checkpoint)
 
 
@@ -163,7 +166,7 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int]]
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float]]
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
@@ -349,10 +352,11 @@ def check_args(args: Args) -> list[Task]:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     if args.guided and args.checkpoint is None:
         raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
-    if args.guided_top_k < 1 or args.guided_samples < 0:
+    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0):
         raise UsageError(
-            f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples}: need top-k >= 1 and "
-            "samples >= 0 (e.g. 4 and 12)."
+            f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
+            f"{args.guided_temperature}: need 1 <= top-k <= 16, 0 <= samples <= 1024 and a temperature > 0 "
+            "(e.g. 8, 24 and 2)."
         )
     selected = tasks(args)
     if not selected:
@@ -377,7 +381,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         return earlier
     learned = ("learned", "learned_guided") if args.guided else ("learned",)
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
-    guided = (args.guided_top_k, args.guided_samples)
+    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature)
     jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
