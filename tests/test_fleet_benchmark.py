@@ -34,3 +34,17 @@ def test_markdown_by_hand():
 def test_unknown_setting_is_named():
     with pytest.raises(ValueError, match="unknown --settings"):
         main(Args(settings=("3x7",)))
+
+
+def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
+    """--separation shield: every flown episode has the shield (zero violations); the default stays as recorded."""
+    from uamfleet.cli.fleet_benchmark import run_episode_set
+    from uamfleet.config import ConfigError
+    from uamfleet.instances import make_fleet_instance
+
+    assert make_fleet_instance("berlin", 2000000, 4, 24).separation == "none"
+    assert make_fleet_instance("berlin", 2000000, 4, 24, separation="shield").separation == "shield"
+    with pytest.raises(ConfigError, match="separation"):
+        make_fleet_instance("berlin", 2000000, 4, 24, separation="fence")
+    shielded = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield"))
+    assert shielded[0]["separation_violations"] == 0 and shielded[0]["service_pct"] == 100.0

@@ -149,13 +149,15 @@ def make_fleet_instance(
     num_vertiports: int = 0,
     arrival_window_s: float = 600.0,
     max_passengers: int | None = None,
+    separation: str = "none",
 ) -> EnvConfig:
     """The fleet instance of ``seed`` in ``family`` (:data:`FAMILIES`): ``num_taxis`` fixed starts,
     ``num_requests`` fixed requests released by Poisson arrivals over ``arrival_window_s`` and a fixed threshold
     (module docstring). ``num_vertiports`` > 0 draws that many vertiport sites per instance and puts every origin
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
-    ``max_passengers`` pads the passenger axis (a learned policy's observation size)."""
+    ``max_passengers`` pads the passenger axis (a learned policy's observation size). ``separation`` is
+    ``EnvConfig.separation``: "none" (the default, as every recorded fleet table was flown) or "shield"."""
     check_family(family)
     seed = check_integer("seed", seed, 0, MAX_SEED)
     num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
@@ -167,7 +169,9 @@ def make_fleet_instance(
     fam = FAMILIES[family]
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
-    base = make_config(fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility)
+    base = make_config(
+        fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation
+    )
     world = World(base)
     flyable = flyable_sites(world)
     if len(flyable) < num_taxis:

@@ -26,7 +26,7 @@ import multiprocessing as mp
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 from collections.abc import Sequence
 
 import numpy as np
@@ -66,6 +66,8 @@ class Args:
     merge_csv: Path | None = None
     """add an earlier run's rows (e.g. the dispatchers) on the episodes flown now to this run's; rows of a
     dispatcher flown now replace its earlier rows"""
+    separation: Literal["none", "shield"] = "none"
+    """EnvConfig.separation of every episode: "none" (as the recorded tables) or "shield" (docs/rules.md)"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path = Path("docs/results.md")
@@ -80,7 +82,8 @@ class Args:
     """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
-Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...]]  # (family, setting, seed, dispatchers, checkpoints)
+Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str]  # (family, setting, seed, dispatchers,
+# checkpoints, separation)
 
 
 def learned_name(checkpoint: Path) -> str:
@@ -101,9 +104,9 @@ def _learned(checkpoint: Path, taxis: int) -> Any:
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
     """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
-    family, setting, seed, dispatchers, checkpoints = job
+    family, setting, seed, dispatchers, checkpoints, separation = job
     taxis, requests = FLEET_SETTINGS[setting]
-    cfg = make_fleet_instance(family, seed, taxis, requests)
+    cfg = make_fleet_instance(family, seed, taxis, requests, separation=separation)
     start = time.perf_counter()
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
@@ -185,6 +188,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
+        + (f" --separation {args.separation}" if args.separation != "none" else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
@@ -229,7 +233,7 @@ def check_args(args: Args) -> list[Job]:
             print(f"{learned_name(checkpoint)} flies only the settings {flies} (the others need another fleet size)")
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
-        (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints))
+        (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints), args.separation)
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]

@@ -30,7 +30,8 @@ from uamfleet.types import HIDDEN
 
 class GuidedSearchPolicy:
     """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
-    (module docstring). ``plans`` keeps (release step, candidates, chosen moves, seconds) of every search. The
+    (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock
+    seconds, thread CPU seconds) of every search. The
     defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four settings on 25 validation
     instances (docs/results.md, "Learning from the search")."""
 
@@ -47,7 +48,7 @@ class GuidedSearchPolicy:
         self.env: VectorEnv | None = None
         self.scratch: VectorEnv | None = None
         self.queue: list[int] = []
-        self.plans: list[tuple[int, int, int, float]] = []
+        self.plans: list[tuple[int, int, int, float, float]] = []
 
     @property
     def passenger_slots(self) -> int | None:
@@ -93,7 +94,7 @@ class GuidedSearchPolicy:
     def _search(self) -> list[int]:
         """Roll the candidates forward from the env's state over the released requests; the best one's actions."""
         assert self.env is not None and self.scratch is not None
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         scratch, K = self.scratch, self.scratch.num_envs
         for target, source in zip(scratch.state, self.env.state, strict=True):
             target[:] = source[0:1]  # every scratch env starts as the env does
@@ -125,7 +126,8 @@ class GuidedSearchPolicy:
                 break
         done = np.flatnonzero(steps >= 0)
         best = int(done[np.lexsort((steps[done], moves[done]))[0]]) if len(done) else 0
-        self.plans.append((int(self.env.state.t[0]), K, int(moves[best]), time.perf_counter() - start))
+        wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
+        self.plans.append((int(self.env.state.t[0]), K, int(moves[best]), wall, cpu))
         return actions[best] if len(done) else []
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:

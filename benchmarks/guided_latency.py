@@ -1,0 +1,54 @@
+"""Latency of guided search at decision time (uamfleet/rl/guided.py) beside the greedy decision it starts from.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20
+
+Flies the shipped Berlin generalist with guided search on the first ``--count`` test instances and prints, per search
+(at the start and at each release), the wall-clock and the thread CPU seconds: on a machine shared with other jobs the
+CPU time is the figure that says what one idle core would take. Torch runs on one thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+import uamfleet
+from uamfleet.instances import make_instance, split_seeds
+from uamfleet.rl.guided import GuidedSearchPolicy
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--count", type=int, default=20)
+    parser.add_argument("--top-k", type=int, default=8)
+    parser.add_argument("--samples", type=int, default=24)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    policy = uamfleet.pretrained("berlin")
+    guided = GuidedSearchPolicy(policy, top_k=args.top_k, samples=args.samples)
+    wall, cpu, greedy_cpu = [], [], []
+    for seed in split_seeds("test", args.count):
+        cfg = policy.layout(make_instance("berlin", seed))
+        guided.fly(cfg)
+        wall += [p[3] for p in guided.plans]
+        cpu += [p[4] for p in guided.plans]
+        start = time.thread_time()
+        steps = len(policy.fly(cfg).events)
+        greedy_cpu.append((time.thread_time() - start) / max(steps, 1))
+    pct = [50, 95, 100]
+    print(
+        f"guided search, {len(cpu)} searches on {args.count} test instances (top-k {args.top_k}, samples "
+        f"{args.samples}): CPU s p50/p95/max {np.percentile(cpu, pct).round(3).tolist()}, wall s "
+        f"{np.percentile(wall, pct).round(3).tolist()}"
+    )
+    print(
+        f"greedy decoding: CPU ms per step (episode mean, incl. the env step) p50/max "
+        f"{(1000 * np.percentile(greedy_cpu, [50, 100])).round(2).tolist()}"
+    )
+
+
+if __name__ == "__main__":
+    main()
