@@ -140,7 +140,8 @@ def test_dagger_fit_moves_the_policy_toward_the_expert() -> None:
     rng = np.random.default_rng(0)
     data = collect([group], policy, beta=1.0, steps=25, rng=rng)
     assert len(data) >= 50 and group.expert.solves >= 4
-    x, y = data.arrays()
+    x, y, corrected = data.arrays()
+    assert len(corrected) == len(y)
 
     def agreement() -> float:
         with torch.no_grad():

@@ -72,6 +72,8 @@ class ImitationArgs:
     train: Literal["residual", "all"] = "residual"
     """parameters fitted: the heading residual alone (the prior and the encoders frozen: the order of the stops
     stays the prior's) or the whole network"""
+    correction_weight: float = 1.0
+    """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
     """the aggregated data set's size limit; the oldest samples go first"""
     eval_instances: int = 50
@@ -94,6 +96,7 @@ class ImitationArgs:
                 raise ConfigError(f"--{name.replace('_', '-')}={value} is a probability: use a value in [0, 1].")
             setattr(self, name, value)
         self.learning_rate = check_number("--learning-rate", self.learning_rate, positive=True)
+        self.correction_weight = check_number("--correction-weight", self.correction_weight, positive=True)
         self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
         if not self.thresholds or len(set(self.thresholds)) != len(self.thresholds):
             raise ConfigError(f"--thresholds={list(self.thresholds)} must name one or more distinct dB values.")
@@ -201,10 +204,12 @@ class Dataset:
 
     obs: list[dict[str, np.ndarray]] = field(default_factory=list)
     labels: list[np.ndarray] = field(default_factory=list)
+    corrected: list[np.ndarray] = field(default_factory=list)  # the label differs from the policy's own heading
 
-    def add(self, obs: dict[str, np.ndarray], labels: np.ndarray) -> None:
+    def add(self, obs: dict[str, np.ndarray], labels: np.ndarray, corrected: np.ndarray) -> None:
         self.obs.append(obs)
         self.labels.append(labels)
+        self.corrected.append(corrected)
 
     def __len__(self) -> int:
         return int(sum(len(x) for x in self.labels))
@@ -213,10 +218,13 @@ class Dataset:
         while len(self) - len(self.labels[0]) >= limit:
             self.obs.pop(0)
             self.labels.pop(0)
+            self.corrected.pop(0)
 
-    def arrays(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    def arrays(self) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+        """(observations {field: [N, ...]}, labels [N], corrected [N] bool)."""
         keys = self.obs[0].keys()
-        return {k: np.concatenate([o[k] for o in self.obs]) for k in keys}, np.concatenate(self.labels)
+        obs = {k: np.concatenate([o[k] for o in self.obs]) for k in keys}
+        return obs, np.concatenate(self.labels), np.concatenate(self.corrected)
 
 
 def _released_count(venv: VectorEnv) -> np.ndarray:
@@ -252,7 +260,10 @@ def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, 
             labels = g.expert.labels(g.venv, own)  # [E]
             labelled = labels != NO_LABEL
             if labelled.any():
-                data.add({k: v[labelled].copy() for k, v in normalised.items()}, labels[labelled])
+                data.add(
+                    {k: v[labelled].copy() for k, v in normalised.items()}, labels[labelled],
+                    (labels != own)[labelled],
+                )  # fmt: skip
             take_expert = labelled & (rng.random(E) < beta)
             executed = np.where(take_expert, labels, own)
             g.obs, _, terminated, truncated, _ = g.venv.step(executed[:, None])
@@ -274,8 +285,10 @@ def fitted_parameters(net: MSHAActorCritic, which: str) -> list[torch.nn.Paramet
 
 def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: torch.optim.Optimizer,
         rng: np.random.Generator) -> dict[str, float]:  # fmt: skip
-    """``args.epochs`` passes of cross-entropy between the masked logits and the expert's headings."""
-    obs, labels = data.arrays()
+    """``args.epochs`` passes of cross-entropy between the masked logits and the expert's headings; a state where
+    the expert corrected the policy weighs ``args.correction_weight``."""
+    obs, labels, corrected = data.arrays()
+    weights = np.where(corrected, args.correction_weight, 1.0).astype(np.float32)
     net.train()
     n, losses, hits = len(labels), [], []
     for _ in range(args.epochs):
@@ -284,8 +297,9 @@ def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: tor
             idx = order[start : start + args.minibatch]
             batch = obs_to_torch({k: v[idx] for k, v in obs.items()}, "cpu")
             target = torch.as_tensor(labels[idx])
+            weight = torch.as_tensor(weights[idx])
             logits = net.masked_logits(batch)  # [b, 16]
-            loss = F.cross_entropy(logits, target)
+            loss = (F.cross_entropy(logits, target, reduction="none") * weight).sum() / weight.sum()
             net.zero_grad(set_to_none=True)  # frozen parameters too: their gradients are never used
             loss.backward()
             torch.nn.utils.clip_grad_norm_([p for g in optimizer.param_groups for p in g["params"]], 0.5)
@@ -337,8 +351,8 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
         solves_before = sum(g.expert.solves for g in groups)
         corrections_before = sum(g.expert.corrections for g in groups)
         new = collect(groups, policy, args.beta(r), args.steps_per_round, rng)
-        for o, lab in zip(new.obs, new.labels, strict=True):
-            data.add(o, lab)
+        for o, lab, cor in zip(new.obs, new.labels, new.corrected, strict=True):
+            data.add(o, lab, cor)
         data.trim(args.max_samples)
         stats = fit(policy.net, data, args, optimizer, rng)
         val = validation_metrics(policy, family, args.eval_instances, eval_like)
