@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import ast
 import itertools
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -35,11 +37,15 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (3, ("uamfleet.paths",)),
     (4, ("uamfleet.env",)),
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
+    # Below the loop in rl: the training options (rl.options), checkpoints (rl.checkpoint) and the run folder and
+    # its log (rl.runs), so reading a checkpoint or a run's progress never imports the loop.
     (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
     (6, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
-    # So does the greedy policy (GreedyPolicy.fly), which the loop evaluates and the zoo ships; imitation learning
-    # labels with the baselines' step-level search, and guided search rolls the greedy policy forward.
+    # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
+    # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
+    # imitation learning labels with the baselines' step-level search, and guided search rolls the greedy policy
+    # forward.
     (7, ("uamfleet.rl.trainer", "uamfleet.rl.policy", "uamfleet.rl.imitation", "uamfleet.rl.guided", "uamfleet.zoo")),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
@@ -202,3 +208,23 @@ def test_no_import_circle() -> None:
 )
 def test_the_cycle_finder_finds_a_drawn_circle(graph: dict[str, dict[str, int]], expected: list[str] | None) -> None:
     assert find_cycle(graph) == expected
+
+
+def reachable(graph: dict[str, dict[str, int]], start: str) -> set[str]:
+    seen, todo = set(), [start]
+    while todo:
+        node = todo.pop()
+        if node not in seen:
+            seen.add(node)
+            todo.extend(graph.get(node, {}))
+    return seen
+
+
+def test_loading_a_shipped_policy_does_not_import_the_trainer() -> None:
+    """uamfleet.pretrained() goes through the zoo and the policy room (load_policy), never the training loop:
+    neither by any import the walk sees nor at run time."""
+    assert "uamfleet.rl.policy" in reachable(GRAPH, "uamfleet.zoo")  # the walk reaches the loader
+    assert "uamfleet.rl.trainer" not in reachable(GRAPH, "uamfleet.zoo")
+    probe = "import sys, uamfleet, uamfleet.zoo; print('uamfleet.rl.trainer' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "False"
