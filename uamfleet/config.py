@@ -34,6 +34,29 @@ MAX_PASSENGERS = 1024
 MAX_COUNT = 2**31 - 1
 """Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
 
+TAXI_SPEED_MPS = 120.0 / 3.6
+"""Cruise speed of every preset (120 km/h): a step of ``step_m`` takes ``step_m / TAXI_SPEED_MPS`` seconds."""
+DETROIT_STEP_M = 320.0
+"""The Detroit maps' step (the authors' P5 scenario); its slot is :data:`DETROIT_SLOT_S` (≈ 9.6 s)."""
+DETROIT_SLOT_S = DETROIT_STEP_M / TAXI_SPEED_MPS
+
+# The fleet demand, one source for the *_fleet presets and uamfleet.instances.make_fleet_instance.
+FLEET_REQUESTS_PER_TAXI = 6
+FLEET_ARRIVAL_WINDOW_S = 600.0
+"""Requests are released over the first 10 minutes."""
+FLEET_TIME_LIMIT_WINDOWS = 3
+"""A fleet episode's time limit is at least this many arrival windows."""
+
+
+def fleet_window_steps(slot_s: float, window_s: float = FLEET_ARRIVAL_WINDOW_S) -> int:
+    """Steps of the arrival window (releases at steps 0 ... this - 1), at least one."""
+    return max(int(window_s // slot_s), 1)
+
+
+def fleet_time_limit(time_limit_steps: int, window_steps: int) -> int:
+    """A fleet episode's time limit: the preset's, or :data:`FLEET_TIME_LIMIT_WINDOWS` arrival windows if longer."""
+    return max(time_limit_steps, FLEET_TIME_LIMIT_WINDOWS * window_steps)
+
 
 class ConfigError(ValueError):
     """A config value of the wrong type or out of range; the message names the field, the value and the fix.
@@ -458,7 +481,7 @@ def _berlin_p4(**overrides: Any) -> EnvConfig:
 
 
 def _detroit_p5(**overrides: Any) -> EnvConfig:
-    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.7 s).
+    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.6 s).
 
     The authors never published the Detroit radio map; the packaged one is digitised from their figure and is
     faithful only at γ_T = −17 dB (blocks below −17 dB are only known to be below it).
@@ -466,8 +489,8 @@ def _detroit_p5(**overrides: Any) -> EnvConfig:
     base: dict[str, Any] = dict(
         radio=load_radio_map("detroit_estimate"),
         sinr_min_db=-17.0,
-        step_m=320.0,
-        slot_s=320.0 / (120.0 / 3.6),
+        step_m=DETROIT_STEP_M,
+        slot_s=DETROIT_SLOT_S,
         starts_m=((6290.0, 9450.0),),
         requests=(
             Request(0, (6594.0, 7563.0), (9570.0, 7210.0)),
@@ -511,8 +534,8 @@ def _detroit3gpp_random(**overrides: Any) -> EnvConfig:
         radio=load_radio_map("detroit_3gpp"),
         sinr_min_db=-17.0,
         num_taxis=4,
-        step_m=320.0,
-        slot_s=320.0 / (120.0 / 3.6),
+        step_m=DETROIT_STEP_M,
+        slot_s=DETROIT_SLOT_S,
         starts_m=None,
         requests=None,
         demand=DemandConfig(num_initial=4, rate_per_step=0.1, horizon_steps=80, max_requests=12, min_trip_m=2000.0),
@@ -570,20 +593,21 @@ def _fleet(
     shield on (docs/rules.md "Separation shield")."""
     taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)
     min_trip = 2000.0 if scenario.startswith("detroit") else 500.0
+    requests, window = FLEET_REQUESTS_PER_TAXI * taxis, fleet_window_steps(slot_s)
     demand = DemandConfig(
-        arrivals="uniform", num_initial=0, min_requests=6 * taxis, max_requests=6 * taxis,
-        horizon_steps=max(int(600.0 // slot_s) - 1, 0), min_trip_m=min_trip,
+        arrivals="uniform", num_initial=0, min_requests=requests, max_requests=requests,
+        horizon_steps=window - 1, min_trip_m=min_trip,
     )  # fmt: skip
     base = _fields(random_preset(num_taxis=taxis, demand=demand))
     base.update(
-        max_passengers=6 * taxis,
+        max_passengers=requests,
         stop_features=True,
         stop_claims=True,
         reward=FLEET_REWARD,
         separation="shield",
         scenario=scenario,
     )
-    base["time_limit_steps"] = max(base["time_limit_steps"], 3 * (demand.horizon_steps + 1))
+    base["time_limit_steps"] = fleet_time_limit(base["time_limit_steps"], window)
     return _with_overrides(base, {k: v for k, v in overrides.items() if k != "num_taxis"})
 
 
@@ -595,7 +619,7 @@ def _berlin_fleet(**overrides: Any) -> EnvConfig:
 
 def _detroit3gpp_fleet(**overrides: Any) -> EnvConfig:
     """:func:`_berlin_fleet` on the synthetic TR 36.777 Detroit-like map."""
-    return _fleet(_detroit3gpp_random, "detroit3gpp_fleet", 320.0 / (120.0 / 3.6), overrides)
+    return _fleet(_detroit3gpp_random, "detroit3gpp_fleet", DETROIT_SLOT_S, overrides)
 
 
 def _with_overrides(base: dict[str, Any], overrides: dict[str, Any]) -> EnvConfig:
