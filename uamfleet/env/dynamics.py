@@ -15,7 +15,7 @@ Order within a step (all taxis move simultaneously, one slot of ``slot_s`` secon
 5. requests whose release step has come become visible (``WAITING``);
 6. the action mask of the new positions is stored for the next observation.
 
-The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point. The rules
+The loops live in :mod:`uamfleet.env.motion` (compiled); this module is their documented entry point. The rules
 in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up").
 """
 
@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from uamfleet.env import kernels
+from uamfleet.env import motion
 from uamfleet.env.world import World
 from uamfleet.types import NUM_HEADINGS, FleetState, StepEvents
 
@@ -106,5 +106,5 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndar
 
 def step(state: FleetState, actions: np.ndarray, world: World) -> StepEvents:
     """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated. With
-    ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`kernels.shield_headings`)."""
-    return kernels.step(state, world.arrays, actions, world.cfg.separation == "shield")
+    ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`motion.shield_headings`)."""
+    return motion.step(state, world.arrays, actions, world.cfg.separation == "shield")
