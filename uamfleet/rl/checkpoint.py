@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -35,9 +35,7 @@ from uamfleet.config import EnvConfig, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.io import write_bytes_atomic
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig
-
-if TYPE_CHECKING:
-    from uamfleet.rl.options import TrainArgs
+from uamfleet.rl.options import TrainArgs
 
 CHECKPOINT_FORMAT = 2
 """2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
@@ -387,6 +385,14 @@ def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) ->
     return make_config(env_config if env_config is not None else str(args["scenario"]), **overrides)
 
 
+def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
+    """The training arguments a checkpoint was written with (options added since take their defaults)."""
+    known = {f.name for f in dataclasses.fields(TrainArgs)}
+    saved = {k: v for k, v in ckpt.args.items() if k in known}
+    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
+    return TrainArgs(**saved)
+
+
 def numpy_rng_state() -> dict[str, Any]:
     """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
     name, keys, pos, has_gauss, cached = np.random.get_state()
@@ -410,6 +416,7 @@ __all__ = [
     "check_net_config",
     "check_network",
     "check_state_dict",
+    "checkpoint_args",
     "numpy_rng_state",
     "set_numpy_rng_state",
     "upgrade_checkpoint",

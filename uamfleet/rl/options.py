@@ -1,6 +1,6 @@
-"""The training options: :class:`TrainArgs` (every flag of ``train/ppo.py``, checked on construction), the env
-config a run trains and evaluates on (:func:`make_env_config`), and the options a checkpoint was written with
-(:func:`checkpoint_args`). Reading a checkpoint's options does not import the training loop.
+"""The training options: :class:`TrainArgs` (every flag of ``train/ppo.py``, checked on construction) and the env
+config a run trains and evaluates on (:func:`make_env_config`). A checkpoint's options are read back by
+:func:`uamfleet.rl.checkpoint.checkpoint_args`, without importing the training loop.
 """
 
 from __future__ import annotations
@@ -23,9 +23,6 @@ from uamfleet.config import (
 )
 from uamfleet.instances import VALIDATION_SEEDS
 from uamfleet.rl.networks import VARIANTS
-
-if TYPE_CHECKING:
-    from uamfleet.rl.checkpoint import Checkpoint
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
 if TYPE_CHECKING:
@@ -287,11 +284,3 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
 def plain_args(args: TrainArgs) -> dict[str, Any]:
     """The options as plain values (paths as strings), as a checkpoint stores them."""
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()}
-
-
-def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
-    """The training arguments a checkpoint was written with (options added since take their defaults)."""
-    known = {f.name for f in dataclasses.fields(TrainArgs)}
-    saved = {k: v for k, v in ckpt.args.items() if k in known}
-    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
-    return TrainArgs(**saved)

@@ -17,9 +17,9 @@ import torch
 from uamfleet.config import PRESETS, EnvConfig
 from uamfleet.env.layout import layout_shapes, observation_layout, observation_space
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.checkpoint import Checkpoint, check_network
+from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
-from uamfleet.rl.options import TrainArgs, checkpoint_args, make_env_config
+from uamfleet.rl.options import TrainArgs, make_env_config
 from uamfleet.rollout import Trajectory, fly
 
 

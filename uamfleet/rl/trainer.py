@@ -42,13 +42,14 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     check_state_dict,
+    checkpoint_args,
     numpy_rng_state,
     set_numpy_rng_state,
     upgrade_checkpoint,
 )
 from uamfleet.rl.distributed import Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
-from uamfleet.rl.options import TrainArgs, checkpoint_args, make_env_config, plain_args
+from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
 from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, TrainResult, read_progress, run_folder
