@@ -231,9 +231,8 @@ class HybridAttention(nn.Module):
     tokens; outputs concatenated, projected and added back (pre-norm residual: ``x + proj(heads(norm(x)))``).
 
     The output projection starts near zero (orthogonal, gain 0.01), so the block starts close to the identity:
-    the "full" variant starts as "de_msfea" (plus a position embedding) and learns the attention on top. With
-    the post-norm form ``norm(x + proj(heads(x)))`` the full model stalled at 2 of 4 passengers on Berlin P4
-    for 100k agent-steps where "de_msfea" had found the optimal tour after 70k.
+    the "full" variant starts as "de_msfea" (plus a position embedding) and learns the attention on top (why not
+    post-norm: docs/results.md, "The recipe, and what made the difference", item 3).
 
     Tokens come in and go out in row-major grid order; inside, they are put in window-major order once so
     that every window is a contiguous block (attention, projections and LayerNorm do not care about order).

@@ -18,8 +18,8 @@ Each variant adds one module to the one before, so the ablation measures that mo
 tokens) is read out by a linear layer over the flattened k × k cells (``readout="flatten"``, the default),
 which keeps *where* on the patch a feature is: the direction of a no-fly area decides the heading. The
 paper's ``f_output ∈ R^{1×C}`` after a linear layer admits this reading; ``readout="mean"`` (a mean over the
-cells, blind to position unless attention mixed in the position embedding) is kept for comparison: with it
-the designed variants stalled at 2 of 4 passengers on Berlin P4 where the linear encoder learned the tour.
+cells, blind to position unless attention mixed in the position embedding) is kept for comparison (how the two
+compare: docs/results.md, "The recipe, and what made the difference", item 2).
 
 Inputs are used as given (the trainer's ObservationNormalizer standardises the continuous fields; raw SINR
 is in dB); masks are read as booleans (> 0.5), never rescaled.
