@@ -22,7 +22,7 @@ import tyro
 from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.zoo import pretrained_path
-from uamfleet.rl.trainer import load_policy
+from uamfleet.rl.policy import load_policy
 
 
 @dataclass

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import ast
 import itertools
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -29,17 +31,23 @@ SOURCES = ("uamfleet", "eval", "train", "benchmarks")
 # Layer of each module by longest matching prefix; a module may import its own layer or lower ones.
 # config, types and io are the base every layer may use (config reads radio maps, so it sits just above radio).
 LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
-    (0, ("uamfleet.types", "uamfleet.io")),
+    # uamfleet.checks: ConfigError, the check_* helpers and the size bounds; uamfleet.demand: the requests and the
+    # demand model, parts of the config (which re-exports both).
+    (0, ("uamfleet.types", "uamfleet.io", "uamfleet.checks")),
     (1, ("uamfleet.radio",)),
-    (2, ("uamfleet.config",)),
+    (2, ("uamfleet.config", "uamfleet.demand")),
     (3, ("uamfleet.paths",)),
     (4, ("uamfleet.env",)),
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
+    # Below the loop in rl: the training options (rl.options), checkpoints (rl.checkpoint) and the run folder and
+    # its log (rl.runs), so reading a checkpoint or a run's progress never imports the loop.
     (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
     (6, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
-    # So does the greedy policy (GreedyPolicy.fly), which the loop evaluates and the zoo ships; imitation learning
-    # labels with the baselines' step-level search, and guided search rolls the greedy policy forward.
+    # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
+    # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
+    # imitation learning labels with the baselines' step-level search, and guided search rolls the greedy policy
+    # forward.
     (7, ("uamfleet.rl.trainer", "uamfleet.rl.policy", "uamfleet.rl.imitation", "uamfleet.rl.guided", "uamfleet.zoo")),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
@@ -74,13 +82,15 @@ def type_checking_only(node: ast.If) -> bool:
     )
 
 
-def imported_names(tree: ast.AST, importer: str, importer_is_package: bool) -> list[tuple[str, int]]:
-    """(absolute dotted name, line) of every import outside ``if TYPE_CHECKING:`` blocks; ``from a import b``
-    gives ``a.b`` (a module or a name in ``a``, resolved by the caller)."""
+def imported_names(
+    tree: ast.AST, importer: str, importer_is_package: bool, annotations: bool = False
+) -> list[tuple[str, int]]:
+    """(absolute dotted name, line) of every import outside ``if TYPE_CHECKING:`` blocks (inside them too with
+    ``annotations``); ``from a import b`` gives ``a.b`` (a module or a name in ``a``, resolved by the caller)."""
     out: list[tuple[str, int]] = []
 
     def visit(node: ast.AST) -> None:
-        if isinstance(node, ast.If) and type_checking_only(node):
+        if isinstance(node, ast.If) and type_checking_only(node) and not annotations:
             for child in node.orelse:
                 visit(child)
             return
@@ -100,12 +110,13 @@ def imported_names(tree: ast.AST, importer: str, importer_is_package: bool) -> l
     return out
 
 
-def edges(modules: dict[str, Path]) -> dict[str, dict[str, int]]:
-    """importer -> {imported project module: line}."""
+def edges(modules: dict[str, Path], annotations: bool = False) -> dict[str, dict[str, int]]:
+    """importer -> {imported project module: line} (with ``annotations``, the imports for type checking too)."""
     graph: dict[str, dict[str, int]] = {}
     for name, path in modules.items():
         targets: dict[str, int] = {}
-        for dotted, line in imported_names(ast.parse(path.read_text(), str(path)), name, is_package(name, modules)):
+        tree = ast.parse(path.read_text(), str(path))
+        for dotted, line in imported_names(tree, name, is_package(name, modules), annotations):
             parts = dotted.split(".")
             # the longest prefix that is a project module (``from m import f`` -> m; ``from pkg import mod`` -> mod)
             prefixes = (".".join(parts[:i]) for i in range(len(parts), 0, -1))
@@ -196,9 +207,40 @@ def test_no_import_circle() -> None:
     )
 
 
+def test_no_circle_even_through_type_annotations() -> None:
+    """A module that imports another only for its types still depends on it (the kernels read the world's
+    arrays): no circle through ``if TYPE_CHECKING:`` imports either, e.g. kernels <-> world."""
+    graph = edges(MODULES, annotations=True)
+    assert "uamfleet.rollout" in graph["uamfleet.viz.meshcat_view"]  # the walk sees annotation imports
+    cycle = find_cycle(graph)
+    assert cycle is None, "import circle through type annotations: " + ", ".join(
+        f"{a} imports {b} ({MODULES[a].relative_to(ROOT)}:{graph[a][b]})" for a, b in itertools.pairwise(cycle)
+    )
+
+
 @pytest.mark.parametrize(
     ("graph", "expected"),
     [({"a": {"b": 1}, "b": {"c": 1}, "c": {"a": 1}}, ["a", "b", "c", "a"]), ({"a": {"b": 1}, "b": {}}, None)],
 )
 def test_the_cycle_finder_finds_a_drawn_circle(graph: dict[str, dict[str, int]], expected: list[str] | None) -> None:
     assert find_cycle(graph) == expected
+
+
+def reachable(graph: dict[str, dict[str, int]], start: str) -> set[str]:
+    seen, todo = set(), [start]
+    while todo:
+        node = todo.pop()
+        if node not in seen:
+            seen.add(node)
+            todo.extend(graph.get(node, {}))
+    return seen
+
+
+def test_loading_a_shipped_policy_does_not_import_the_trainer() -> None:
+    """uamfleet.pretrained() goes through the zoo and the policy room (load_policy), never the training loop:
+    neither by any import the walk sees nor at run time."""
+    assert "uamfleet.rl.policy" in reachable(GRAPH, "uamfleet.zoo")  # the walk reaches the loader
+    assert "uamfleet.rl.trainer" not in reachable(GRAPH, "uamfleet.zoo")
+    probe = "import sys, uamfleet, uamfleet.zoo; print('uamfleet.rl.trainer' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "False"

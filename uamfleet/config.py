@@ -9,13 +9,26 @@ objects). Checks that need only the config live in ``__post_init__``; checks tha
 from __future__ import annotations
 
 import dataclasses
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import InitVar, dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 
+from uamfleet.checks import (
+    MAX_COUNT,
+    MAX_HISTORY_LEN,
+    MAX_PASSENGERS,
+    MAX_PATCH_SIZE,
+    MAX_TAXIS,
+    ConfigError,
+    check_integer,
+    check_number,
+    check_point,
+    check_sequence,
+    is_number,
+)
+from uamfleet.demand import ARRIVALS, DemandConfig, Request, as_requests
 from uamfleet.radio import RadioMap, load_radio_map
 from uamfleet.types import NUM_HEADINGS  # defined there; imported here too by modules that build configs
 
@@ -25,106 +38,28 @@ SEPARATION_MODES: tuple[str, ...] = ("none", "shield")
 """Values of ``EnvConfig.separation`` (docs/rules.md "Separation shield"): ``"none"`` records losses of separation
 only; ``"shield"`` resolves every conflict before the moves are flown."""
 
-# Upper bounds of the sizes that set the memory of every observation (documented on EnvConfig): a 3,000 x 3,000
-# patch would be 72 MB per taxi and step, so a typo there fails at once instead of exhausting memory later.
-MAX_PATCH_SIZE = 64
-MAX_HISTORY_LEN = 256
-MAX_TAXIS = 1024
-MAX_PASSENGERS = 1024
-MAX_COUNT = 2**31 - 1
-"""Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
+TAXI_SPEED_MPS = 120.0 / 3.6
+"""Cruise speed of every preset (120 km/h): a step of ``step_m`` takes ``step_m / TAXI_SPEED_MPS`` seconds."""
+DETROIT_STEP_M = 320.0
+"""The Detroit maps' step (the authors' P5 scenario); its slot is :data:`DETROIT_SLOT_S` (≈ 9.6 s)."""
+DETROIT_SLOT_S = DETROIT_STEP_M / TAXI_SPEED_MPS
+
+# The fleet demand, one source for the *_fleet presets and uamfleet.instances.make_fleet_instance.
+FLEET_REQUESTS_PER_TAXI = 6
+FLEET_ARRIVAL_WINDOW_S = 600.0
+"""Requests are released over the first 10 minutes."""
+FLEET_TIME_LIMIT_WINDOWS = 3
+"""A fleet episode's time limit is at least this many arrival windows."""
 
 
-class ConfigError(ValueError):
-    """A config value of the wrong type or out of range; the message names the field, the value and the fix.
-
-    A ``ValueError`` (also for values of the wrong type, e.g. ``sinr_min_db='-3'``), so one ``except
-    ValueError`` catches every bad input of the package: this, :class:`~uamfleet.env.generator.
-    InfeasibleInstanceError`, :class:`~uamfleet.env.dynamics.InvalidActionError` and
-    :class:`~uamfleet.radio.WinPropFormatError`.
-    """
+def fleet_window_steps(slot_s: float, window_s: float = FLEET_ARRIVAL_WINDOW_S) -> int:
+    """Steps of the arrival window (releases at steps 0 ... this - 1), at least one."""
+    return max(int(window_s // slot_s), 1)
 
 
-def _is_number(value: Any) -> bool:
-    # bool is an int to Python, but True is no step count or distance; strings are not parsed on the user's behalf.
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-
-
-def _not_a_number(name: str, value: Any, kind: str, integer: bool = False) -> ConfigError:
-    hint = ""
-    if isinstance(value, str):
-        try:
-            number = float(value)
-            hint = f", e.g. {name.split(' ')[0]}={int(number) if integer and number.is_integer() else number!r}"
-        except ValueError:
-            pass
-    return ConfigError(f"{name}={value!r} is a {type(value).__name__}, not a number; pass {kind}{hint}.")
-
-
-def check_number(name: str, value: Any, *, minimum: float | None = None, positive: bool = False) -> float:
-    """``value`` as a finite float; :class:`ConfigError` naming ``name`` if it is not a finite real number
-    (NaN, inf, a string, a bool) or is below ``minimum`` / not positive."""
-    if not _is_number(value):
-        raise _not_a_number(name, value, "an int or float")
-    if not math.isfinite(value):
-        raise ConfigError(f"{name}={value!r} must be a finite number.")
-    if positive and not value > 0:
-        raise ConfigError(f"{name}={value!r} must be a positive number.")
-    if minimum is not None and value < minimum:
-        raise ConfigError(f"{name}={value!r} must be >= {minimum:g}.")
-    return float(value)
-
-
-def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None, fix: str = "") -> int:
-    """``value`` as an int in ``[minimum, maximum]`` (default maximum :data:`MAX_COUNT`); :class:`ConfigError`
-    naming ``name`` otherwise. A float with an integral value (``500.0``) is accepted; ``1.5``, NaN, strings and
-    bools are not (never truncated)."""
-    bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
-    maximum = MAX_COUNT if maximum is None else maximum
-    if not _is_number(value):
-        raise _not_a_number(name, value, f"an integer {bound}", integer=True)
-    if not math.isfinite(value) or int(value) != value:
-        raise ConfigError(f"{name}={value!r} must be a whole number {bound}{fix}; it is never rounded.")
-    if value < minimum:
-        raise ConfigError(f"{name}={value!r} must be an integer {bound}{fix}.")
-    if value > maximum:
-        raise ConfigError(f"{name}={value!r} is too large: at most {maximum}{fix}.")
-    return int(value)
-
-
-def check_point(name: str, value: Any) -> tuple[float, float]:
-    """``value`` as a finite ``(x, y)`` pair of floats in metres; :class:`ConfigError` naming ``name`` otherwise
-    (three coordinates, a string, NaN, ...)."""
-    try:
-        n = len(value)
-    except TypeError:
-        n = -1
-    if isinstance(value, str) or n != 2 or not all(_is_number(v) and math.isfinite(v) for v in value):
-        raise ConfigError(
-            f"{name}={value!r} must be a finite (x, y) pair of numbers in metres (world frame); "
-            "the altitude is EnvConfig.altitude_m, not a third coordinate."
-        )
-    return (float(value[0]), float(value[1]))
-
-
-@dataclass(frozen=True)
-class Request:
-    """One ride request: visible (and pickable on the following steps) from ``release_step`` on."""
-
-    release_step: int
-    origin_m: tuple[float, float]
-    destination_m: tuple[float, float]
-
-    def __post_init__(self) -> None:
-        release = check_integer("Request release_step", self.release_step, 0, fix=" (steps since reset)")
-        object.__setattr__(self, "release_step", release)
-        for name in ("origin_m", "destination_m"):
-            object.__setattr__(self, name, check_point(f"Request {name}", getattr(self, name)))
-        if self.origin_m == self.destination_m:
-            raise ConfigError(
-                f"Request origin_m == destination_m == {self.origin_m}: a ride needs two different places; "
-                "drop the request or move one end."
-            )
+def fleet_time_limit(time_limit_steps: int, window_steps: int) -> int:
+    """A fleet episode's time limit: the preset's, or :data:`FLEET_TIME_LIMIT_WINDOWS` arrival windows if longer."""
+    return max(time_limit_steps, FLEET_TIME_LIMIT_WINDOWS * window_steps)
 
 
 SHAPING_METRICS: tuple[str, ...] = ("path", "path_exact", "euclidean")
@@ -198,57 +133,6 @@ _REWARD_DEFAULTS = {f.name: f.default for f in dataclasses.fields(RewardConfig)}
 assert set(REWARD_TERMS) <= set(_REWARD_DEFAULTS), "every reward term needs a RewardConfig weight of its name"
 
 
-ARRIVALS: tuple[str, ...] = ("poisson", "uniform")
-"""Values of ``DemandConfig.arrivals``."""
-
-
-@dataclass(frozen=True)
-class DemandConfig:
-    """Random demand: Poisson arrivals of ride requests.
-
-    ``arrivals="poisson"``: ``num_initial`` requests are released at step 0; afterwards requests arrive with
-    ``rate_per_step`` until ``horizon_steps`` (at most ``max_requests`` in all). ``arrivals="uniform"``: the
-    number of requests is drawn uniformly from ``min_requests`` ... ``max_requests``; ``num_initial`` of them
-    (at least one) are released at step 0 and the others at steps drawn uniformly from 0 ... ``horizon_steps``
-    (the held-out instances of :mod:`uamfleet.instances` are drawn this way). Origins and destinations are drawn
-    on feasible blocks (or from ``vertiports`` when given), at least ``min_trip_m`` apart.
-    """
-
-    num_initial: int = 3
-    rate_per_step: float = 0.05
-    horizon_steps: int = 60
-    max_requests: int = 8
-    min_trip_m: float = 500.0
-    vertiports: tuple[tuple[float, float], ...] = ()
-    arrivals: str = "poisson"
-    min_requests: int = 1  # arrivals="uniform" only
-
-    def __post_init__(self) -> None:
-        def put(name: str, value: Any) -> None:
-            object.__setattr__(self, name, value)
-
-        put("max_requests", check_integer("DemandConfig.max_requests", self.max_requests, 1, MAX_PASSENGERS))
-        put("num_initial", check_integer("DemandConfig.num_initial", self.num_initial, 0, self.max_requests))
-        put("rate_per_step", check_number("DemandConfig.rate_per_step", self.rate_per_step, minimum=0))
-        put("horizon_steps", check_integer("DemandConfig.horizon_steps", self.horizon_steps, 0))
-        put("min_trip_m", check_number("DemandConfig.min_trip_m", self.min_trip_m, minimum=0))
-        if self.arrivals not in ARRIVALS:
-            raise ConfigError(f"DemandConfig.arrivals={self.arrivals!r} is unknown; use one of {ARRIVALS}.")
-        put("min_requests", check_integer("DemandConfig.min_requests", self.min_requests, 1, self.max_requests))
-        ports = tuple(
-            check_point(f"DemandConfig.vertiports[{i}]", p)
-            for i, p in enumerate(_sequence("DemandConfig.vertiports", self.vertiports))
-        )
-        if len(ports) == 1:
-            raise ConfigError("DemandConfig.vertiports needs at least 2 sites (origin != destination), got 1.")
-        if len(set(ports)) != len(ports):
-            raise ConfigError(
-                f"DemandConfig.vertiports={ports} lists a site twice: a ride between them would not move; "
-                "give each site once."
-            )
-        put("vertiports", ports)
-
-
 @dataclass(frozen=True, eq=False)
 class EnvConfig:
     """Everything that defines a fleet environment. Use a preset (:func:`make_config`) and override fields.
@@ -303,7 +187,9 @@ class EnvConfig:
         self._check_numbers()
         self._check_choices()
         if self.starts_m is not None:
-            starts = tuple(check_point(f"starts_m[{a}]", p) for a, p in enumerate(_sequence("starts_m", self.starts_m)))
+            starts = tuple(
+                check_point(f"starts_m[{a}]", p) for a, p in enumerate(check_sequence("starts_m", self.starts_m))
+            )
             if len(starts) != self.num_taxis:
                 raise ConfigError(
                     f"starts_m has {len(starts)} positions but num_taxis={self.num_taxis}; give one start per "
@@ -379,7 +265,7 @@ class EnvConfig:
             )
 
     def _check_requests(self) -> None:
-        reqs = as_requests(_sequence("requests", self.requests))
+        reqs = as_requests(check_sequence("requests", self.requests))
         if not reqs:
             raise ConfigError("requests=() is empty; give at least one Request or None for random demand.")
         for i, req in enumerate(reqs):
@@ -458,7 +344,7 @@ def _berlin_p4(**overrides: Any) -> EnvConfig:
 
 
 def _detroit_p5(**overrides: Any) -> EnvConfig:
-    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.7 s).
+    """Detroit P5 on the ESTIMATED Detroit block map: 5 requests, 320 m steps (≈ 9.6 s).
 
     The authors never published the Detroit radio map; the packaged one is digitised from their figure and is
     faithful only at γ_T = −17 dB (blocks below −17 dB are only known to be below it).
@@ -466,8 +352,8 @@ def _detroit_p5(**overrides: Any) -> EnvConfig:
     base: dict[str, Any] = dict(
         radio=load_radio_map("detroit_estimate"),
         sinr_min_db=-17.0,
-        step_m=320.0,
-        slot_s=320.0 / (120.0 / 3.6),
+        step_m=DETROIT_STEP_M,
+        slot_s=DETROIT_SLOT_S,
         starts_m=((6290.0, 9450.0),),
         requests=(
             Request(0, (6594.0, 7563.0), (9570.0, 7210.0)),
@@ -511,8 +397,8 @@ def _detroit3gpp_random(**overrides: Any) -> EnvConfig:
         radio=load_radio_map("detroit_3gpp"),
         sinr_min_db=-17.0,
         num_taxis=4,
-        step_m=320.0,
-        slot_s=320.0 / (120.0 / 3.6),
+        step_m=DETROIT_STEP_M,
+        slot_s=DETROIT_SLOT_S,
         starts_m=None,
         requests=None,
         demand=DemandConfig(num_initial=4, rate_per_step=0.1, horizon_steps=80, max_requests=12, min_trip_m=2000.0),
@@ -570,20 +456,21 @@ def _fleet(
     shield on (docs/rules.md "Separation shield")."""
     taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)
     min_trip = 2000.0 if scenario.startswith("detroit") else 500.0
+    requests, window = FLEET_REQUESTS_PER_TAXI * taxis, fleet_window_steps(slot_s)
     demand = DemandConfig(
-        arrivals="uniform", num_initial=0, min_requests=6 * taxis, max_requests=6 * taxis,
-        horizon_steps=max(int(600.0 // slot_s) - 1, 0), min_trip_m=min_trip,
+        arrivals="uniform", num_initial=0, min_requests=requests, max_requests=requests,
+        horizon_steps=window - 1, min_trip_m=min_trip,
     )  # fmt: skip
     base = _fields(random_preset(num_taxis=taxis, demand=demand))
     base.update(
-        max_passengers=6 * taxis,
+        max_passengers=requests,
         stop_features=True,
         stop_claims=True,
         reward=FLEET_REWARD,
         separation="shield",
         scenario=scenario,
     )
-    base["time_limit_steps"] = max(base["time_limit_steps"], 3 * (demand.horizon_steps + 1))
+    base["time_limit_steps"] = fleet_time_limit(base["time_limit_steps"], window)
     return _with_overrides(base, {k: v for k, v in overrides.items() if k != "num_taxis"})
 
 
@@ -595,7 +482,7 @@ def _berlin_fleet(**overrides: Any) -> EnvConfig:
 
 def _detroit3gpp_fleet(**overrides: Any) -> EnvConfig:
     """:func:`_berlin_fleet` on the synthetic TR 36.777 Detroit-like map."""
-    return _fleet(_detroit3gpp_random, "detroit3gpp_fleet", 320.0 / (120.0 / 3.6), overrides)
+    return _fleet(_detroit3gpp_random, "detroit3gpp_fleet", DETROIT_SLOT_S, overrides)
 
 
 def _with_overrides(base: dict[str, Any], overrides: dict[str, Any]) -> EnvConfig:
@@ -651,26 +538,51 @@ def _fields(cfg: EnvConfig) -> dict[str, Any]:
     return {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
 
 
-def as_requests(items: Sequence[Any]) -> tuple[Request, ...]:
-    """Requests from :class:`Request` objects or ``(release_step, (ox, oy), (dx, dy))`` tuples."""
-    out = []
-    for item in _sequence("requests", items):
-        if isinstance(item, Request):
-            out.append(item)
-        elif isinstance(item, (tuple, list)) and len(item) == 3:
-            out.append(Request(item[0], item[1], item[2]))
-        else:
-            raise ConfigError(f"Request {item!r} must be a Request or (release_step, origin_xy, destination_xy).")
-    return tuple(out)
-
-
-def _sequence(name: str, value: Any) -> Any:
-    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
-        raise ConfigError(f"{name}={value!r} must be a sequence (tuple or list), not {type(value).__name__}.")
-    return value
-
-
 def heading_vectors() -> np.ndarray:
     """[NUM_HEADINGS, 2] unit vectors of the flight headings (k * 22.5° counter-clockwise from east)."""
     angles = 2.0 * np.pi * np.arange(NUM_HEADINGS) / NUM_HEADINGS
     return np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+
+
+# The checks and size bounds live in uamfleet.checks, the demand in uamfleet.demand; both import from here too.
+__all__ = [
+    "ARRIVALS",
+    "DETROIT_SLOT_S",
+    "DETROIT_STEP_M",
+    "FEASIBILITY_RULES",
+    "FLEET_ARRIVAL_WINDOW_S",
+    "FLEET_REQUESTS_PER_TAXI",
+    "FLEET_REWARD",
+    "FLEET_TIME_LIMIT_WINDOWS",
+    "INSTANCE_REWARD",
+    "MAX_COUNT",
+    "MAX_HISTORY_LEN",
+    "MAX_PASSENGERS",
+    "MAX_PATCH_SIZE",
+    "MAX_TAXIS",
+    "NUM_HEADINGS",
+    "PRESETS",
+    "REWARD_TERMS",
+    "SCENARIOS",
+    "SEPARATION_MODES",
+    "SHAPING_METRICS",
+    "TAXI_SPEED_MPS",
+    "ConfigError",
+    "DemandConfig",
+    "EnvConfig",
+    "FeasibilityRule",
+    "RadioMap",
+    "Request",
+    "RewardConfig",
+    "as_requests",
+    "check_integer",
+    "check_number",
+    "check_point",
+    "check_sequence",
+    "fleet_time_limit",
+    "fleet_window_steps",
+    "heading_vectors",
+    "is_number",
+    "load_radio_map",
+    "make_config",
+]

@@ -36,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from uamfleet.config import (
+    FLEET_ARRIVAL_WINDOW_S,
+    FLEET_REQUESTS_PER_TAXI,
     MAX_PASSENGERS,
     MAX_TAXIS,
     EnvConfig,
@@ -43,6 +45,8 @@ from uamfleet.config import (
     Request,
     check_integer,
     check_number,
+    fleet_time_limit,
+    fleet_window_steps,
     make_config,
 )
 from uamfleet.env.generator import InfeasibleInstanceError, flyable_sites, validate_instance
@@ -57,7 +61,9 @@ TEST_SEEDS = range(2_000_000, 2_010_000)
 SPLITS: dict[str, range] = {"train": TRAIN_SEEDS, "validation": VALIDATION_SEEDS, "test": TEST_SEEDS}
 MAX_ATTEMPTS = 1000
 FLEET_TAG = 13  # mixed into fleet instance seeds so they differ from the single-taxi instances of equal seed
-FLEET_SETTINGS: dict[str, tuple[int, int]] = {"1x6": (1, 6), "2x12": (2, 12), "4x24": (4, 24), "8x48": (8, 48)}
+FLEET_SETTINGS: dict[str, tuple[int, int]] = {
+    f"{n}x{FLEET_REQUESTS_PER_TAXI * n}": (n, FLEET_REQUESTS_PER_TAXI * n) for n in (1, 2, 4, 8)
+}
 """Fleet table settings: name -> (taxis, requests per episode)."""
 
 
@@ -144,10 +150,10 @@ def make_fleet_instance(
     family: str,
     seed: int,
     num_taxis: int = 4,
-    num_requests: int = 24,
+    num_requests: int = 4 * FLEET_REQUESTS_PER_TAXI,
     feasibility: FeasibilityRule = "endpoint_block",
     num_vertiports: int = 0,
-    arrival_window_s: float = 600.0,
+    arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S,
     max_passengers: int | None = None,
     separation: str = "none",
 ) -> EnvConfig:
@@ -177,19 +183,12 @@ def make_fleet_instance(
     if len(flyable) < num_taxis:
         raise RuntimeError(f"{family!r} at {threshold} dB has {len(flyable)} flyable sites for {num_taxis} taxis.")
     fields = DistanceFields(world)
-    window_steps = max(int(arrival_window_s // base.slot_s), 1)
+    window_steps = fleet_window_steps(base.slot_s, arrival_window_s)
     for _ in range(MAX_ATTEMPTS):
         sites = flyable[rng.choice(len(flyable), num_vertiports, replace=False)] if num_vertiports else flyable
         starts = flyable[rng.choice(len(flyable), num_taxis, replace=False)]
         release = np.sort(rng.integers(0, window_steps, size=num_requests))
-        requests = []
-        for step in release:
-            o = int(rng.integers(len(sites)))
-            far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= fam.min_trip_m)
-            if not len(far):
-                break
-            d = int(far[rng.integers(len(far))])
-            requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
+        requests = _draw_trips(rng, sites, release, fam.min_trip_m)
         if len(requests) < num_requests:
             continue
         try:
@@ -202,11 +201,25 @@ def make_fleet_instance(
         return base.replace(
             starts_m=tuple(map(tuple, starts)),
             requests=tuple(requests),
-            time_limit_steps=max(base.time_limit_steps, 3 * window_steps),
+            time_limit_steps=fleet_time_limit(base.time_limit_steps, window_steps),
             max_passengers=max_passengers,
             scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
+def _draw_trips(rng: np.random.Generator, sites: np.ndarray, release: np.ndarray, min_trip_m: float) -> list[Request]:
+    """One request per release step: a random origin site and a destination at least ``min_trip_m`` from it;
+    stops early (fewer requests) at an origin with no site that far."""
+    requests = []
+    for step in release:
+        o = int(rng.integers(len(sites)))
+        far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= min_trip_m)
+        if not len(far):
+            break
+        d = int(far[rng.integers(len(far))])
+        requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
+    return requests
 
 
 def family_of(scenario: str) -> str:

@@ -86,6 +86,20 @@ def connectivity(
     return 100.0 * float(ok.mean()), float(np.nan_to_num(sinr, nan=-np.inf).min())
 
 
+def fleet_connectivity(
+    positions: np.ndarray, radio: RadioMap, threshold_db: float, sample_m: float = 10.0
+) -> tuple[float, float]:
+    """(share of samples with SINR >= threshold over all taxis' polylines [A, T, 2] in %, weighted by each
+    polyline's samples; the minimum SINR in dB over them)."""
+    conn = [connectivity(positions[a], radio, threshold_db, sample_m) for a in range(positions.shape[0])]
+    samples = [len(path_samples(positions[a], min(sample_m, radio.resolution_m))) for a in range(positions.shape[0])]
+    return float(np.average([c[0] for c in conn], weights=samples)), min(c[1] for c in conn)
+
+
+def _mean_or_nan(x: np.ndarray) -> float:
+    return float(np.mean(x)) if x.size else math.nan
+
+
 def episode_metrics(
     traj: Trajectory, radio: RadioMap, threshold_db: float | None = None, sample_m: float = 10.0
 ) -> EpisodeMetrics:
@@ -122,28 +136,21 @@ def episode_metrics(
     in_vehicle_s = (dropoff_step - pickup_step) * slot
     detour = in_vehicle_s[delivered] / np.maximum(direct_s[delivered], 1e-9)
 
-    positions = traj.positions_m[:, : span + 1]  # [A, span + 1, 2]
-    conn = [connectivity(positions[a], radio, threshold, sample_m) for a in range(positions.shape[0])]
-    samples = [len(path_samples(positions[a], min(sample_m, radio.resolution_m))) for a in range(positions.shape[0])]
-    conn_pct = float(np.average([c[0] for c in conn], weights=samples))
-
-    def mean(x: np.ndarray) -> float:
-        return float(np.mean(x)) if x.size else math.nan
-
+    conn_pct, min_sinr = fleet_connectivity(traj.positions_m[:, : span + 1], radio, threshold, sample_m)
     return EpisodeMetrics(
         td_m=td,
-        att_s=mean(ride_s[delivered]),
-        awt_s=mean(wait_s[~np.isnan(wait_s)]),
+        att_s=_mean_or_nan(ride_s[delivered]),
+        awt_s=_mean_or_nan(wait_s[~np.isnan(wait_s)]),
         elr_pct=elr,
         pr_pct=100.0 * float(delivered.mean()) if num_requests else 100.0,
         connectivity_pct=conn_pct,
-        min_sinr_db=min(c[1] for c in conn),
+        min_sinr_db=min_sinr,
         completion_s=span * slot,
         delivered=int(delivered.sum()),
         num_requests=num_requests,
         wait_p50_s=float(np.nanpercentile(wait_s, 50)) if np.isfinite(wait_s).any() else math.nan,
         wait_p95_s=float(np.nanpercentile(wait_s, 95)) if np.isfinite(wait_s).any() else math.nan,
-        detour_ratio=mean(detour),
+        detour_ratio=_mean_or_nan(detour),
         occupancy=occupancy,
         separation_violations=int(traj.stacked("separation_violation")[:span].sum()),
         decision_ms_mean=1000.0 * float(np.mean(traj.decision_s)) if traj.decision_s else math.nan,

@@ -15,7 +15,8 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, load_policy
+from uamfleet.rl.checkpoint import Checkpoint
+from uamfleet.rl.policy import GreedyPolicy, load_policy
 
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests
@@ -43,7 +44,7 @@ def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
 
 def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
     """Write ``checkpoint`` without what only training needs (optimiser moments, RNG states): a few hundred
-    kB that still loads with :func:`uamfleet.rl.trainer.load_policy` (it cannot be resumed)."""
+    kB that still loads with :func:`uamfleet.rl.policy.load_policy` (it cannot be resumed)."""
     ckpt = Checkpoint.load(checkpoint)
     ckpt.optimizer = {}
     ckpt.numpy_rng = {}

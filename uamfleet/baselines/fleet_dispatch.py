@@ -206,27 +206,34 @@ class ScheduleFleetPolicy:
         s = self.env.state
         status, carrier = s.pax_status[0], s.pax_taxi[0]
         for a in range(self.num_taxis):
-            kept = [
-                (p, kind)
-                for p, kind in self.routes[a]
-                if (kind == PICKUP and status[p] == WAITING)
-                or (kind == DROPOFF and (status[p] == WAITING or (status[p] == ON_BOARD and carrier[p] == a)))
-            ]
-            # a drop-off stays only with its pick-up or its passenger on board this taxi
-            picks = {p for p, kind in kept if kind == PICKUP}
-            kept = [(p, k) for p, k in kept if k == PICKUP or p in picks or status[p] == ON_BOARD]
+            kept = self._open_stops(a, status, carrier)
             self.routes[a] = kept
             riding = self.on_board(a)
             missing = [p for p in riding if (p, DROPOFF) not in kept]
             if missing or not self._fits(riding, kept):  # boarded someone unplanned, or a planned one early
-                waiting = self.waiting_of(a)
-                if len(waiting) + len(riding) <= self.exact_limit:
-                    self.routes[a] = self.sequence(a, waiting)[1]
-                else:  # drop everyone on board first: the pick-ups after that fit the seats
-                    first = [(p, DROPOFF) for p in missing] + [
-                        st for st in kept if st[1] == DROPOFF and st[0] in riding
-                    ]
-                    self.routes[a] = first + [st for st in kept if st not in first]
+                self.routes[a] = self._resequenced(a, riding, missing, kept)
+
+    def _open_stops(self, taxi: int, status: np.ndarray, carrier: np.ndarray) -> list[Stop]:
+        """The taxi's route without its served stops: pick-ups of passengers still waiting, drop-offs of those
+        waiting or on board this taxi; a drop-off stays only with its pick-up or its passenger on board."""
+
+        def open_stop(p: int, kind: str) -> bool:
+            if kind == PICKUP:
+                return bool(status[p] == WAITING)
+            return bool(status[p] == WAITING or (status[p] == ON_BOARD and carrier[p] == taxi))
+
+        kept = [(p, kind) for p, kind in self.routes[taxi] if open_stop(p, kind)]
+        picks = {p for p, kind in kept if kind == PICKUP}
+        return [(p, k) for p, k in kept if k == PICKUP or p in picks or status[p] == ON_BOARD]
+
+    def _resequenced(self, taxi: int, riding: list[int], missing: list[int], kept: list[Stop]) -> list[Stop]:
+        """A new route for a taxi whose schedule no longer fits who is on board: the exact schedule when small
+        enough, else everyone on board dropped first (the pick-ups after that fit the seats)."""
+        waiting = self.waiting_of(taxi)
+        if len(waiting) + len(riding) <= self.exact_limit:
+            return self.sequence(taxi, waiting)[1]
+        first = [(p, DROPOFF) for p in missing] + [st for st in kept if st[1] == DROPOFF and st[0] in riding]
+        return first + [st for st in kept if st not in first]
 
     def _fits(self, riding: list[int], route: Sequence[Stop]) -> bool:
         """True if the route never has more than ``seats`` on board, starting with ``riding``."""

@@ -84,6 +84,35 @@ def _problem(
 ) -> _Problem:
     release = tuple(float(r) for r in release_s)
     n = len(release)
+    dist = _check_distances(dist_m, n)
+    speed = float(speed_mps)
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed_mps must be a finite number > 0, got {speed_mps!r}")
+    if not all(math.isfinite(r) for r in release):
+        raise ValueError(f"release_s must be finite times in seconds, got {list(release)}")
+    if int(capacity) != capacity or capacity < 1:
+        raise ValueError(f"capacity must be an integer >= 1 (seats), got {capacity!r}")
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(map(repr, OBJECTIVES))}")
+    start = float(start_s)
+    if not math.isfinite(start):
+        raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
+    board, finished = _check_flags(on_board, done, n, capacity)
+    return _Problem(
+        travel_s=(dist / speed).tolist(),
+        dist_m=dist.tolist(),
+        release_s=release,
+        active=tuple(i for i in range(n) if not finished[i]),
+        on_board=frozenset(i for i in range(n) if board[i]),
+        capacity=int(capacity),
+        start_s=start,
+        objective=objective,
+    )
+
+
+def _check_distances(dist_m: np.ndarray, n: int) -> np.ndarray:
+    """The [1 + 2N, 1 + 2N] matrix of finite, non-negative distances (node 0 the taxi, then origin and
+    destination of each passenger), as float64."""
     dist = np.asarray(dist_m, dtype=np.float64)
     if dist.ndim != 2 or dist.shape[0] != dist.shape[1]:
         raise ValueError(f"dist_m must be a square [S, S] matrix, got shape {dist.shape}")
@@ -97,18 +126,13 @@ def _problem(
     if (dist < 0).any():
         a, b = np.argwhere(dist < 0)[0]
         raise ValueError(f"dist_m[{a}, {b}] = {dist[a, b]} is negative; distances must be >= 0 metres")
-    speed = float(speed_mps)
-    if not (math.isfinite(speed) and speed > 0):
-        raise ValueError(f"speed_mps must be a finite number > 0, got {speed_mps!r}")
-    if not all(math.isfinite(r) for r in release):
-        raise ValueError(f"release_s must be finite times in seconds, got {list(release)}")
-    if int(capacity) != capacity or capacity < 1:
-        raise ValueError(f"capacity must be an integer >= 1 (seats), got {capacity!r}")
-    if objective not in OBJECTIVES:
-        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(map(repr, OBJECTIVES))}")
-    start = float(start_s)
-    if not math.isfinite(start):
-        raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
+    return dist
+
+
+def _check_flags(
+    on_board: Sequence[bool] | None, done: Sequence[bool] | None, n: int, capacity: int
+) -> tuple[list[bool], list[bool]]:
+    """(on board, done) per passenger: never both, and no more on board than seats."""
     board = _flag_list(on_board, n, "on_board")
     finished = _flag_list(done, n, "done")
     both = [i for i in range(n) if board[i] and finished[i]]
@@ -116,16 +140,7 @@ def _problem(
         raise ValueError(f"passenger {both[0]} is marked both on_board and done; a passenger is one or the other")
     if sum(board) > capacity:
         raise ValueError(f"{sum(board)} passengers are on board but capacity is {capacity}; raise capacity")
-    return _Problem(
-        travel_s=(dist / speed).tolist(),
-        dist_m=dist.tolist(),
-        release_s=release,
-        active=tuple(i for i in range(n) if not finished[i]),
-        on_board=frozenset(i for i in range(n) if board[i]),
-        capacity=int(capacity),
-        start_s=start,
-        objective=objective,
-    )
+    return board, finished
 
 
 def _node(passenger: int, kind: str) -> int:

@@ -37,6 +37,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -246,33 +247,17 @@ class StepSearch:
             return StepPlan([], 0, 0, 0.0, "beam", settings)
         stops = np.stack([beam["pax_origin_m"][0, :num_pax], beam["pax_dest_m"][0, :num_pax]], axis=1).reshape(-1, 2)
         stop_dist = self._stop_distances(stops)
-        seats = self.cfg.seats
-        rank_next, after = remaining_tables(stop_dist, seats, 0.0)
-        bound_next, _ = remaining_tables(stop_dist, seats, 2.0 * self.radius_m)
-        del after
+        rank_next, _ = remaining_tables(stop_dist, self.cfg.seats, 0.0)
+        bound_next, _ = remaining_tables(stop_dist, self.cfg.seats, 2.0 * self.radius_m)
+        tables = _Heuristic(stops, rank_next, bound_next)
         g = np.zeros(1, np.int64)
         layers: list[_Layer] = []
         best: tuple[int, int, int] | None = None  # (moves, layer, index in that layer's children)
         best_moves = upper_moves if upper_moves is not None else np.iinfo(np.int64).max
         limit = int(self.cfg.time_limit_steps - beam["t"][0])
-        width = settings.beam * NUM_HEADINGS
-        env = self._scratch(width)
+        env = self._scratch(settings.beam * NUM_HEADINGS)
         for depth in range(limit):
-            n = len(g)
-            kids = n * NUM_HEADINGS
-            rows = np.concatenate([np.repeat(np.arange(n), NUM_HEADINGS), np.zeros(env.num_envs - kids, np.int64)])
-            for name in _STATE_FIELDS:
-                getattr(env.state, name)[:] = beam[name][rows]
-            actions = np.concatenate([np.tile(np.arange(NUM_HEADINGS), n), np.zeros(env.num_envs - kids, np.int64)])
-            _, _, terminated, _, info = env.step(actions[:, None])
-            ev = info["events"]
-            g_kid = g[rows[:kids]] + ev.moved[:kids, 0]
-            layers.append(_Layer(parent=rows[:kids], action=actions[:kids]))
-            done = terminated[:kids]
-            # Waiting (a forbidden heading: the taxi stays) only helps while a request is still to be released;
-            # afterwards a state that waits ties with its parent forever and would stall the beam.
-            hidden = np.any((beam["pax_status"] == HIDDEN) & beam["pax_exists"], axis=1)[rows[:kids]]
-            useful = ev.moved[:kids, 0] | hidden | done
+            g_kid, done, useful = _expand(env, beam, g, layers)
             if done.any():
                 idx = np.flatnonzero(done)
                 i = int(idx[np.argmin(g_kid[idx])])
@@ -281,29 +266,9 @@ class StepSearch:
             live = np.flatnonzero(~done & useful)
             if not len(live):
                 break
-            pos = env.state.pos_m[live, 0]
-            status = env.state.pax_status[live, :num_pax]
-            codes = state_codes(status, env.state.pax_exists[live, :num_pax])
-            d = np.stack([self.fields.remaining_m(stops[s], pos) for s in range(2 * num_pax)], axis=1)  # [L, 2P]
-            first_rank = np.maximum(d - settings.rank_slack * self.radius_m, 0.0)
-            h_rank = np.min(first_rank + rank_next[codes], axis=1)
-            h_bound = np.min(np.maximum(d - self.radius_m, 0.0) + bound_next[codes], axis=1)
-            g_live = g_kid[live]
-            f_bound = g_live * self.step_m + h_bound
-            hopeful = f_bound < best_moves * self.step_m - 1e-6
-            live, pos, codes, g_live = live[hopeful], pos[hopeful], codes[hopeful], g_live[hopeful]
-            f = g_live * self.step_m + h_rank[hopeful]
-            if not len(live):
+            chosen = self._select(env, live, g_kid, best_moves, tables, settings)
+            if chosen is None:
                 break
-            # duplicates: same cell and same passenger phases; keep the best f (ties: fewer moves)
-            cell = np.floor(pos / settings.cell_m).astype(np.int64)
-            order = np.lexsort((g_live, f, codes, cell[:, 1], cell[:, 0]))
-            key = np.stack([cell[order, 0], cell[order, 1], codes[order]], axis=1)
-            first = np.ones(len(order), bool)
-            first[1:] = np.any(key[1:] != key[:-1], axis=1)
-            unique = order[first]
-            keep = unique[np.argsort(f[unique], kind="stable")[: settings.beam]]
-            chosen = live[keep]
             layers[-1].chosen = chosen
             beam = {k: getattr(env.state, k)[chosen].copy() for k in _STATE_FIELDS}
             g = g_kid[chosen]
@@ -311,6 +276,70 @@ class StepSearch:
             return None
         plan = _backtrack(layers, best[1], best[2])
         return StepPlan(plan, best[0], len(plan), time.perf_counter() - start, "beam", settings)
+
+    def _select(
+        self, env: VectorEnv, live: np.ndarray, g_kid: np.ndarray, best_moves: int, tables: _Heuristic,
+        settings: SearchSettings,
+    ) -> np.ndarray | None:  # fmt: skip
+        """The next beam among the ``live`` children: those whose lower bound can still beat ``best_moves``,
+        one per (cell, passenger phases) with the best ranking estimate f, the ``settings.beam`` lowest f;
+        None when no child is hopeful."""
+        num_pax = len(tables.stops) // 2
+        pos = env.state.pos_m[live, 0]
+        status = env.state.pax_status[live, :num_pax]
+        codes = state_codes(status, env.state.pax_exists[live, :num_pax])
+        d = np.stack([self.fields.remaining_m(tables.stops[s], pos) for s in range(2 * num_pax)], axis=1)  # [L, 2P]
+        first_rank = np.maximum(d - settings.rank_slack * self.radius_m, 0.0)
+        h_rank = np.min(first_rank + tables.rank_next[codes], axis=1)
+        h_bound = np.min(np.maximum(d - self.radius_m, 0.0) + tables.bound_next[codes], axis=1)
+        g_live = g_kid[live]
+        f_bound = g_live * self.step_m + h_bound
+        hopeful = f_bound < best_moves * self.step_m - 1e-6
+        live, pos, codes, g_live = live[hopeful], pos[hopeful], codes[hopeful], g_live[hopeful]
+        f = g_live * self.step_m + h_rank[hopeful]
+        if not len(live):
+            return None
+        # duplicates: same cell and same passenger phases; keep the best f (ties: fewer moves)
+        cell = np.floor(pos / settings.cell_m).astype(np.int64)
+        order = np.lexsort((g_live, f, codes, cell[:, 1], cell[:, 0]))
+        key = np.stack([cell[order, 0], cell[order, 1], codes[order]], axis=1)
+        first = np.ones(len(order), bool)
+        first[1:] = np.any(key[1:] != key[:-1], axis=1)
+        unique = order[first]
+        keep = unique[np.argsort(f[unique], kind="stable")[: settings.beam]]
+        return live[keep]
+
+
+class _Heuristic(NamedTuple):
+    """What the beam's estimates read: the stops [2P, 2] and the remaining-tour tables of the passenger phases
+    (``rank_next`` ranks the children, ``bound_next`` is a lower bound that prunes them)."""
+
+    stops: np.ndarray
+    rank_next: np.ndarray
+    bound_next: np.ndarray
+
+
+def _expand(
+    env: VectorEnv, beam: dict[str, np.ndarray], g: np.ndarray, layers: list[_Layer]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every heading from every beam state in one batched step of ``env``; records the layer. Returns the
+    children's moves so far, which of them finished the episode, and which are worth keeping."""
+    n = len(g)
+    kids = n * NUM_HEADINGS
+    rows = np.concatenate([np.repeat(np.arange(n), NUM_HEADINGS), np.zeros(env.num_envs - kids, np.int64)])
+    for name in _STATE_FIELDS:
+        getattr(env.state, name)[:] = beam[name][rows]
+    actions = np.concatenate([np.tile(np.arange(NUM_HEADINGS), n), np.zeros(env.num_envs - kids, np.int64)])
+    _, _, terminated, _, info = env.step(actions[:, None])
+    ev = info["events"]
+    g_kid = g[rows[:kids]] + ev.moved[:kids, 0]
+    layers.append(_Layer(parent=rows[:kids], action=actions[:kids]))
+    done = terminated[:kids]
+    # Waiting (a forbidden heading: the taxi stays) only helps while a request is still to be released;
+    # afterwards a state that waits ties with its parent forever and would stall the beam.
+    hidden = np.any((beam["pax_status"] == HIDDEN) & beam["pax_exists"], axis=1)[rows[:kids]]
+    useful = ev.moved[:kids, 0] | hidden | done
+    return g_kid, done, useful
 
 
 def _backtrack(layers: list[_Layer], depth: int, child: int) -> list[int]:

@@ -151,7 +151,7 @@ def _policy(
 @functools.lru_cache(maxsize=8)
 def learned_policy(checkpoint: Path) -> Any:
     """The greedy policy of a checkpoint, loaded once per worker process (it keeps no state between episodes)."""
-    from uamfleet.rl.trainer import load_policy
+    from uamfleet.rl.policy import load_policy
 
     return load_policy(checkpoint)[0]
 
@@ -220,6 +220,26 @@ def _ci(values: np.ndarray) -> str:
     return f"{values.mean():,.1f} ± {half:,.1f}"
 
 
+def _td_ratios(sel: list[dict[str, Any]], best: dict[tuple[str, str, str], dict[str, Any]]) -> np.ndarray:
+    """TD / best-known TD of each row whose instance has a best-known row, both delivering everyone."""
+    ratios = []
+    for r in sel:
+        b = best.get((r["set"], r["instance"], r["feasibility"]))
+        if b is not None and r["pr_pct"] >= 100.0 and b["pr_pct"] >= 100.0:
+            ratios.append(r["td_m"] / b["td_m"])
+    return np.array(ratios)
+
+
+def _ratio_stats(ratio: np.ndarray) -> dict[str, float]:
+    """Mean, 95th percentile and worst of the TD / best-known ratios (NaN without any)."""
+    if not len(ratio):
+        return {"ratio_mean": math.nan, "ratio_p95": math.nan, "ratio_max": math.nan}
+    return {
+        "ratio_mean": float(ratio.mean()), "ratio_p95": float(np.percentile(ratio, 95)),
+        "ratio_max": float(ratio.max()),
+    }  # fmt: skip
+
+
 def summary(rows: list[dict[str, Any]], group: tuple[str, ...]) -> list[dict[str, Any]]:
     """One line per (group..., method): means with 95 % intervals and TD / best-known per instance."""
     best = {(r["set"], r["instance"], r["feasibility"]): r for r in rows if r["method"] == "best_known"}
@@ -229,12 +249,6 @@ def summary(rows: list[dict[str, Any]], group: tuple[str, ...]) -> list[dict[str
         sel = [r for r in rows if (*tuple(r[g] for g in group), r["method"]) == key]
         arr = {c: np.array([float(r[c]) for r in sel]) for c in ("pr_pct", "td_m", "att_s", "awt_s",
                                                                   "connectivity_pct", "lower_bound_m")}  # fmt: skip
-        ratios = []
-        for r in sel:
-            b = best.get((r["set"], r["instance"], r["feasibility"]))
-            if b is not None and r["pr_pct"] >= 100.0 and b["pr_pct"] >= 100.0:
-                ratios.append(r["td_m"] / b["td_m"])
-        ratio = np.array(ratios)
         p50 = [r["decision_p50_ms"] for r in sel]
         out.append({
             **dict(zip((*group, "method"), key, strict=True)), "n": len(sel),
@@ -242,9 +256,7 @@ def summary(rows: list[dict[str, Any]], group: tuple[str, ...]) -> list[dict[str
             "pr": _ci(arr["pr_pct"]), "td": _ci(arr["td_m"]), "att": _ci(arr["att_s"]), "awt": _ci(arr["awt_s"]),
             "conn": _ci(arr["connectivity_pct"]), "lb": float(arr["lower_bound_m"].mean()),
             "over_lb": _mean((arr["td_m"] / arr["lower_bound_m"])[arr["pr_pct"] >= 100.0]),
-            "ratio_mean": float(ratio.mean()) if len(ratio) else math.nan,
-            "ratio_p95": float(np.percentile(ratio, 95)) if len(ratio) else math.nan,
-            "ratio_max": float(ratio.max()) if len(ratio) else math.nan,
+            **_ratio_stats(_td_ratios(sel, best)),
             "decision_p50_ms": float(np.median(p50)), "decision_max_ms": max(r["decision_max_ms"] for r in sel),
             "policy_s": float(np.mean([r["policy_s"] for r in sel])),
         })  # fmt: skip
@@ -263,42 +275,52 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
     lines = command_header(command, wall_s, note)
     random_rows = [r for r in rows if r["set"] != "fixed"]
     if random_rows:
-        lines += [
-            f"### {random_rows[0]['set']} instances ({len({r['instance'] for r in random_rows})}, "
-            f"{random_rows[0]['feasibility']} rule)",
-            "",
-            "| method | all delivered % | PR % | TD m | ATT s | AWT s | conn. % | TD / best-known mean | p95 | worst "
-            "| lower bound m (mean) | TD / lower bound mean | decision p50 / max ms | s per instance |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-        ]
-        for s in summary(random_rows, ("set", "feasibility")):
-            lines.append(
-                f"| {s['method']} | {s['all_delivered_pct']:.1f} | {s['pr']} | {s['td']} | {s['att']} | {s['awt']} | "
-                f"{s['conn']} | {fmt(s['ratio_mean'], '.3f')} | {fmt(s['ratio_p95'], '.3f')} | "
-                f"{fmt(s['ratio_max'], '.3f')} | {fmt(s['lb'], ',.0f')} | {fmt(s['over_lb'], '.3f')} | "
-                f"{s['decision_p50_ms']:.1f} / {s['decision_max_ms']:,.0f} | "
-                f"{s['policy_s']:.1f} |"
-            )
-        lines.append("")
+        lines += _random_table(random_rows)
     fixed = [r for r in rows if r["set"] == "fixed"]
     if fixed:
-        methods = list(dict.fromkeys(r["method"] for r in fixed))
-        lines += [
-            "### The paper's fixed instances: TD m (PR % where below 100)",
-            "",
-            "| instance | rule | lower bound | " + " | ".join(methods) + " |",
-            "|---|---|---:|" + "---:|" * len(methods),
-        ]
-        for inst in dict.fromkeys((r["instance"], r["feasibility"]) for r in fixed):
-            cells = {r["method"]: r for r in fixed if (r["instance"], r["feasibility"]) == inst}
-            bound = next(iter(cells.values()))["lower_bound_m"]
-            tds = [
-                f"{c['td_m']:,.0f}" + ("" if c["pr_pct"] >= 100 else f" (PR {c['pr_pct']:.0f})")
-                for c in (cells[m] for m in methods)
-            ]
-            lines.append(f"| {inst[0]} | {inst[1]} | {bound:,.0f} | " + " | ".join(tds) + " |")
-        lines.append("")
+        lines += _fixed_table(fixed)
     return "\n".join(lines)
+
+
+def _random_table(random_rows: list[dict[str, Any]]) -> list[str]:
+    """The summary table of the generated instances, one line per method."""
+    lines = [
+        f"### {random_rows[0]['set']} instances ({len({r['instance'] for r in random_rows})}, "
+        f"{random_rows[0]['feasibility']} rule)",
+        "",
+        "| method | all delivered % | PR % | TD m | ATT s | AWT s | conn. % | TD / best-known mean | p95 | worst "
+        "| lower bound m (mean) | TD / lower bound mean | decision p50 / max ms | s per instance |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for s in summary(random_rows, ("set", "feasibility")):
+        lines.append(
+            f"| {s['method']} | {s['all_delivered_pct']:.1f} | {s['pr']} | {s['td']} | {s['att']} | {s['awt']} | "
+            f"{s['conn']} | {fmt(s['ratio_mean'], '.3f')} | {fmt(s['ratio_p95'], '.3f')} | "
+            f"{fmt(s['ratio_max'], '.3f')} | {fmt(s['lb'], ',.0f')} | {fmt(s['over_lb'], '.3f')} | "
+            f"{s['decision_p50_ms']:.1f} / {s['decision_max_ms']:,.0f} | "
+            f"{s['policy_s']:.1f} |"
+        )
+    return [*lines, ""]
+
+
+def _fixed_table(fixed: list[dict[str, Any]]) -> list[str]:
+    """The paper's fixed instances, one line per instance and rule, one column per method."""
+    methods = list(dict.fromkeys(r["method"] for r in fixed))
+    lines = [
+        "### The paper's fixed instances: TD m (PR % where below 100)",
+        "",
+        "| instance | rule | lower bound | " + " | ".join(methods) + " |",
+        "|---|---|---:|" + "---:|" * len(methods),
+    ]
+    for inst in dict.fromkeys((r["instance"], r["feasibility"]) for r in fixed):
+        cells = {r["method"]: r for r in fixed if (r["instance"], r["feasibility"]) == inst}
+        bound = next(iter(cells.values()))["lower_bound_m"]
+        tds = [
+            f"{c['td_m']:,.0f}" + ("" if c["pr_pct"] >= 100 else f" (PR {c['pr_pct']:.0f})")
+            for c in (cells[m] for m in methods)
+        ]
+        lines.append(f"| {inst[0]} | {inst[1]} | {bound:,.0f} | " + " | ".join(tds) + " |")
+    return [*lines, ""]
 
 
 def tasks(args: Args) -> list[Task]:
@@ -384,6 +406,19 @@ def main(args: Args) -> list[dict[str, Any]]:
     guided = (args.guided_top_k, args.guided_samples, args.guided_temperature)
     jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
     start = time.perf_counter()
+    rows = fly_all(args, jobs)
+    if not rows:
+        raise UsageError(f"none of the {len(jobs)} selected instances could be flown (see above); nothing written.")
+    if args.merge_csv is not None:
+        rows = merged(read_rows(args.merge_csv), rows)
+    write_outputs(args, rows, time.perf_counter() - start)
+    partial_path(args.out_csv).unlink(missing_ok=True)
+    return rows
+
+
+def fly_all(args: Args, jobs: list[Any]) -> list[dict[str, Any]]:
+    """Every job on ``args.jobs`` processes, a line per instance as it finishes; the rows so far are kept beside
+    the CSV (every 10 instances, or each of fewer than 50) so an interruption loses little."""
     rows: list[dict[str, Any]] = []
     with mp.get_context("spawn").Pool(min(args.jobs, len(jobs))) as pool:
         for i, result in enumerate(pool.imap(run_instance, jobs)):
@@ -396,19 +431,18 @@ def main(args: Args) -> list[dict[str, Any]]:
                   + (f"  (LB {best['lower_bound_m']:.0f})" if best else ""), flush=True)  # fmt: skip
             if ((i + 1) % 10 == 0 or len(jobs) < 50) and i + 1 < len(jobs):  # survive an interruption, beside
                 write_csv_atomic(partial_path(args.out_csv), rows, COLUMNS)
-    if not rows:
-        raise UsageError(f"none of the {len(jobs)} selected instances could be flown (see above); nothing written.")
-    if args.merge_csv is not None:  # the earlier run's rows on the instances flown now, of the other methods
-        flown = {r["method"] for r in rows}
-        instances = {(r["set"], r["instance"], r["feasibility"]) for r in rows}
-        earlier = [
-            r for r in read_rows(args.merge_csv)
-            if r["method"] not in flown and (r["set"], r["instance"], r["feasibility"]) in instances
-        ]  # fmt: skip
-        rows = earlier + rows
-    write_outputs(args, rows, time.perf_counter() - start)
-    partial_path(args.out_csv).unlink(missing_ok=True)
     return rows
+
+
+def merged(earlier: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``--merge-csv``: an earlier run's rows on the instances flown now, of the other methods, before the new."""
+    flown = {r["method"] for r in rows}
+    instances = {(r["set"], r["instance"], r["feasibility"]) for r in rows}
+    kept = [
+        r for r in earlier
+        if r["method"] not in flown and (r["set"], r["instance"], r["feasibility"]) in instances
+    ]  # fmt: skip
+    return kept + rows
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:

@@ -94,7 +94,7 @@ def learned_name(checkpoint: Path) -> str:
 @functools.lru_cache(maxsize=16)
 def _learned(checkpoint: Path, taxis: int) -> Any:
     """The greedy policy of a checkpoint for ``taxis`` taxis: as trained, or resized zero-shot to another fleet
-    size (:meth:`~uamfleet.rl.trainer.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
+    size (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
     policy = learned_policy(checkpoint)
     try:
         return policy.for_fleet(taxis)
@@ -208,12 +208,7 @@ def check_args(args: Args) -> list[Job]:
     if args.from_csv is not None:
         return []
     check_jobs(args.jobs)
-    unknown = [s for s in args.settings if s not in FLEET_SETTINGS]
-    if unknown:
-        raise ValueError(f"unknown --settings {unknown}; choose from {tuple(FLEET_SETTINGS)}.")
-    unknown = [d for d in args.dispatchers if d not in POLICIES]
-    if unknown:
-        raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
+    _check_names(args)
     if not args.settings or args.count < 1:
         raise UsageError(
             f"no episode selected (--settings {' '.join(args.settings) or '(none)'}, --count {args.count}): give at "
@@ -222,21 +217,37 @@ def check_args(args: Args) -> list[Job]:
     if not args.dispatchers and not args.checkpoints:
         raise UsageError("--dispatchers is empty and no --checkpoints are given: nothing to fly.")
     for checkpoint in args.checkpoints:
-        flies = [s for s in args.settings if _learned(checkpoint, FLEET_SETTINGS[s][0]) is not None]
-        if not flies:
-            raise UsageError(
-                f"--checkpoints {checkpoint} cannot fly any of the settings {list(args.settings)} (it reads "
-                f"{learned_policy(checkpoint).num_taxis} taxi(s) by position); give a fleet policy of a designed "
-                "variant or settings of its fleet size."
-            )
-        if len(flies) < len(args.settings):
-            print(f"{learned_name(checkpoint)} flies only the settings {flies} (the others need another fleet size)")
+        _check_checkpoint_flies(checkpoint, args.settings)
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
         (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints), args.separation)
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
+
+
+def _check_names(args: Args) -> None:
+    """Every setting and dispatcher named is known."""
+    unknown = [s for s in args.settings if s not in FLEET_SETTINGS]
+    if unknown:
+        raise ValueError(f"unknown --settings {unknown}; choose from {tuple(FLEET_SETTINGS)}.")
+    unknown = [d for d in args.dispatchers if d not in POLICIES]
+    if unknown:
+        raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
+
+
+def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str]) -> None:
+    """A learned policy must fly at least one of the settings (its fleet size, or any for a designed variant);
+    says which it skips."""
+    flies = [s for s in settings if _learned(checkpoint, FLEET_SETTINGS[s][0]) is not None]
+    if not flies:
+        raise UsageError(
+            f"--checkpoints {checkpoint} cannot fly any of the settings {list(settings)} (it reads "
+            f"{learned_policy(checkpoint).num_taxis} taxi(s) by position); give a fleet policy of a designed "
+            "variant or settings of its fleet size."
+        )
+    if len(flies) < len(settings):
+        print(f"{learned_name(checkpoint)} flies only the settings {flies} (the others need another fleet size)")
 
 
 def main(args: Args) -> list[dict[str, Any]]:

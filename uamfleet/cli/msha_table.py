@@ -38,7 +38,8 @@ from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.networks import VARIANTS
-from uamfleet.rl.trainer import load_policy, read_progress
+from uamfleet.rl.policy import load_policy
+from uamfleet.rl.runs import read_progress
 from uamfleet.rollout import fly
 
 PAPER_KEY = {"berlin_p4": "berlin", "detroit_p5": "detroit"}
@@ -259,17 +260,22 @@ def markdown(rows: list[dict[str, object]], planners: dict[tuple[str, float], di
     return "\n".join(lines) + "\n"
 
 
-def main(args: Args) -> list[dict[str, object]]:
-    if args.main_variant not in VARIANTS:
-        raise UsageError(f"--main-variant {args.main_variant!r} is unknown; use one of {VARIANTS}.")
-    check_jobs(args.jobs)
-    chosen = [
+def selected(args: Args) -> list[Experiment]:
+    """The experiments ``--only``, ``--scenarios`` and ``--no-ablation`` select, in the table's order."""
+    return [
         e
         for e in experiments(args.seeds, args.main_variant, args.total_timesteps, args.detroit_timesteps)
         if (not args.only or any(s in e.name for s in args.only))
         and e.scenario in args.scenarios
         and (args.ablation or e.group == "main")
     ]
+
+
+def main(args: Args) -> list[dict[str, object]]:
+    if args.main_variant not in VARIANTS:
+        raise UsageError(f"--main-variant {args.main_variant!r} is unknown; use one of {VARIANTS}.")
+    check_jobs(args.jobs)
+    chosen = selected(args)
     if not chosen:
         raise UsageError(
             "no run selected: --only / --scenarios / --no-ablation match none of the experiments; nothing trained "
@@ -279,16 +285,13 @@ def main(args: Args) -> list[dict[str, object]]:
     if args.train:
         todo = [e for e in chosen if args.retrain or not (args.run_dir / e.name / "best.pt").exists()]
         train_all(todo, args)
-    planners: dict[tuple[str, float], dict[str, EpisodeMetrics]] = {}
+    planners = {
+        at: {p: planner_metrics(*at, p, args.feasibility) for p in ("raster_replan", "raster_opt")}
+        for at in dict.fromkeys((exp.scenario, exp.threshold_db) for exp in chosen)
+    }
     rows: list[dict[str, object]] = []
     for exp in chosen:
-        at = (exp.scenario, exp.threshold_db)
-        if at not in planners:
-            planners[at] = {
-                p: planner_metrics(exp.scenario, exp.threshold_db, p, args.feasibility)
-                for p in ("raster_replan", "raster_opt")
-            }
-        row = run_row(exp, args, planners[at]["raster_opt"].td_m)
+        row = run_row(exp, args, planners[(exp.scenario, exp.threshold_db)]["raster_opt"].td_m)
         if row is None:
             print(f"{exp.name}: no best.pt under {args.run_dir}; train it (drop --no-train)")
             continue

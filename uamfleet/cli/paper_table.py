@@ -35,7 +35,7 @@ from uamfleet.baselines.planner_policy import (
 )
 from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
-from uamfleet.rl.trainer import load_policy
+from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_connectivity, plot_routes

@@ -33,7 +33,7 @@ from uamfleet.cli._common import (
     run,
 )
 from uamfleet.metrics import episode_metrics
-from uamfleet.rl.trainer import load_policy
+from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.figures import plot_routes

@@ -15,7 +15,7 @@ Order within a step (all taxis move simultaneously, one slot of ``slot_s`` secon
 5. requests whose release step has come become visible (``WAITING``);
 6. the action mask of the new positions is stored for the next observation.
 
-The loops live in :mod:`uamfleet.env.kernels` (compiled); this module is their documented entry point. The rules
+The loops live in :mod:`uamfleet.env.motion` (compiled); this module is their documented entry point. The rules
 in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up").
 """
 
@@ -24,8 +24,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from uamfleet.env import kernels
+from uamfleet.env import motion
+from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
 from uamfleet.types import NUM_HEADINGS, FleetState, StepEvents
 
@@ -64,6 +66,16 @@ def check_action(value: object, label: str) -> int:
     return int(number)
 
 
+@njit(cache=True)
+def _all_headings(actions: np.ndarray) -> bool:
+    """Every entry of the [E, A] array is a heading 0 .. NUM_HEADINGS - 1."""
+    for e in range(actions.shape[0]):
+        for a in range(actions.shape[1]):
+            if actions[e, a] < 0 or actions[e, a] >= NUM_HEADINGS:
+                return False
+    return True
+
+
 def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndarray:
     """Validated int64 actions [E, A]; raises :class:`InvalidActionError` naming the bad value.
 
@@ -77,8 +89,8 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndar
         raise InvalidActionError(
             f"actions {actions!r} are not an array of shape (num_envs, num_taxis) = ({num_envs}, {num_taxis}): {exc}"
         ) from None
-    if arr.dtype == np.int64 and arr.shape == (num_envs, num_taxis) and 0 <= arr.min() and arr.max() < NUM_HEADINGS:
-        return arr  # the common case, checked with two reductions
+    if arr.dtype == np.int64 and arr.shape == (num_envs, num_taxis) and _all_headings(arr):
+        return arr  # the common case, checked in one compiled pass
     if arr.shape != (num_envs, num_taxis):
         raise InvalidActionError(
             f"actions have shape {arr.shape}, expected (num_envs, num_taxis) = ({num_envs}, {num_taxis}): "
@@ -104,7 +116,13 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int) -> np.ndar
     return arr.astype(np.int64, copy=False)
 
 
-def step(state: FleetState, actions: np.ndarray, world: World) -> StepEvents:
+def step(state: FleetState, actions: np.ndarray, world: World, kernel: PreTyped | None = None) -> StepEvents:
     """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated. With
-    ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`kernels.shield_headings`)."""
-    return kernels.step(state, world.arrays, actions, world.cfg.separation == "shield")
+    ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`motion.shield_headings`).
+    ``kernel``: the caller's pre-typed :func:`motion.step` (an env steps the same state every time), used for
+    actions of its usual type (C-contiguous, aligned, writable int64)."""
+    shield = world.cfg.separation == "shield"
+    flags = actions.flags
+    if kernel is not None and flags.c_contiguous and flags.aligned and flags.writeable:
+        return kernel(state, world.arrays, actions, shield)
+    return motion.step(state, world.arrays, actions, shield)

@@ -221,18 +221,29 @@ class InstanceSource:
             # Validate what is fixed once; random parts are drawn from flyable sites by construction.
             validate_instance(world, self.fixed_starts, self.fixed_requests or ())
 
+        self._check_sites()
+        self._check_vertiports()
+
+    def _check_sites(self) -> None:
+        """Random parts are drawn from the flyable sites: too few of them would fail inside NumPy at the first
+        reset, so say so now."""
+        world, cfg = self.world, self.world.cfg
         needs_sites = {"random starts": self.fixed_starts is None, "random stops": not self.fixed_requests}
         needs_sites["random stops"] &= not cfg.demand.vertiports
-        if any(needs_sites.values()):
-            # Random parts are drawn from these sites: too few of them would fail inside NumPy at the first reset.
-            need = 2 if needs_sites["random stops"] else 1
-            if len(self.sites) < need:
-                what = " and ".join(k for k, v in needs_sites.items() if v)
-                raise InfeasibleInstanceError(
-                    f"{what} need {need} flyable block(s) with an allowed move on {world.radio.label} at "
-                    f"sinr_min_db={world.threshold_db} dB, found {len(self.sites)}; lower sinr_min_db, or give "
-                    "starts_m / requests / DemandConfig.vertiports."
-                )
+        if not any(needs_sites.values()):
+            return
+        need = 2 if needs_sites["random stops"] else 1
+        if len(self.sites) < need:
+            what = " and ".join(k for k, v in needs_sites.items() if v)
+            raise InfeasibleInstanceError(
+                f"{what} need {need} flyable block(s) with an allowed move on {world.radio.label} at "
+                f"sinr_min_db={world.threshold_db} dB, found {len(self.sites)}; lower sinr_min_db, or give "
+                "starts_m / requests / DemandConfig.vertiports."
+            )
+
+    def _check_vertiports(self) -> None:
+        """Every vertiport of the random demand is flyable and, with random starts, in the starts' component."""
+        world, cfg = self.world, self.world.cfg
         ports = np.asarray(cfg.demand.vertiports if cfg.requests is None else (), float).reshape(-1, 2)
         for i, port in enumerate(ports):
             _check_point(world, port, f"vertiport {i}", "move the vertiport, or lower sinr_min_db")

@@ -1,9 +1,10 @@
 """Compiled (numba) loops over [env, taxi, passenger]: the only implementation of the motion, boarding and
-observation rules (``docs/rules.md``). :mod:`uamfleet.env.dynamics` and :mod:`uamfleet.env.observer` are their
-documented entry points; nothing else re-implements them.
+observation rules (``docs/rules.md``): the observation kernels here, the motion kernels (the step, the action mask,
+the separation shield) in :mod:`uamfleet.env.motion`, re-exported here. :mod:`uamfleet.env.dynamics` and
+:mod:`uamfleet.env.observer` are their documented entry points; nothing else re-implements them.
 
 The boundary is typed: a kernel takes the state whole (:class:`uamfleet.types.FleetState`), the world's arrays
-whole (:class:`uamfleet.env.world.WorldArrays`) and returns the step's events as one
+whole (:class:`uamfleet.env.arrays.WorldArrays`) and returns the step's events as one
 :class:`uamfleet.types.StepEvents`. All are NamedTuples of arrays, which numba compiles field by field.
 
 Why compiled: a step is a few dozen small operations per taxi. As numpy calls each costs microseconds of
@@ -14,13 +15,13 @@ batch size. ``cache=True`` stores the machine code next to this file, so only th
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
+from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
+from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
 from uamfleet.paths.distance_table import table_distance
-from uamfleet.radio._sampling import segment_min
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -59,227 +60,7 @@ from uamfleet.types import (
     STOP_TOUR_VIA_STOP,
     WAITING,
     FleetState,
-    StepEvents,
 )
-
-if TYPE_CHECKING:
-    from uamfleet.env.world import WorldArrays
-
-# Feasibility rules (EnvConfig.feasibility) as integers for the kernels.
-RULE_ENDPOINT_BLOCK = 0
-RULE_SEGMENT_RASTER = 1
-
-
-@njit(cache=True, inline="always")
-def _block_of(v: float, block_m: float, nb: int) -> int:
-    b = math.floor(v / block_m)
-    return min(max(b, 0), nb - 1)
-
-
-@njit(cache=True)
-def action_mask(pos: np.ndarray, w: WorldArrays, out: np.ndarray) -> None:
-    """out[i, k] = heading k is allowed from pos[i] ([N, 2]): docs/rules.md "Feasibility rules"."""
-    block_ok = w.block_ok
-    nbx, nby = block_ok.shape
-    ox, oy = w.raster_origin[0], w.raster_origin[1]
-    for i in range(pos.shape[0]):
-        x, y = pos[i, 0], pos[i, 1]
-        for k in range(NUM_HEADINGS):
-            tx, ty = x + w.moves_m[k, 0], y + w.moves_m[k, 1]
-            ok = 0.0 <= tx <= w.side_m and 0.0 <= ty <= w.side_m
-            if ok:
-                if w.rule == RULE_ENDPOINT_BLOCK:
-                    ok = block_ok[_block_of(tx, w.block_m, nbx), _block_of(ty, w.block_m, nby)]
-                else:
-                    ok = segment_min(w.raster, ox, oy, w.raster_res, x, y, tx, ty) >= w.threshold_db
-            out[i, k] = ok
-
-
-@njit(cache=True)
-def _clear_of_others(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, pos: np.ndarray,
-                     min_separation_m: float) -> bool:  # fmt: skip
-    """Taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from pos[b]
-    to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from b's
-    end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
-    when the two start at least that far apart, they stay so throughout the slot (closest approach of two
-    straight flights at constant speed; two taxis never swap places through each other)."""
-    ax, ay = pos[a, 0], pos[a, 1]
-    for b in range(pos.shape[0]):
-        if b == a:
-            continue
-        bx, by = pos[b, 0], pos[b, 1]
-        ex, ey = (ends[b, 0], ends[b, 1]) if resolved[b] else (bx, by)
-        dx, dy = x - ex, y - ey
-        if math.sqrt(dx * dx + dy * dy) < min_separation_m:
-            return False
-        sx, sy = ax - bx, ay - by  # b -> a at the start of the slot; + t * (vx, vy) at time t in [0, 1]
-        if math.sqrt(sx * sx + sy * sy) < min_separation_m:
-            continue  # already too close (e.g. a shared start): only the end must be clear
-        vx, vy = (x - ax) - (ex - bx), (y - ay) - (ey - by)
-        vv = vx * vx + vy * vy
-        t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
-        cx, cy = sx + t * vx, sy + t * vy
-        if math.sqrt(cx * cx + cy * cy) < min_separation_m:
-            return False
-    return True
-
-
-@njit(cache=True)
-def shield_headings(
-    pos: np.ndarray,  # [A, 2] positions before the step
-    free_seats: np.ndarray,  # [A]
-    allowed: np.ndarray,  # [A, NUM_HEADINGS] bool, the action mask
-    requested: np.ndarray,  # [A] int64, validated headings
-    w: WorldArrays,
-    flown: np.ndarray,  # [A] int64 out: the heading flown, -1: the taxi stays where it is
-) -> None:
-    """The separation shield of one env (docs/rules.md "Separation shield"): the heading each taxi flies.
-
-    Taxis are resolved one at a time, fewest free seats (most riders) first, ties by index: a taxi's detour then
-    falls on the emptier taxi, whose delay holds up nobody on board. A requested heading that is not allowed stays
-    a blocked move (the taxi stays). An allowed one is kept when it is clear (:func:`_clear_of_others`) of the
-    moves already fixed and of the current positions of the taxis still to resolve; else the nearest allowed
-    heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...); else the taxi hovers
-    (stays). Staying is clear whenever the current positions are separated: each earlier taxi's move was checked
-    against this taxi staying where it is, and each later one is checked against what this one does.
-    """
-    num_taxis = pos.shape[0]
-    ends = pos.copy()
-    resolved = np.zeros(num_taxis, np.bool_)
-    half = NUM_HEADINGS // 2
-    for a in np.argsort(free_seats, kind="mergesort"):  # stable: ties in index order
-        k = requested[a]
-        flown[a] = -1
-        if allowed[a, k]:
-            for turn in range(2 * half):  # offsets 0, +1, -1, +2, -2, ..., +half
-                d = (turn + 1) // 2 if turn % 2 else -(turn // 2)
-                h = (k + d) % NUM_HEADINGS
-                if not allowed[a, h]:
-                    continue
-                x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
-                if _clear_of_others(a, x, y, ends, resolved, pos, w.min_separation_m):
-                    flown[a] = h
-                    ends[a, 0], ends[a, 1] = x, y
-                    break
-        resolved[a] = True
-
-
-@njit(cache=True)
-def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> StepEvents:  # noqa: C901 - the rules in order
-    """Advance every env of ``s`` by one slot, in place, in the order of docs/rules.md "Motion" and "Release
-    and pick-up"; ``actions`` [E, A] int64 must be validated. ``shield``: resolve conflicts first
-    (:func:`shield_headings`). Returns the step's events."""
-    num_envs, num_taxis, hist_len = s.history_m.shape[0], s.history_m.shape[1], s.history_m.shape[2]
-    num_pax = s.pax_status.shape[1]
-    nbx, nby = w.block_ok.shape
-    pos, free_seats = s.pos_m, s.free_seats
-    prev_pos = pos.copy()
-    moved = np.empty((num_envs, num_taxis), np.bool_)
-    blocked = np.empty((num_envs, num_taxis), np.bool_)
-    flown = np.empty((num_envs, num_taxis), np.int64)  # the heading flown, -1: stayed
-    intervened = np.zeros((num_envs, num_taxis), np.bool_)
-    hovered = np.zeros((num_envs, num_taxis), np.bool_)
-    first_visit = np.empty((num_envs, num_taxis), np.bool_)
-    block_visits = np.empty((num_envs, num_taxis), np.int32)
-    picked = np.empty((num_envs, num_pax), np.bool_)
-    dropped = np.empty((num_envs, num_pax), np.bool_)
-    released = np.empty((num_envs, num_pax), np.bool_)
-    pickups = np.zeros((num_envs, num_taxis), np.int64)
-    dropoffs = np.zeros((num_envs, num_taxis), np.int64)
-    all_delivered = np.empty(num_envs, np.bool_)
-    reach = w.radius_m + 1e-9
-    for e in range(num_envs):
-        s.t[e] += 1
-        now = s.t[e]
-        for a in range(num_taxis):
-            flown[e, a] = actions[e, a] if s.action_mask[e, a, actions[e, a]] else -1
-        if shield:
-            shield_headings(pos[e], free_seats[e], s.action_mask[e], actions[e], w, flown[e])
-            for a in range(num_taxis):
-                intervened[e, a] = flown[e, a] != actions[e, a] and s.action_mask[e, a, actions[e, a]]
-                hovered[e, a] = flown[e, a] < 0 and s.action_mask[e, a, actions[e, a]]
-        for a in range(num_taxis):
-            # 1. move (or stay, when the move is not allowed or the shield holds the taxi)
-            hist, hist_seats = s.history_m[e, a], s.history_seats[e, a]
-            for h in range(hist_len - 1, 0, -1):
-                hist[h, 0] = hist[h - 1, 0]
-                hist[h, 1] = hist[h - 1, 1]
-                hist_seats[h] = hist_seats[h - 1]
-            hist[0, 0] = pos[e, a, 0]
-            hist[0, 1] = pos[e, a, 1]
-            hist_seats[0] = free_seats[e, a]
-            k = flown[e, a]
-            moved[e, a] = k >= 0
-            blocked[e, a] = not s.action_mask[e, a, actions[e, a]]
-            if k >= 0:
-                pos[e, a, 0] += w.moves_m[k, 0]
-                pos[e, a, 1] += w.moves_m[k, 1]
-                s.distance_m[e, a] += w.step_m
-            # 2. visits of the block the taxi is in now
-            bx = _block_of(pos[e, a, 0], w.block_m, nbx) + w.patch_lo
-            by = _block_of(pos[e, a, 1], w.block_m, nby) + w.patch_lo
-            s.visits[e, a, bx, by] += 1
-            count = s.visits[e, a, bx, by]
-            block_visits[e, a] = count
-            first_visit[e, a] = count == 1
-        # 3. drop-offs
-        for p in range(num_pax):
-            dropped[e, p] = False
-            if s.pax_status[e, p] == ON_BOARD:
-                a = s.pax_taxi[e, p]
-                dx = pos[e, a, 0] - s.pax_dest_m[e, p, 0]
-                dy = pos[e, a, 1] - s.pax_dest_m[e, p, 1]
-                if math.sqrt(dx * dx + dy * dy) <= reach:
-                    s.pax_status[e, p] = DELIVERED
-                    s.pax_dropoff_step[e, p] = now
-                    free_seats[e, a] += 1
-                    dropoffs[e, a] += 1
-                    dropped[e, p] = True
-        # 4. pick-ups: taxis in index order take the lowest-index waiting passengers in reach. Only requests
-        # released before this step are WAITING here, so every pick-up was observable beforehand.
-        for p in range(num_pax):
-            picked[e, p] = False
-        for a in range(num_taxis):
-            for p in range(num_pax):
-                if free_seats[e, a] == 0:
-                    break
-                if s.pax_status[e, p] != WAITING:
-                    continue
-                dx = pos[e, a, 0] - s.pax_origin_m[e, p, 0]
-                dy = pos[e, a, 1] - s.pax_origin_m[e, p, 1]
-                if math.sqrt(dx * dx + dy * dy) <= reach:
-                    s.pax_status[e, p] = ON_BOARD
-                    s.pax_taxi[e, p] = a
-                    s.pax_pickup_step[e, p] = now
-                    free_seats[e, a] -= 1
-                    pickups[e, a] += 1
-                    picked[e, p] = True
-        # 5. releases: visible from now on, pickable from the next step
-        for p in range(num_pax):
-            released[e, p] = False
-            if s.pax_status[e, p] == HIDDEN and s.pax_exists[e, p] and s.pax_release[e, p] <= now:
-                s.pax_status[e, p] = WAITING
-                released[e, p] = True
-        all_delivered[e] = True
-        for p in range(num_pax):
-            if s.pax_exists[e, p] and s.pax_status[e, p] != DELIVERED:
-                all_delivered[e] = False
-                break
-    # 6. the mask of the new positions, separation, and the SINR along the flown segments
-    action_mask(pos.reshape(num_envs * num_taxis, 2), w, s.action_mask.reshape(num_envs * num_taxis, NUM_HEADINGS))
-    separation_out = np.empty((num_envs, num_taxis), np.bool_)
-    separation(pos, w.min_separation_m, separation_out)
-    seg = np.empty((num_envs, num_taxis))
-    ox, oy = w.raster_origin[0], w.raster_origin[1]
-    for e in range(num_envs):
-        for a in range(num_taxis):
-            seg[e, a] = segment_min(
-                w.raster, ox, oy, w.raster_res, prev_pos[e, a, 0], prev_pos[e, a, 1], pos[e, a, 0], pos[e, a, 1]
-            )
-    return StepEvents(
-        prev_pos, pos.copy(), actions, moved, blocked, first_visit, block_visits, picked, dropped, released, pickups,
-        dropoffs, separation_out, seg, all_delivered, s.t.copy(), flown, intervened, hovered,
-    )  # fmt: skip
 
 
 @njit(cache=True)
@@ -380,8 +161,8 @@ def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndar
         steps = np.float32(max(s.t[e], 1))
         for a in range(num_taxis):
             n = np.uint64(e * num_taxis + a)
-            bx = np.uint64(_block_of(s.pos_m[e, a, 0], w.block_m, nbx))
-            by = np.uint64(_block_of(s.pos_m[e, a, 1], w.block_m, nby))
+            bx = np.uint64(block_of(s.pos_m[e, a, 0], w.block_m, nbx))
+            by = np.uint64(block_of(s.pos_m[e, a, 1], w.block_m, nby))
             for i in range(k):
                 cell = (bx + i) * src_ny + by  # first cell of patch row i in the padded [nbx + k, nby + k] grid
                 out = (n * k + i) * k
@@ -389,22 +170,6 @@ def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndar
                     sinr_flat[out + j] = src_flat[cell + j]
                 for j in range(k):
                     visit_flat[out + j] = min(np.float32(visits_flat[n * cells + cell + j]) / steps, one)
-
-
-@njit(cache=True)
-def separation(pos: np.ndarray, min_separation_m: float, out: np.ndarray) -> None:
-    """out[e, a] = another taxi of env e is closer than min_separation_m."""
-    num_envs, num_taxis = pos.shape[0], pos.shape[1]
-    for e in range(num_envs):
-        for a in range(num_taxis):
-            out[e, a] = False
-        for a in range(num_taxis):
-            for b in range(a + 1, num_taxis):
-                dx = pos[e, a, 0] - pos[e, b, 0]
-                dy = pos[e, a, 1] - pos[e, b, 1]
-                if math.sqrt(dx * dx + dy * dy) < min_separation_m:
-                    out[e, a] = True
-                    out[e, b] = True
 
 
 @njit(cache=True)
@@ -795,3 +560,21 @@ def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndar
         pax_done[p] = True
         for b in range(num_taxis):
             out[b, p, STOP_CLAIMED_BY_ME if b == a else STOP_CLAIMED_BY_OTHER] = 1
+
+
+# The motion kernels live in uamfleet.env.motion, the world's arrays in uamfleet.env.arrays; both import from here.
+__all__ = [
+    "MAX_EXACT_STOPS",
+    "RULE_ENDPOINT_BLOCK",
+    "RULE_SEGMENT_RASTER",
+    "WorldArrays",
+    "action_mask",
+    "hover_headings",
+    "observe",
+    "row_stop",
+    "separation",
+    "shield_headings",
+    "step",
+    "stop_features",
+    "stop_rivals",
+]

@@ -13,6 +13,7 @@ from gymnasium import spaces
 
 from uamfleet.env import kernels
 from uamfleet.env.layout import observation_layout, observation_space
+from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
 from uamfleet.paths import table_for
 from uamfleet.types import (
@@ -57,17 +58,19 @@ class Observer:
         self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
         self.table = table_for(world) if "stop_paths" in self.layout else None
+        # the kernels without numba typing the state and the world's arrays on every call (uamfleet.env.pretyped)
+        self._observe, self._hover = PreTyped(kernels.observe), PreTyped(kernels.hover_headings)
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
         E, A = state.num_envs, state.num_taxis
         obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.layout.items()}
-        kernels.observe(
+        self._observe(
             state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
         if "hover_heading_mask" in obs:
-            kernels.hover_headings(state, self.world.arrays, obs["hover_heading_mask"])
+            self._hover(state, self.world.arrays, obs["hover_heading_mask"])
         if self.table is not None:
             self._stop_fields(state, obs)
         return obs

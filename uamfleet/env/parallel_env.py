@@ -199,17 +199,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         obs, rewards, terminated, truncated, info = self.core.step(batch)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
-        # One conversion per array, then plain Python per agent (agent i is taxi i; agents == possible_agents).
-        terms = info["reward_terms"][0].tolist()  # [A][T]
-        infos: dict[AgentID, dict[str, Any]] = {
-            agent: {"reward_terms": dict(zip(REWARD_TERMS, row, strict=True))}
-            for agent, row in zip(agents, terms, strict=True)
-        }
-        if "episode" in info:
-            for key, v in info["episode"].items():
-                per_agent = v[0].tolist() if v.ndim == 2 else [v[0].item()] * len(agents)
-                for agent, value in zip(agents, per_agent, strict=True):
-                    infos[agent].setdefault("episode", {})[key] = float(value)
+        infos = _agent_infos(agents, info)
         out_obs = self._split(obs)
         out_rew = dict(zip(agents, rewards[0].tolist(), strict=True))
         out_term = dict.fromkeys(agents, bool(terminated[0]))
@@ -267,3 +257,19 @@ def _action(value: Any, taxi: int, agent: str) -> int:
     if type(value) is int and 0 <= value < NUM_HEADINGS:
         return value
     return check_action(value, f"env 0, taxi {taxi} ({agent})")
+
+
+def _agent_infos(agents: list[AgentID], info: dict[str, Any]) -> dict[AgentID, dict[str, Any]]:
+    """The core's info of env 0 per agent: its reward terms, and its episode statistics when the episode ended.
+    One conversion per array, then plain Python per agent (agent i is taxi i; agents == possible_agents)."""
+    terms = info["reward_terms"][0].tolist()  # [A][T]
+    infos: dict[AgentID, dict[str, Any]] = {
+        agent: {"reward_terms": dict(zip(REWARD_TERMS, row, strict=True))}
+        for agent, row in zip(agents, terms, strict=True)
+    }
+    if "episode" in info:
+        for key, v in info["episode"].items():
+            per_agent = v[0].tolist() if v.ndim == 2 else [v[0].item()] * len(agents)
+            for agent, value in zip(agents, per_agent, strict=True):
+                infos[agent].setdefault("episode", {})[key] = float(value)
+    return infos

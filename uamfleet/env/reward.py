@@ -16,6 +16,7 @@ from numba import njit
 
 from uamfleet.config import REWARD_TERMS, RewardConfig
 from uamfleet.env.kernels import row_stop
+from uamfleet.env.pretyped import PreTyped
 from uamfleet.paths import DistanceFields, DistanceTable, table_for
 from uamfleet.paths.distance_table import table_distance
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
@@ -98,10 +99,20 @@ def total_reward(terms: np.ndarray) -> np.ndarray:
     after the first seven (``shield``, ``hover``) would change the last bits of every reward even where they are
     0. Summed in order, a reward is bit for bit what it was with seven terms (the paper's scenarios reproduce).
     """
-    total = terms[..., 0].copy()
-    for i in range(1, terms.shape[-1]):
-        total += terms[..., i]
+    total = np.empty(terms.shape[:-1], terms.dtype)
+    _sum_in_order(terms.reshape(-1, terms.shape[-1]), total.reshape(-1))
     return total
+
+
+@njit(cache=True)
+def _sum_in_order(terms: np.ndarray, out: np.ndarray) -> None:
+    """out[i] = terms[i, 0] + terms[i, 1] + ... left to right (the same additions, in the same order, as adding
+    the columns one by one; one compiled loop instead of a NumPy call per term)."""
+    for i in range(terms.shape[0]):
+        total = terms[i, 0]
+        for j in range(1, terms.shape[1]):
+            total += terms[i, j]
+        out[i] = total
 
 
 DistanceTo = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -128,6 +139,7 @@ class Potential:
         self.step_m = float(world.step_m)
         self._table: DistanceTable | None = None
         self._fields: DistanceFields | None = None
+        self._phi = PreTyped(_phi)  # without numba typing the state on every call (uamfleet.env.pretyped)
         if metric == "path":
             self._table = table_for(world)
         elif metric == "path_exact":
@@ -142,11 +154,11 @@ class Potential:
         out = np.empty(state.free_seats.shape)
         table = self._table
         if table is None:
-            _phi(state, _NO_TABLE, 1.0, 1, 1, False, self.step_m, out)
-        elif not _phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out):
+            self._phi(state, _NO_TABLE, 1.0, 1, 1, False, self.step_m, out)
+        elif not self._phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out):
             # a stop whose table rows are not computed yet (a new instance): compute them, then again
             table.ensure(np.concatenate([state.pax_origin_m[state.pax_exists], state.pax_dest_m[state.pax_exists]]))
-            _phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out)
+            self._phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out)
         return out
 
 

@@ -18,8 +18,9 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
-from uamfleet.env import dynamics, generator, reward
+from uamfleet.env import dynamics, generator, motion, reward
 from uamfleet.env.observer import Observer
+from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
 from uamfleet.types import DELIVERED, NUM_HEADINGS, FleetState
 
@@ -45,6 +46,7 @@ class VectorEnv:
         self.autoreset = autoreset
         self.world = World(cfg)
         self.observer = Observer(self.world)
+        self._step_kernel = PreTyped(motion.step)  # the step without numba typing the state on every call
         self.source = generator.InstanceSource(self.world)
         self.layout = self.observer.layout  # the observation's spec (uamfleet.env.layout): fields, shapes, kinds
         self.single_observation_space: spaces.Dict = self.observer.observation_space
@@ -90,7 +92,7 @@ class VectorEnv:
         state, weights = self.state, self.cfg.reward
         phi_before = None if self.potential is None else self.potential(state)
 
-        events = dynamics.step(state, actions, self.world)
+        events = dynamics.step(state, actions, self.world, self._step_kernel)
         terminated = events.all_delivered  # [E]
         truncated = (state.t >= self.cfg.time_limit_steps) & ~terminated
         if self.cfg.max_block_visits is not None:

@@ -7,40 +7,20 @@ sample the raster along each move in the compiled kernels (:mod:`uamfleet.radio.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 from scipy import ndimage
 
 from uamfleet.config import EnvConfig, heading_vectors
-from uamfleet.env import kernels
+from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
+from uamfleet.env.motion import action_mask
 from uamfleet.radio import BlockMap
 from uamfleet.types import NUM_HEADINGS
+
+__all__ = ["PATCH_CLIP_DB", "PATCH_PAD_DB", "World", "WorldArrays"]  # WorldArrays lives in uamfleet.env.arrays
 
 PATCH_PAD_DB = -30.0
 """Value of SINR-patch cells outside the map (relative to the threshold, dB): clearly not flyable."""
 PATCH_CLIP_DB = 30.0
-
-
-class WorldArrays(NamedTuple):
-    """What the compiled kernels read of a :class:`World` (and of its config), passed to them whole."""
-
-    moves_m: np.ndarray  # [NUM_HEADINGS, 2] float64, the move of each heading
-    side_m: float  # the operating area is [0, side_m]^2
-    step_m: float
-    radius_m: float  # pick-up / drop-off radius
-    min_separation_m: float
-    rule: int  # kernels.RULE_ENDPOINT_BLOCK or kernels.RULE_SEGMENT_RASTER
-    block_ok: np.ndarray  # [nbx, nby] bool, block SINR >= threshold
-    block_m: float
-    patch_lo: int  # patch rows b - patch_lo ... b + k - patch_lo - 1 around block b
-    sinr_patch_source: np.ndarray  # [nbx + k, nby + k] float32, block SINR - threshold (dB), padded
-    raster: np.ndarray  # [nx, ny] float64 SINR dB, NaN = not computed
-    raster_origin: np.ndarray  # [2] float64, world coordinates of raster cell (0, 0)
-    raster_res: float
-    threshold_db: float
-    seats: float
-    time_limit_steps: float
 
 
 class World:
@@ -65,7 +45,7 @@ class World:
             rel, ((self.patch_lo, k - self.patch_lo),) * 2, constant_values=PATCH_PAD_DB
         ).astype(np.float32)  # [nbx + k, nby + k]
         self.raster_origin = np.asarray(self.radio.origin_m, dtype=np.float64)
-        self.rule = kernels.RULE_ENDPOINT_BLOCK if cfg.feasibility == "endpoint_block" else kernels.RULE_SEGMENT_RASTER
+        self.rule = RULE_ENDPOINT_BLOCK if cfg.feasibility == "endpoint_block" else RULE_SEGMENT_RASTER
         # 8-connected components of flyable blocks: the reachability test for stops.
         self.components, self.num_components = ndimage.label(self.block_ok, structure=np.ones((3, 3), bool))
         self.arrays = WorldArrays(
@@ -115,5 +95,5 @@ class World:
         pos = np.ascontiguousarray(pos_m, dtype=np.float64)
         flat = pos.reshape(-1, 2)
         out = np.empty((flat.shape[0], NUM_HEADINGS), dtype=bool)
-        kernels.action_mask(flat, self.arrays, out)
+        action_mask(flat, self.arrays, out)
         return out.reshape(*pos.shape[:-1], NUM_HEADINGS)

@@ -1,4 +1,4 @@
-"""Rollout storage, GAE with truncation bootstrapping, and running normalisers.
+"""Rollout storage, GAE with truncation bootstrapping, running normalisers, and the sums over finished episodes.
 
 Agents are flattened: one rollout row per (env, taxi), N = E * A, so every taxi of every env is a sample of
 the one shared policy.
@@ -6,13 +6,14 @@ the one shared policy.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 
 from uamfleet.env.layout import field_kind, field_row_mask
-from uamfleet.rl.distributed import World
+from uamfleet.rl.distributed import Ranks
 
 
 def compute_gae(
@@ -87,7 +88,7 @@ def _float64(x: torch.Tensor | np.ndarray | float) -> np.ndarray:
 
 
 def global_moments(
-    batches: list[np.ndarray], shifts: list[np.ndarray], world: World
+    batches: list[np.ndarray], shifts: list[np.ndarray], ranks: Ranks
 ) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """(mean, var, count) of each batch [n, *shape] pooled over all ranks, in one all-reduce.
 
@@ -97,7 +98,7 @@ def global_moments(
     for x, shift in zip(batches, shifts, strict=True):
         d = x - shift  # [n, *shape]
         parts += [np.array([x.shape[0]], np.float64), d.sum(0).ravel(), (d * d).sum(0).ravel()]
-    total = world.all_sum(np.concatenate(parts))
+    total = ranks.all_sum(np.concatenate(parts))
     out, start = [], 0
     for x, shift in zip(batches, shifts, strict=True):
         size = int(np.prod(x.shape[1:]))
@@ -120,14 +121,14 @@ class ObservationNormalizer:
         self.row_masks = {k: mask for k in normalised if (mask := field_row_mask(k)) is not None}
         self.clip = clip
 
-    def update(self, obs: dict[str, np.ndarray], world: World | None = None) -> None:
-        """Fold a batch [N, ...] into the statistics; with a joined ``world``, the batch of all ranks."""
-        if world is None or not world.active:
+    def update(self, obs: dict[str, np.ndarray], ranks: Ranks | None = None) -> None:
+        """Fold a batch [N, ...] into the statistics; with a joined ``ranks``, the batch of all ranks."""
+        if ranks is None or not ranks.active:
             for key, rms in self.fields.items():
                 rms.update(obs[key])
             return
         batches = [obs[key].reshape(-1, *rms.shape) for key, rms in self.fields.items()]
-        moments = global_moments(batches, [rms.mean for rms in self.fields.values()], world)
+        moments = global_moments(batches, [rms.mean for rms in self.fields.values()], ranks)
         for rms, (mean, var, count) in zip(self.fields.values(), moments, strict=True):
             rms.update_from_moments(mean, var, count)
 
@@ -183,7 +184,7 @@ class RewardScaler:
         self.returns[done] = 0.0
         return rewards / np.sqrt(self.rms.var + 1e-8)
 
-    def scale_rollout(self, rewards: np.ndarray, done: np.ndarray, world: World) -> np.ndarray:
+    def scale_rollout(self, rewards: np.ndarray, done: np.ndarray, ranks: Ranks) -> np.ndarray:
         """A rollout's rewards [T, N] scaled as T calls would, with the statistics of all ranks' returns.
 
         The scaled rewards are needed only after the rollout, so the T steps' return moments travel in one
@@ -194,7 +195,7 @@ class RewardScaler:
             batches.append(self.returns.copy())  # [N]
             self.returns[done[t]] = 0.0
         scaled = np.empty_like(rewards)
-        moments = global_moments(batches, [self.rms.mean] * len(batches), world)
+        moments = global_moments(batches, [self.rms.mean] * len(batches), ranks)
         for t, (mean, var, count) in enumerate(moments):
             self.rms.update_from_moments(mean, var, count)
             scaled[t] = rewards[t] / np.sqrt(self.rms.var + 1e-8)
@@ -227,3 +228,26 @@ class RolloutBuffer:
         actions = torch.as_tensor(self.actions.reshape(-1)[index], device=device)
         logprobs = torch.as_tensor(self.logprobs.reshape(-1)[index], device=device)
         return obs, state, actions, logprobs
+
+
+@dataclass
+class EpisodeSums:
+    """Sums over the episodes that finished during a rollout (of this rank until pooled: :meth:`pooled`)."""
+
+    episode_return: float = 0.0  # of the mean taxi
+    length: float = 0.0
+    service_rate: float = 0.0
+    distance_m: float = 0.0  # of the whole fleet
+    count: float = 0.0
+
+    def add(self, episode: dict[str, np.ndarray], e: int) -> None:
+        """Add env ``e``'s finished episode (``info["episode"]`` of the core)."""
+        self.episode_return += float(episode["return"][e].mean())
+        self.length += float(episode["length"][e])
+        self.service_rate += float(episode["service_rate"][e])
+        self.distance_m += float(episode["distance_m"][e].sum())
+        self.count += 1.0
+
+    def pooled(self, ranks: Ranks) -> EpisodeSums:
+        """The sums over all ranks."""
+        return EpisodeSums(*ranks.all_sum(np.array(dataclasses.astuple(self), dtype=np.float64)))

@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -35,9 +35,7 @@ from uamfleet.config import EnvConfig, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.io import write_bytes_atomic
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig
-
-if TYPE_CHECKING:
-    from uamfleet.rl.trainer import TrainArgs
+from uamfleet.rl.options import TrainArgs
 
 CHECKPOINT_FORMAT = 2
 """2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
@@ -134,13 +132,7 @@ class Checkpoint:
     def validate(self, source: str) -> NetConfig:
         """Raise CheckpointError unless the parts are of the right types, the network config is known and
         bounded, and every weight and normalisation statistic is finite; the network's config."""
-        for name in ("model", "net_config", "args", "obs_shapes", "obs_normalizer", "reward_scaler"):
-            value = getattr(self, name)
-            if not isinstance(value, dict) and not (value is None and name in ("obs_normalizer", "reward_scaler")):
-                raise CheckpointError(f"{source}: its {name} is a {type(value).__name__}, not a dict.")
-        for key, shape in self.obs_shapes.items():
-            if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
-                raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
+        self._check_parts(source)
         cfg = check_net_config(self.net_config, source)
         for name, value in self.model.items():
             if not isinstance(value, torch.Tensor):
@@ -157,6 +149,16 @@ class Checkpoint:
                     f"{source}: {name} is negative; a variance or count never is: the file was altered."
                 )
         return cfg
+
+    def _check_parts(self, source: str) -> None:
+        """The parts are dicts (the normalisers may be absent) and the observation shapes lists of sizes."""
+        for name in ("model", "net_config", "args", "obs_shapes", "obs_normalizer", "reward_scaler"):
+            value = getattr(self, name)
+            if not isinstance(value, dict) and not (value is None and name in ("obs_normalizer", "reward_scaler")):
+                raise CheckpointError(f"{source}: its {name} is a {type(value).__name__}, not a dict.")
+        for key, shape in self.obs_shapes.items():
+            if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
+                raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
 
     def statistics(self, source: str) -> Iterator[tuple[str, torch.Tensor]]:
         """(name, tensor) of every weight and normalisation statistic a policy flies with."""
@@ -325,22 +327,38 @@ def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *,
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint {path} does not exist.")
-    if trust:
-        warnings.warn(TRUST_WARNING.format(path=path), UserWarning, stacklevel=2)
-        old = torch.load(path, map_location="cpu", weights_only=False)
-    else:
-        try:
-            with torch.serialization.safe_globals(NUMPY_GLOBALS):  # torch >= 2.5
-                old = torch.load(path, map_location="cpu", weights_only=True)
-        except AttributeError:  # pragma: no cover - older torch
-            raise CheckpointError("upgrade_checkpoint needs torch >= 2.5 (torch.serialization.safe_globals).") from None
-        except Exception as err:
-            raise CheckpointError(
-                f"{path} holds more than tensors and NumPy arrays, so upgrade_checkpoint will not read it "
-                f"({_load_error(err)}): it is not a uamfleet checkpoint of format 1; train the run again."
-            ) from None
+    old = _read_format1(path, trust)
     if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
         raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
+    _to_plain_values(old)
+    venv = VectorEnv(_evaluation_config(old["args"], env_config), num_envs=1)
+    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
+    upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
+    upgraded.validate(str(path))
+    upgraded.save(path)
+    return path
+
+
+def _read_format1(path: Path, trust: bool) -> Any:
+    """A format-1 file: NumPy arrays and scalars allowed and nothing else, or fully unpickled with ``trust``."""
+    if trust:
+        warnings.warn(TRUST_WARNING.format(path=path), UserWarning, stacklevel=3)
+        return torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        with torch.serialization.safe_globals(NUMPY_GLOBALS):  # torch >= 2.5
+            return torch.load(path, map_location="cpu", weights_only=True)
+    except AttributeError:  # pragma: no cover - older torch
+        raise CheckpointError("upgrade_checkpoint needs torch >= 2.5 (torch.serialization.safe_globals).") from None
+    except Exception as err:
+        raise CheckpointError(
+            f"{path} holds more than tensors and NumPy arrays, so upgrade_checkpoint will not read it "
+            f"({_load_error(err)}): it is not a uamfleet checkpoint of format 1; train the run again."
+        ) from None
+
+
+def _to_plain_values(old: dict[str, Any]) -> None:
+    """In place: the NumPy RNG state as plain values, the normalisers' statistics as tensors and floats."""
     if not isinstance(old["numpy_rng"], dict):
         name, keys, pos, has_gauss, cached = old["numpy_rng"]
         old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
@@ -352,13 +370,6 @@ def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *,
                 rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
                 rms["count"] = float(rms["count"])
     old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
-    venv = VectorEnv(_evaluation_config(old["args"], env_config), num_envs=1)
-    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
-    upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
-    upgraded.validate(str(path))
-    upgraded.save(path)
-    return path
 
 
 def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) -> EnvConfig:
@@ -374,6 +385,27 @@ def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) ->
     return make_config(env_config if env_config is not None else str(args["scenario"]), **overrides)
 
 
+def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
+    """The training arguments a checkpoint was written with (options added since take their defaults)."""
+    known = {f.name for f in dataclasses.fields(TrainArgs)}
+    saved = {k: v for k, v in ckpt.args.items() if k in known}
+    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
+    return TrainArgs(**saved)
+
+
+def numpy_rng_state() -> dict[str, Any]:
+    """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
+    name, keys, pos, has_gauss, cached = np.random.get_state()
+    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
+            "cached_gaussian": float(cached)}  # fmt: skip
+
+
+def set_numpy_rng_state(state: dict[str, Any]) -> None:
+    """Restore what :func:`numpy_rng_state` saved."""
+    keys = np.array(state["keys"], dtype=np.uint32)
+    np.random.set_state((state["name"], keys, state["pos"], state["has_gauss"], state["cached_gaussian"]))
+
+
 __all__ = [
     "ARCHITECTURE_FIELDS",
     "CHECKPOINT_FORMAT",
@@ -384,5 +416,8 @@ __all__ = [
     "check_net_config",
     "check_network",
     "check_state_dict",
+    "checkpoint_args",
+    "numpy_rng_state",
+    "set_numpy_rng_state",
     "upgrade_checkpoint",
 ]

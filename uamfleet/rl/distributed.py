@@ -2,7 +2,7 @@
 world-size-invariant action sampler.
 
 ``torchrun --nproc_per_node=N train/ppo.py ...`` starts N processes with ``RANK``, ``WORLD_SIZE``,
-``LOCAL_RANK`` and a rendezvous in their environment; :meth:`World.from_env` joins the group (gloo on CPU,
+``LOCAL_RANK`` and a rendezvous in their environment; :meth:`Ranks.from_env` joins the group (gloo on CPU,
 NCCL on GPU) with the *global* rank (CleanRL's ``ppo_atari_multigpu.py`` uses the local one, which repeats
 across nodes). Without those variables the world is one process and every collective is the identity.
 
@@ -43,9 +43,27 @@ import torch.multiprocessing as mp
 from torch.distributions import Categorical
 
 
+def _backend(backend: str, use_cuda: bool, local_world: int) -> str:
+    """ "auto": NCCL when every local rank has a GPU of its own, else gloo; NCCL only with CUDA."""
+    if backend == "auto":
+        backend = "nccl" if use_cuda and local_world <= torch.cuda.device_count() else "gloo"
+    if backend == "nccl" and not use_cuda:
+        raise ValueError("backend='nccl' needs --device cuda; use --backend gloo (or auto) on CPUs.")
+    return backend
+
+
+def _join_group(backend: str, rank: int, world_size: int, timeout_s: float) -> None:
+    """Join torchrun's process group (once) and check it is the one the environment describes."""
+    if not dist.is_initialized():
+        dist.init_process_group(backend=backend, timeout=timedelta(seconds=timeout_s))
+    if dist.get_rank() != rank or dist.get_world_size() != world_size:
+        raise RuntimeError(f"process group has rank {dist.get_rank()}/{dist.get_world_size()}, env {rank}/{world_size}")
+
+
 @dataclass(frozen=True)
-class World:
-    """This process's place in the (possibly one-process) training world."""
+class Ranks:
+    """This process's place among the training ranks (possibly one process). Not the geometry
+    (:class:`uamfleet.env.world.World`); ``World`` is kept here as an alias of this class for old imports."""
 
     rank: int = 0
     world_size: int = 1
@@ -60,7 +78,7 @@ class World:
         return self.rank == 0
 
     @staticmethod
-    def from_env(device: str, backend: str = "auto", timeout_s: float = 600.0) -> tuple[World, torch.device]:
+    def from_env(device: str, backend: str = "auto", timeout_s: float = 600.0) -> tuple[Ranks, torch.device]:
         """Join the process group torchrun describes in the environment (or none) and pick this rank's device.
 
         ``device``: "cpu", "cuda" (``cuda:LOCAL_RANK``, wrapping when ranks outnumber GPUs) or "auto".
@@ -70,7 +88,7 @@ class World:
             raise ValueError("device='cuda' but torch sees no CUDA device; use --device cpu or auto.")
         use_cuda = device == "cuda" or (device == "auto" and torch.cuda.is_available())
         if "RANK" not in os.environ or "WORLD_SIZE" not in os.environ:
-            return World(), torch.device("cuda" if use_cuda else "cpu")
+            return Ranks(), torch.device("cuda" if use_cuda else "cpu")
         rank, world_size = int(os.environ["RANK"]), int(os.environ["WORLD_SIZE"])
         local_rank = int(os.environ.get("LOCAL_RANK", "0"))
         local_world = int(os.environ.get("LOCAL_WORLD_SIZE", str(world_size)))
@@ -78,18 +96,10 @@ class World:
         if use_cuda:
             torch_device = torch.device("cuda", local_rank % torch.cuda.device_count())
             torch.cuda.set_device(torch_device)
-        if backend == "auto":
-            backend = "nccl" if use_cuda and local_world <= torch.cuda.device_count() else "gloo"
-        if backend == "nccl" and not use_cuda:
-            raise ValueError("backend='nccl' needs --device cuda; use --backend gloo (or auto) on CPUs.")
-        if not dist.is_initialized():
-            dist.init_process_group(backend=backend, timeout=timedelta(seconds=timeout_s))
-        if dist.get_rank() != rank or dist.get_world_size() != world_size:
-            raise RuntimeError(
-                f"process group has rank {dist.get_rank()}/{dist.get_world_size()}, env {rank}/{world_size}"
-            )
+        backend = _backend(backend, use_cuda, local_world)
+        _join_group(backend, rank, world_size, timeout_s)
         comm = str(torch_device) if backend == "nccl" else "cpu"
-        return World(rank, world_size, local_rank, True, comm), torch_device
+        return Ranks(rank, world_size, local_rank, True, comm), torch_device
 
     def shard(self, num_envs: int) -> tuple[int, int]:
         """(first global env index, env count) of this rank; ``num_envs`` is global."""
@@ -236,4 +246,7 @@ def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
     mp.spawn(_launched, args=(world_size, free_port(), fn, args), nprocs=world_size, join=True)
 
 
-__all__ = ["World", "launch_local", "leave_rank", "sample_actions"]
+World = Ranks
+"""The old name of :class:`Ranks` (kept for imports that use it)."""
+
+__all__ = ["Ranks", "World", "launch_local", "leave_rank", "sample_actions"]

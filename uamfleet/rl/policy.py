@@ -1,6 +1,7 @@
 """The trained policy at inference: :class:`GreedyPolicy` (greedy actions, the layout it reads, the same weights for
 another fleet size). Its shapes come from the observation spec (:func:`uamfleet.env.layout.observation_layout`),
-never from a built env. Loading one from a checkpoint: :func:`uamfleet.rl.trainer.load_policy`.
+never from a built env. Loading one from a checkpoint: :func:`load_policy` (no env is built, the training loop is
+not imported).
 """
 
 from __future__ import annotations
@@ -8,14 +9,17 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from uamfleet.config import EnvConfig
-from uamfleet.env.layout import layout_shapes, observation_layout
+from uamfleet.config import PRESETS, EnvConfig
+from uamfleet.env.layout import layout_shapes, observation_layout, observation_space
 from uamfleet.rl.buffer import ObservationNormalizer
+from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
+from uamfleet.rl.options import TrainArgs, make_env_config
 from uamfleet.rollout import Trajectory, fly
 
 
@@ -134,3 +138,39 @@ class GreedyPolicy:
 
 
 __all__ = ["GreedyPolicy"]
+
+
+def load_policy(
+    path: str | Path, device: str = "cpu", env_config: EnvConfig | None = None
+) -> tuple[GreedyPolicy, TrainArgs]:
+    """A greedy policy and the training arguments from a checkpoint written by :func:`train` (pass the same
+    ``env_config`` when it was trained on one). Loads with ``weights_only=True``: a foreign or pickle-only
+    file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
+    ckpt = Checkpoint.load(path, map_location=device)
+    args = checkpoint_args(ckpt)
+    cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
+    layout = observation_layout(cfg)  # the spec: no env is built
+    try:
+        ckpt.check_matches(None, layout_shapes(layout), extra_ok=True)
+    except ValueError as err:
+        raise ValueError(
+            f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
+            f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
+            f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}, "
+            f"stop_rivals={'stop_rivals' in ckpt.obs_shapes}, stop_claims={'stop_claims' in ckpt.obs_shapes}."
+        ) from None
+    read = {k: spec for k, spec in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
+    space, shapes = observation_space(read), layout_shapes(read)
+    net = MSHAActorCritic(space, check_network(ckpt, space, str(path))).to(device)
+    net.load_state_dict(ckpt.model)
+    net.eval()
+    normalizer = None
+    if ckpt.obs_normalizer is not None:
+        normalizer = ObservationNormalizer(shapes)
+        normalizer.load_state_dict(ckpt.obs_normalizer)
+    trained_on = env_config if env_config is not None else cfg
+    if env_config is not None and args.scenario in PRESETS:
+        trained_on = make_env_config(args.scenario, args, training=False)
+    return GreedyPolicy(
+        net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
+    ), args

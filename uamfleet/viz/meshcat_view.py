@@ -353,20 +353,9 @@ class FleetViewer:
         chunk = max(1, math.ceil((num_frames - 1) / 60))  # the path grows behind the taxi in <= 60 pieces
         pieces = [piece for a in range(num_taxis) for piece in self._set_path(a, positions[a], chunk)]
         self.num_frames = num_frames
-        mc = _mc()
-        anim = mc.animation.Animation(default_framerate=1.0 / self.seconds_per_step)
+        anim = _mc().animation.Animation(default_framerate=1.0 / self.seconds_per_step)
         last = num_frames - 1
-        yaw = _headings(positions)  # [A, T + 1]
-        hover = 0.35 * self.sizes.taxi
-        xy = self.xy(positions)
-        for t in range(num_frames):
-            with anim.at_frame(self.vis, t) as frame:
-                for a in range(num_taxis):
-                    matrix = mc.tf.rotation_matrix(yaw[a, t], [0, 0, 1])
-                    matrix[:3, 3] = [xy[a, t, 0], xy[a, t, 1], self.map_z + hover]
-                    frame[f"taxis/taxi_{a}"].set_transform(matrix)
-                    if t == 0:
-                        self.vis[f"taxis/taxi_{a}"].set_transform(matrix)
+        self._animate_taxis(anim, positions)
         frames = np.arange(num_frames)
         for path, first in pieces:
             _bool_track(anim, self.vis, path, frames > first, last)
@@ -375,6 +364,28 @@ class FleetViewer:
         for a in range(num_taxis):
             for k in range(traj.seats):
                 _bool_track(anim, self.vis, f"taxis/taxi_{a}/pods/pod_{k + 1}", onboard[a] > k, last)
+        self._animate_passengers(anim, traj, exists)
+        self.vis.set_animation(anim, play=True, repetitions=1)
+
+    def _animate_taxis(self, anim: Any, positions: np.ndarray) -> None:
+        """One key frame per step: each taxi at its position [A, T + 1, 2], turned along its heading."""
+        mc = _mc()
+        yaw = _headings(positions)  # [A, T + 1]
+        hover = 0.35 * self.sizes.taxi
+        xy = self.xy(positions)
+        for t in range(positions.shape[1]):
+            with anim.at_frame(self.vis, t) as frame:
+                for a in range(positions.shape[0]):
+                    matrix = mc.tf.rotation_matrix(yaw[a, t], [0, 0, 1])
+                    matrix[:3, 3] = [xy[a, t, 0], xy[a, t, 1], self.map_z + hover]
+                    frame[f"taxis/taxi_{a}"].set_transform(matrix)
+                    if t == 0:
+                        self.vis[f"taxis/taxi_{a}"].set_transform(matrix)
+
+    def _animate_passengers(self, anim: Any, traj: Trajectory, exists: np.ndarray) -> None:
+        """Each stop appears at its release and turns to "served" at its pick-up or drop-off."""
+        num_frames = traj.positions_m.shape[1]
+        frames, last = np.arange(num_frames), num_frames - 1
         index = {int(p): i for i, p in enumerate(exists)}
         served_at: dict[tuple[str, int], int] = {}
         for e in stop_events(traj):
@@ -389,7 +400,6 @@ class FleetViewer:
                 _bool_track(anim, self.vis, f"{path}/marker", ~served, last)
                 _bool_track(anim, self.vis, f"{path}/served", served, last)
                 self._set_visible(path, bool(released[0]))
-        self.vis.set_animation(anim, play=True, repetitions=1)
 
     def update_live(
         self,
@@ -426,8 +436,19 @@ class FleetViewer:
             self._build_passengers(origins, destinations)
             self._live_pax = (origins.copy(), destinations.copy())
         self._last_t = int(t)
-        hover = 0.35 * self.sizes.taxi
         onboard = np.bincount(carrier[(status == ON_BOARD) & (carrier >= 0)], minlength=len(pos))
+        self._place_live_taxis(pos, onboard, seats)
+        for i in range(len(status)):
+            code = int(status[i])
+            for tag, done in (("S", code in (ON_BOARD, DELIVERED)), ("D", code == DELIVERED)):
+                path = f"passengers/{tag}{i + 1}"
+                self._set_visible(path, code != HIDDEN)
+                self._set_visible(f"{path}/marker", not done)
+                self._set_visible(f"{path}/served", done)
+
+    def _place_live_taxis(self, pos: np.ndarray, onboard: np.ndarray, seats: int) -> None:
+        """Each taxi at ``pos`` [A, 2], its trail grown by the new position, its pods filled by ``onboard``."""
+        hover = 0.35 * self.sizes.taxi
         for a in range(len(pos)):
             trail = self._trails[a]
             if not trail or not np.array_equal(trail[-1], pos[a]):
@@ -438,13 +459,6 @@ class FleetViewer:
             self._place(f"taxis/taxi_{a}", x, y, self.map_z + hover, yaw)
             for k in range(max(seats, 1)):
                 self._set_visible(f"taxis/taxi_{a}/pods/pod_{k + 1}", bool(onboard[a] > k))
-        for i in range(len(status)):
-            code = int(status[i])
-            for tag, done in (("S", code in (ON_BOARD, DELIVERED)), ("D", code == DELIVERED)):
-                path = f"passengers/{tag}{i + 1}"
-                self._set_visible(path, code != HIDDEN)
-                self._set_visible(f"{path}/marker", not done)
-                self._set_visible(f"{path}/served", done)
 
     def scene_paths(self) -> list[str]:
         """Every path the scene holds an object, transform or property at (``/meshcat/radio_map``, ...)."""

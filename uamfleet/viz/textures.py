@@ -123,20 +123,10 @@ def _title_lines(title: str, width: int = 34) -> list[str]:
     return lines
 
 
-def legend_png(
-    radio: RadioMap, threshold_db: float, title: str, num_taxis: int, z_scale: float, stride: int
-) -> tuple[bytes, float]:
-    """The legend drawn with matplotlib (title, colour bar with the threshold, symbols, taxi colours) as a PNG,
-    and its width / height ratio."""
-    import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
-
-    no_fly_hex = "#" + "".join(f"{round(c * 255):02x}" for c in NO_FLY_RGB)
-    # (marker, face colour, text): "s" a square swatch, else a matplotlib marker
+def _legend_entries(no_fly_hex: str, base_stations: bool, num_taxis: int) -> list[tuple[str, str, str]]:
+    """(marker, face colour, text) of each legend row: "s" a square swatch, else a matplotlib marker."""
     entries = [("s", no_fly_hex, "below γ_T: no-fly (striped)"), ("s", "#141414", "not computed (N.C.)")]
-    if radio.base_stations:
+    if base_stations:
         entries.append(("o", "#ffffff", "GBS: ring on map, mast below"))
     entries += [
         ("v", "#ffffff", "S#: pick-up"),
@@ -145,6 +135,39 @@ def legend_png(
     ]
     entries.append(("o", f"#{POD_HEX:06x}", "pod: passenger on board"))
     entries += [("s", TAXI_HEX[a % len(TAXI_HEX)], f"taxi {a}: path, start disc") for a in range(min(num_taxis, 8))]
+    return entries
+
+
+def _colour_bar(cax: Any, radio: RadioMap, threshold_db: float, no_fly_hex: str) -> None:
+    """The SINR colour bar with the no-fly range shaded and the threshold marked in red."""
+    import matplotlib
+    from matplotlib.patches import Rectangle
+
+    lo, hi = colour_range(radio)
+    ramp = np.linspace(lo, hi, 256)[:, None]
+    cax.imshow(ramp, origin="lower", aspect="auto", extent=(0, 1, lo, hi), cmap=matplotlib.colormaps["viridis"])
+    if lo < threshold_db:
+        cax.add_patch(Rectangle((0, lo), 1, min(threshold_db, hi) - lo, color=no_fly_hex, alpha=0.85, lw=0))
+    cax.axhline(threshold_db, color="red", lw=2.5)
+    cax.set_xticks([])
+    cax.set_ylim(lo, hi)
+    cax.tick_params(labelsize=8)
+    cax.set_ylabel(f"SINR at {radio.altitude_m:g} m [dB]", fontsize=8.5)
+    cax.annotate(f"γ_T = {threshold_db:g} dB", (1.0, threshold_db), xytext=(6, 0), textcoords="offset points",
+                 fontsize=9, color="red", va="center", weight="bold", annotation_clip=False)  # fmt: skip
+
+
+def legend_png(
+    radio: RadioMap, threshold_db: float, title: str, num_taxis: int, z_scale: float, stride: int
+) -> tuple[bytes, float]:
+    """The legend drawn with matplotlib (title, colour bar with the threshold, symbols, taxi colours) as a PNG,
+    and its width / height ratio."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    no_fly_hex = "#" + "".join(f"{round(c * 255):02x}" for c in NO_FLY_RGB)
+    entries = _legend_entries(no_fly_hex, bool(radio.base_stations), num_taxis)
     grid = f"{grid_spacing_m(radio):g} m" if grid_spacing_m(radio) < 1000 else f"{grid_spacing_m(radio) / 1000:g} km"
     notes = f"heights ×{z_scale:.2g}, ground grid {grid}" + (f", raster 1/{stride}" if stride > 1 else "")
     lines = _title_lines(title)
@@ -159,19 +182,8 @@ def legend_png(
     ax.set_ylim(height, 0)
     ax.set_axis_off()
     ax.text(0.12, 0.1, "\n".join(lines), fontsize=9, weight="bold", va="top")
-    lo, hi = colour_range(radio)
     cax = fig.add_axes((0.55 / width, 1 - (top + bar) / height, 0.22 / width, bar / height))
-    ramp = np.linspace(lo, hi, 256)[:, None]
-    cax.imshow(ramp, origin="lower", aspect="auto", extent=(0, 1, lo, hi), cmap=matplotlib.colormaps["viridis"])
-    if lo < threshold_db:
-        cax.add_patch(Rectangle((0, lo), 1, min(threshold_db, hi) - lo, color=no_fly_hex, alpha=0.85, lw=0))
-    cax.axhline(threshold_db, color="red", lw=2.5)
-    cax.set_xticks([])
-    cax.set_ylim(lo, hi)
-    cax.tick_params(labelsize=8)
-    cax.set_ylabel(f"SINR at {radio.altitude_m:g} m [dB]", fontsize=8.5)
-    cax.annotate(f"γ_T = {threshold_db:g} dB", (1.0, threshold_db), xytext=(6, 0), textcoords="offset points",
-                 fontsize=9, color="red", va="center", weight="bold", annotation_clip=False)  # fmt: skip
+    _colour_bar(cax, radio, threshold_db, no_fly_hex)
     y = top + bar + 0.3
     for marker, colour, text in entries:
         if marker == "s":

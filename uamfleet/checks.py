@@ -1,0 +1,101 @@
+"""The checks every config uses: :class:`ConfigError` and ``check_number`` / ``check_integer`` / ``check_point`` /
+``check_sequence`` (a bad value fails with a message naming the field, the value and the fix), and the upper bounds
+of the sizes. The base of :mod:`uamfleet.config` and :mod:`uamfleet.demand`, importing nothing of the package.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+# Upper bounds of the sizes that set the memory of every observation (documented on EnvConfig): a 3,000 x 3,000
+# patch would be 72 MB per taxi and step, so a typo there fails at once instead of exhausting memory later.
+MAX_PATCH_SIZE = 64
+MAX_HISTORY_LEN = 256
+MAX_TAXIS = 1024
+MAX_PASSENGERS = 1024
+MAX_COUNT = 2**31 - 1
+"""Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
+
+
+class ConfigError(ValueError):
+    """A config value of the wrong type or out of range; the message names the field, the value and the fix.
+
+    A ``ValueError`` (also for values of the wrong type, e.g. ``sinr_min_db='-3'``), so one ``except
+    ValueError`` catches every bad input of the package: this, :class:`~uamfleet.env.generator.
+    InfeasibleInstanceError`, :class:`~uamfleet.env.dynamics.InvalidActionError` and
+    :class:`~uamfleet.radio.WinPropFormatError`.
+    """
+
+
+def is_number(value: Any) -> bool:
+    """A real number: an int or float of Python or NumPy, not a bool, not a string."""
+    # bool is an int to Python, but True is no step count or distance; strings are not parsed on the user's behalf.
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _not_a_number(name: str, value: Any, kind: str, integer: bool = False) -> ConfigError:
+    hint = ""
+    if isinstance(value, str):
+        try:
+            number = float(value)
+            hint = f", e.g. {name.split(' ')[0]}={int(number) if integer and number.is_integer() else number!r}"
+        except ValueError:
+            pass
+    return ConfigError(f"{name}={value!r} is a {type(value).__name__}, not a number; pass {kind}{hint}.")
+
+
+def check_number(name: str, value: Any, *, minimum: float | None = None, positive: bool = False) -> float:
+    """``value`` as a finite float; :class:`ConfigError` naming ``name`` if it is not a finite real number
+    (NaN, inf, a string, a bool) or is below ``minimum`` / not positive."""
+    if not is_number(value):
+        raise _not_a_number(name, value, "an int or float")
+    if not math.isfinite(value):
+        raise ConfigError(f"{name}={value!r} must be a finite number.")
+    if positive and not value > 0:
+        raise ConfigError(f"{name}={value!r} must be a positive number.")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}={value!r} must be >= {minimum:g}.")
+    return float(value)
+
+
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None, fix: str = "") -> int:
+    """``value`` as an int in ``[minimum, maximum]`` (default maximum :data:`MAX_COUNT`); :class:`ConfigError`
+    naming ``name`` otherwise. A float with an integral value (``500.0``) is accepted; ``1.5``, NaN, strings and
+    bools are not (never truncated)."""
+    bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
+    maximum = MAX_COUNT if maximum is None else maximum
+    if not is_number(value):
+        raise _not_a_number(name, value, f"an integer {bound}", integer=True)
+    if not math.isfinite(value) or int(value) != value:
+        raise ConfigError(f"{name}={value!r} must be a whole number {bound}{fix}; it is never rounded.")
+    if value < minimum:
+        raise ConfigError(f"{name}={value!r} must be an integer {bound}{fix}.")
+    if value > maximum:
+        raise ConfigError(f"{name}={value!r} is too large: at most {maximum}{fix}.")
+    return int(value)
+
+
+def check_point(name: str, value: Any) -> tuple[float, float]:
+    """``value`` as a finite ``(x, y)`` pair of floats in metres; :class:`ConfigError` naming ``name`` otherwise
+    (three coordinates, a string, NaN, ...)."""
+    try:
+        n = len(value)
+    except TypeError:
+        n = -1
+    if isinstance(value, str) or n != 2 or not all(is_number(v) and math.isfinite(v) for v in value):
+        raise ConfigError(
+            f"{name}={value!r} must be a finite (x, y) pair of numbers in metres (world frame); "
+            "the altitude is EnvConfig.altitude_m, not a third coordinate."
+        )
+    return (float(value[0]), float(value[1]))
+
+
+def check_sequence(name: str, value: Any) -> Any:
+    """``value`` if it is a sequence (tuple, list or array; not a string); :class:`ConfigError` otherwise."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ConfigError(f"{name}={value!r} must be a sequence (tuple or list), not {type(value).__name__}.")
+    return value

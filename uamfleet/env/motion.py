@@ -1,0 +1,293 @@
+"""The motion kernels (numba): the action mask, the separation shield, separation, and the one batched step
+(``step``: the rules of docs/rules.md "Motion" and "Release and pick-up" in order, each in a named part). Re-exported
+by :mod:`uamfleet.env.kernels`, which holds the observation kernels; :mod:`uamfleet.env.dynamics` is the entry point.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, WorldArrays
+from uamfleet.radio._sampling import segment_min
+from uamfleet.types import DELIVERED, HIDDEN, NUM_HEADINGS, ON_BOARD, WAITING, FleetState, StepEvents
+
+
+@njit(cache=True, inline="always")
+def block_of(v: float, block_m: float, nb: int) -> int:
+    """The index of the block holding coordinate v, clamped to the grid of nb blocks."""
+    b = math.floor(v / block_m)
+    return min(max(b, 0), nb - 1)
+
+
+@njit(cache=True)
+def action_mask(pos: np.ndarray, w: WorldArrays, out: np.ndarray) -> None:
+    """out[i, k] = heading k is allowed from pos[i] ([N, 2]): docs/rules.md "Feasibility rules"."""
+    block_ok = w.block_ok
+    nbx, nby = block_ok.shape
+    ox, oy = w.raster_origin[0], w.raster_origin[1]
+    for i in range(pos.shape[0]):
+        x, y = pos[i, 0], pos[i, 1]
+        for k in range(NUM_HEADINGS):
+            tx, ty = x + w.moves_m[k, 0], y + w.moves_m[k, 1]
+            ok = 0.0 <= tx <= w.side_m and 0.0 <= ty <= w.side_m
+            if ok:
+                if w.rule == RULE_ENDPOINT_BLOCK:
+                    ok = block_ok[block_of(tx, w.block_m, nbx), block_of(ty, w.block_m, nby)]
+                else:
+                    ok = segment_min(w.raster, ox, oy, w.raster_res, x, y, tx, ty) >= w.threshold_db
+            out[i, k] = ok
+
+
+@njit(cache=True)
+def _clear_of_others(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, pos: np.ndarray,
+                     min_separation_m: float) -> bool:  # fmt: skip
+    """Taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from pos[b]
+    to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from b's
+    end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
+    when the two start at least that far apart, they stay so throughout the slot (closest approach of two
+    straight flights at constant speed; two taxis never swap places through each other)."""
+    ax, ay = pos[a, 0], pos[a, 1]
+    for b in range(pos.shape[0]):
+        if b == a:
+            continue
+        bx, by = pos[b, 0], pos[b, 1]
+        ex, ey = (ends[b, 0], ends[b, 1]) if resolved[b] else (bx, by)
+        dx, dy = x - ex, y - ey
+        if math.sqrt(dx * dx + dy * dy) < min_separation_m:
+            return False
+        sx, sy = ax - bx, ay - by  # b -> a at the start of the slot; + t * (vx, vy) at time t in [0, 1]
+        if math.sqrt(sx * sx + sy * sy) < min_separation_m:
+            continue  # already too close (e.g. a shared start): only the end must be clear
+        vx, vy = (x - ax) - (ex - bx), (y - ay) - (ey - by)
+        vv = vx * vx + vy * vy
+        t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
+        cx, cy = sx + t * vx, sy + t * vy
+        if math.sqrt(cx * cx + cy * cy) < min_separation_m:
+            return False
+    return True
+
+
+@njit(cache=True)
+def shield_headings(
+    pos: np.ndarray,  # [A, 2] positions before the step
+    free_seats: np.ndarray,  # [A]
+    allowed: np.ndarray,  # [A, NUM_HEADINGS] bool, the action mask
+    requested: np.ndarray,  # [A] int64, validated headings
+    w: WorldArrays,
+    flown: np.ndarray,  # [A] int64 out: the heading flown, -1: the taxi stays where it is
+) -> None:
+    """The separation shield of one env (docs/rules.md "Separation shield"): the heading each taxi flies.
+
+    Taxis are resolved one at a time, fewest free seats (most riders) first, ties by index: a taxi's detour then
+    falls on the emptier taxi, whose delay holds up nobody on board. A requested heading that is not allowed stays
+    a blocked move (the taxi stays). An allowed one is kept when it is clear (:func:`_clear_of_others`) of the
+    moves already fixed and of the current positions of the taxis still to resolve; else the nearest allowed
+    heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...); else the taxi hovers
+    (stays). Staying is clear whenever the current positions are separated: each earlier taxi's move was checked
+    against this taxi staying where it is, and each later one is checked against what this one does.
+    """
+    num_taxis = pos.shape[0]
+    ends = pos.copy()
+    resolved = np.zeros(num_taxis, np.bool_)
+    half = NUM_HEADINGS // 2
+    for a in np.argsort(free_seats, kind="mergesort"):  # stable: ties in index order
+        k = requested[a]
+        flown[a] = -1
+        if allowed[a, k]:
+            for turn in range(2 * half):  # offsets 0, +1, -1, +2, -2, ..., +half
+                d = (turn + 1) // 2 if turn % 2 else -(turn // 2)
+                h = (k + d) % NUM_HEADINGS
+                if not allowed[a, h]:
+                    continue
+                x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
+                if _clear_of_others(a, x, y, ends, resolved, pos, w.min_separation_m):
+                    flown[a] = h
+                    ends[a, 0], ends[a, 1] = x, y
+                    break
+        resolved[a] = True
+
+
+@njit(cache=True)
+def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> StepEvents:
+    """Advance every env of ``s`` by one slot, in place, in the order of docs/rules.md "Motion" and "Release
+    and pick-up"; ``actions`` [E, A] int64 must be validated. ``shield``: resolve conflicts first
+    (:func:`shield_headings`). Returns the step's events."""
+    num_envs, num_taxis = s.history_m.shape[0], s.history_m.shape[1]
+    num_pax = s.pax_status.shape[1]
+    pos = s.pos_m
+    prev_pos = pos.copy()
+    moved = np.empty((num_envs, num_taxis), np.bool_)
+    blocked = np.empty((num_envs, num_taxis), np.bool_)
+    flown = np.empty((num_envs, num_taxis), np.int64)  # the heading flown, -1: stayed
+    intervened = np.zeros((num_envs, num_taxis), np.bool_)
+    hovered = np.zeros((num_envs, num_taxis), np.bool_)
+    first_visit = np.empty((num_envs, num_taxis), np.bool_)
+    block_visits = np.empty((num_envs, num_taxis), np.int32)
+    picked = np.empty((num_envs, num_pax), np.bool_)
+    dropped = np.empty((num_envs, num_pax), np.bool_)
+    released = np.empty((num_envs, num_pax), np.bool_)
+    pickups = np.zeros((num_envs, num_taxis), np.int64)
+    dropoffs = np.zeros((num_envs, num_taxis), np.int64)
+    all_delivered = np.empty(num_envs, np.bool_)
+    reach = w.radius_m + 1e-9
+    for e in range(num_envs):
+        s.t[e] += 1
+        now = s.t[e]
+        # 0. the headings flown (the shield may change or hold them)
+        _headings_flown(s, w, actions, shield, e, flown, intervened, hovered)
+        for a in range(num_taxis):
+            # 1. move (or stay, when the move is not allowed or the shield holds the taxi); 2. the block visit
+            moved[e, a] = flown[e, a] >= 0
+            blocked[e, a] = not s.action_mask[e, a, actions[e, a]]
+            count = _fly(s, w, e, a, flown[e, a])
+            block_visits[e, a] = count
+            first_visit[e, a] = count == 1
+        _drop_offs(s, e, now, reach, dropped, dropoffs)  # 3.
+        _pick_ups(s, e, now, reach, picked, pickups)  # 4.
+        _release(s, e, now, released)  # 5.
+        all_delivered[e] = _all_delivered(s, e)
+    # 6. the mask of the new positions, separation, and the SINR along the flown segments
+    action_mask(pos.reshape(num_envs * num_taxis, 2), w, s.action_mask.reshape(num_envs * num_taxis, NUM_HEADINGS))
+    separation_out = np.empty((num_envs, num_taxis), np.bool_)
+    separation(pos, w.min_separation_m, separation_out)
+    seg = _segment_sinr(w, prev_pos, pos)
+    return StepEvents(
+        prev_pos, pos.copy(), actions, moved, blocked, first_visit, block_visits, picked, dropped, released, pickups,
+        dropoffs, separation_out, seg, all_delivered, s.t.copy(), flown, intervened, hovered,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _headings_flown(
+    s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool, e: int, flown: np.ndarray,
+    intervened: np.ndarray, hovered: np.ndarray,
+) -> None:  # fmt: skip
+    """Env e's heading flown per taxi (-1: stays): the requested one if allowed; with the shield, the one it
+    resolves, and whether it changed (intervened) or held (hovered) an allowed move."""
+    num_taxis = flown.shape[1]
+    for a in range(num_taxis):
+        flown[e, a] = actions[e, a] if s.action_mask[e, a, actions[e, a]] else -1
+    if shield:
+        shield_headings(s.pos_m[e], s.free_seats[e], s.action_mask[e], actions[e], w, flown[e])
+        for a in range(num_taxis):
+            intervened[e, a] = flown[e, a] != actions[e, a] and s.action_mask[e, a, actions[e, a]]
+            hovered[e, a] = flown[e, a] < 0 and s.action_mask[e, a, actions[e, a]]
+
+
+@njit(cache=True)
+def _fly(s: FleetState, w: WorldArrays, e: int, a: int, k: int) -> int:
+    """Taxi (e, a): its history shifts (the position and free seats before the move become row 0), it flies
+    heading k (-1: stays), and the visit count of the block it is in now grows by one; returns that count."""
+    hist_len = s.history_m.shape[2]
+    nbx, nby = w.block_ok.shape
+    pos = s.pos_m
+    hist, hist_seats = s.history_m[e, a], s.history_seats[e, a]
+    for h in range(hist_len - 1, 0, -1):
+        hist[h, 0] = hist[h - 1, 0]
+        hist[h, 1] = hist[h - 1, 1]
+        hist_seats[h] = hist_seats[h - 1]
+    hist[0, 0] = pos[e, a, 0]
+    hist[0, 1] = pos[e, a, 1]
+    hist_seats[0] = s.free_seats[e, a]
+    if k >= 0:
+        pos[e, a, 0] += w.moves_m[k, 0]
+        pos[e, a, 1] += w.moves_m[k, 1]
+        s.distance_m[e, a] += w.step_m
+    bx = block_of(pos[e, a, 0], w.block_m, nbx) + w.patch_lo
+    by = block_of(pos[e, a, 1], w.block_m, nby) + w.patch_lo
+    s.visits[e, a, bx, by] += 1
+    return s.visits[e, a, bx, by]
+
+
+@njit(cache=True)
+def _drop_offs(s: FleetState, e: int, now: int, reach: float, dropped: np.ndarray, dropoffs: np.ndarray) -> None:
+    """3. Passengers on board whose destination is within reach of their taxi are delivered."""
+    pos = s.pos_m
+    for p in range(s.pax_status.shape[1]):
+        dropped[e, p] = False
+        if s.pax_status[e, p] == ON_BOARD:
+            a = s.pax_taxi[e, p]
+            dx = pos[e, a, 0] - s.pax_dest_m[e, p, 0]
+            dy = pos[e, a, 1] - s.pax_dest_m[e, p, 1]
+            if math.sqrt(dx * dx + dy * dy) <= reach:
+                s.pax_status[e, p] = DELIVERED
+                s.pax_dropoff_step[e, p] = now
+                s.free_seats[e, a] += 1
+                dropoffs[e, a] += 1
+                dropped[e, p] = True
+
+
+@njit(cache=True)
+def _pick_ups(s: FleetState, e: int, now: int, reach: float, picked: np.ndarray, pickups: np.ndarray) -> None:
+    """4. Taxis in index order take the lowest-index waiting passengers in reach. Only requests released before
+    this step are WAITING here, so every pick-up was observable beforehand."""
+    pos, free_seats = s.pos_m, s.free_seats
+    num_pax = s.pax_status.shape[1]
+    for p in range(num_pax):
+        picked[e, p] = False
+    for a in range(pos.shape[1]):
+        for p in range(num_pax):
+            if free_seats[e, a] == 0:
+                break
+            if s.pax_status[e, p] != WAITING:
+                continue
+            dx = pos[e, a, 0] - s.pax_origin_m[e, p, 0]
+            dy = pos[e, a, 1] - s.pax_origin_m[e, p, 1]
+            if math.sqrt(dx * dx + dy * dy) <= reach:
+                s.pax_status[e, p] = ON_BOARD
+                s.pax_taxi[e, p] = a
+                s.pax_pickup_step[e, p] = now
+                free_seats[e, a] -= 1
+                pickups[e, a] += 1
+                picked[e, p] = True
+
+
+@njit(cache=True)
+def _release(s: FleetState, e: int, now: int, released: np.ndarray) -> None:
+    """5. Requests whose release step has come are visible from now on, pickable from the next step."""
+    for p in range(s.pax_status.shape[1]):
+        released[e, p] = False
+        if s.pax_status[e, p] == HIDDEN and s.pax_exists[e, p] and s.pax_release[e, p] <= now:
+            s.pax_status[e, p] = WAITING
+            released[e, p] = True
+
+
+@njit(cache=True)
+def _all_delivered(s: FleetState, e: int) -> bool:
+    for p in range(s.pax_status.shape[1]):
+        if s.pax_exists[e, p] and s.pax_status[e, p] != DELIVERED:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _segment_sinr(w: WorldArrays, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """[E, A] the lowest raster SINR (dB) along each taxi's segment of this step."""
+    num_envs, num_taxis = pos.shape[0], pos.shape[1]
+    seg = np.empty((num_envs, num_taxis))
+    ox, oy = w.raster_origin[0], w.raster_origin[1]
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            seg[e, a] = segment_min(
+                w.raster, ox, oy, w.raster_res, prev_pos[e, a, 0], prev_pos[e, a, 1], pos[e, a, 0], pos[e, a, 1]
+            )
+    return seg
+
+
+@njit(cache=True)
+def separation(pos: np.ndarray, min_separation_m: float, out: np.ndarray) -> None:
+    """out[e, a] = another taxi of env e is closer than min_separation_m."""
+    num_envs, num_taxis = pos.shape[0], pos.shape[1]
+    for e in range(num_envs):
+        for a in range(num_taxis):
+            out[e, a] = False
+        for a in range(num_taxis):
+            for b in range(a + 1, num_taxis):
+                dx = pos[e, a, 0] - pos[e, b, 0]
+                dy = pos[e, a, 1] - pos[e, b, 1]
+                if math.sqrt(dx * dx + dy * dy) < min_separation_m:
+                    out[e, a] = True
+                    out[e, b] = True

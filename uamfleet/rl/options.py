@@ -1,0 +1,286 @@
+"""The training options: :class:`TrainArgs` (every flag of ``train/ppo.py``, checked on construction) and the env
+config a run trains and evaluates on (:func:`make_env_config`). A checkpoint's options are read back by
+:func:`uamfleet.rl.checkpoint.checkpoint_args`, without importing the training loop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+from uamfleet.config import (
+    FEASIBILITY_RULES,
+    SCENARIOS,
+    ConfigError,
+    EnvConfig,
+    check_integer,
+    check_number,
+    make_config,
+)
+from uamfleet.instances import VALIDATION_SEEDS
+from uamfleet.rl.networks import VARIANTS
+
+# The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
+if TYPE_CHECKING:
+    ScenarioName = str
+    FeasibilityRule = str
+    VariantName = str
+else:
+    ScenarioName, FeasibilityRule, VariantName = Literal[SCENARIOS], Literal[FEASIBILITY_RULES], Literal[VARIANTS]
+
+
+@dataclass
+class TrainArgs:
+    """PPO training of the shared MSHA policy (every option is a command-line flag of ``train/ppo.py``)."""
+
+    # environment
+    scenario: ScenarioName = "berlin_p4"
+    """scenario name"""
+    sinr_min_db: float | None = None
+    """SINR threshold in dB; None: the scenario's"""
+    num_taxis: int | None = None
+    """fleet size; None: the scenario's"""
+    thresholds: tuple[float, ...] = ()
+    """train on several SINR thresholds at once (dB; the envs split into one group per threshold, see
+    uamfleet.env.mixture); empty: the one of --sinr-min-db. A generalist over -7 ... -3 dB on Berlin:
+    --scenario berlin_instances --thresholds -7 -6 -5 -4 -3"""
+    feasibility: FeasibilityRule = "endpoint_block"
+    """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
+    time_limit_steps: int = 200
+    """episode time limit while training (steps)"""
+    shaping: float = 50.0
+    """weight of the potential-based shaping term (0 = the authors' reward only). Strong on purpose: one step of
+    progress along the feasible path is then worth 50, a quarter of a pick-up, so the heading that makes progress
+    stands out of the value noise from the first iterations"""
+    shaping_metric: Literal["path", "path_exact", "euclidean"] = "path"
+    """distance in the shaping potential: along feasible paths, or straight line"""
+    shaping_gamma: float | None = None
+    """discount inside the shaping term gamma * Phi(s') - Phi(s); None: the trainer's gamma (which keeps it
+    potential-based; 1.0 removes the per-step bonus w (1 - gamma) |Phi| for staying away from the stop)"""
+    shaping_anneal_frac: float = 0.5
+    """decay the shaping weight linearly to 0 over the LAST this fraction of training (0: constant). Shaping is
+    potential-based, so the optimum is unchanged: it helps find every passenger early, and annealing it leaves
+    the end of training to the true reward (shorter tours)"""
+    # network
+    variant: VariantName = "de_msfea"
+    """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
+    Default de_msfea: on Berlin P4 it came within 5 % of the optimum in 40-140k agent-steps in 8 of 10 runs, at
+    3x the full model's speed per step; the full model learned slower per step too (docs/results.md)"""
+    d_model: int = 64
+    """token / feature width of the network"""
+    num_heads: int = 4
+    """attention heads; half attend locally (windows), half globally"""
+    local_window: int = 2
+    """side of the local attention windows on the k x k patch (must divide k)"""
+    readout: Literal["flatten", "mean"] = "flatten"
+    """how the designed variants read the k x k grid: linear over the flattened cells (keeps positions) or mean"""
+    centralised_critic: bool = False
+    """critic reads the global env state (MAPPO)"""
+    action_head: Literal["headings", "stops"] = "headings"
+    """headings: a logit per heading (the paper); stops: a pointer over the actionable stops, each flown along
+    its progress heading (needs the stop features, e.g. the *_instances scenarios)"""
+    stop_free_move: bool = False
+    """with --action-head stops: a free move (any heading) beside the stops, not only when no stop is actionable"""
+    stop_prior: Literal["tour", "nearest"] = "tour"
+    """with --action-head stops: the prior prefers the stop that starts the shortest tour through every known stop
+    (one taxi), or the nearest stop (a fleet with claims: the greedy dispatcher's rule along feasible paths)"""
+    # PPO
+    seed: int = 1
+    """seed of torch, numpy and the envs (env e gets seed + e)"""
+    total_timesteps: int = 200_000
+    """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together); rounded down to whole
+    iterations of num_steps x num_envs x taxis, at least one"""
+    num_envs: int = 32
+    """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
+    split evenly among the ranks"""
+    num_steps: int = 64
+    """rollout length per env and iteration"""
+    num_minibatches: int = 16
+    """minibatches per update epoch"""
+    update_epochs: int = 4
+    """passes over each rollout"""
+    learning_rate: float = 1e-3
+    """Adam learning rate"""
+    anneal_lr: bool = True
+    """decay the learning rate linearly to 0"""
+    gamma: float = 0.9
+    """discount factor (also the shaping term's unless shaping_gamma is set, so the shaping stays potential-based).
+    0.9, not CleanRL's 0.99:
+    with the path-distance potential every step's progress is paid at once, so a short horizon loses little
+    and cuts the variance of the advantages; on Berlin P4 it took the LE variant from TD 8,900 m (gamma 0.95) to
+    5,200-5,300 m in 150k agent-steps (docs/results.md). Raise it for sparse rewards (shaping 0)"""
+    gae_lambda: float = 0.9
+    """GAE lambda"""
+    clip_coef: float = 0.2
+    """PPO ratio clip (also the value clip)"""
+    clip_vloss: bool = True
+    """clip the value loss as PPO2"""
+    ent_coef: float = 0.003
+    """entropy bonus weight"""
+    vf_coef: float = 0.5
+    """value loss weight"""
+    max_grad_norm: float = 0.5
+    """global gradient-norm clip"""
+    target_kl: float | None = None
+    """stop an update early when the approximate KL exceeds this"""
+    norm_adv: bool = True
+    """normalise advantages per minibatch"""
+    norm_obs: bool = True
+    """normalise continuous observation fields with running statistics"""
+    norm_reward: bool = True
+    """scale rewards by the running std of the discounted return"""
+    # evaluation, logging, checkpoints
+    eval_every: int = 5
+    """greedy evaluation every this many iterations (0: only at the end)"""
+    fill_tables: bool = True
+    """with stop features on random demand: compute the feasible-path distance tables before training (or load
+    them from the disk cache, uamfleet.paths.distance_table), ~30 s per threshold on Berlin the first time"""
+    eval_instances: int = 0
+    """evaluate on this many held-out validation instances of the scenario's family (uamfleet.instances;
+    *_instances scenarios), flown in one batch, and keep the best on them; 0: one episode of the training
+    scenario. Never the test instances: those are for the final report"""
+    eval_time_limit_steps: int | None = None
+    """time limit of the greedy evaluation episodes; None: the training one (the observation's time
+    features are fractions of the time limit, so a different one shifts them)"""
+    checkpoint_every: int = 5
+    """iterations between checkpoints"""
+    stop_at_td_m: float | None = None
+    """stop once a greedy evaluation delivers everyone with TD at or below this (measures time-to-target)"""
+    max_wall_s: float | None = None
+    """stop (after a final evaluation and checkpoint) once training has run this many seconds"""
+    run_dir: Path = Path("runs")
+    """folder of all runs (relative to the current folder)"""
+    run_name: str | None = None
+    """None: {scenario}_{sinr}dB_{variant}_s{seed}"""
+    resume: bool = False
+    """continue from run_dir/run_name/last.pt"""
+    overwrite: bool = False
+    """replace an existing run of this name (without it, or --resume, an existing run is an error)"""
+    device: Literal["auto", "cpu", "cuda"] = "auto"
+    """torch device (auto: CUDA when available); under torchrun, cuda means cuda:LOCAL_RANK"""
+    backend: Literal["auto", "gloo", "nccl"] = "auto"
+    """torch.distributed backend under torchrun (auto: NCCL when each local rank has a GPU of its own, else
+    gloo)"""
+    threads: int = 0
+    """torch CPU threads (0: torch's default)"""
+    progress: bool = True
+    """show a progress bar"""
+    tensorboard: bool = True
+    """write TensorBoard events to run_dir/name/tb"""
+
+    def __post_init__(self) -> None:
+        """Every numeric option in its range (:class:`~uamfleet.config.ConfigError` naming the flag otherwise),
+        so a typo fails before any env is built, not after training (``checkpoint_every=0``)."""
+        self._check_numbers()
+        self._check_thresholds()
+        if self.eval_instances > len(VALIDATION_SEEDS):
+            raise ConfigError(
+                f"--eval-instances={self.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
+                f"validation split; give at most {len(VALIDATION_SEEDS):,} (e.g. 50)."
+            )
+        if self.eval_instances and not self.scenario.endswith(("_instances", "_fleet")):
+            raise ConfigError(
+                f"--eval-instances={self.eval_instances} flies held-out instances of a family; it needs a "
+                f"*_instances or *_fleet scenario (not {self.scenario!r}), e.g. --scenario berlin_instances."
+            )
+        for name in ("scenario", "run_name"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, str):
+                raise ConfigError(f"{_flag(name)}={value!r} must be a string.")
+
+    def _check_numbers(self) -> None:
+        """The integer options against their lower bounds, the float options against their intervals."""
+        for name, minimum in _COUNTS.items():
+            check_integer(_flag(name), getattr(self, name), minimum)
+        most = 4 * (os.cpu_count() or 1)
+        check_integer("--threads", self.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
+        for name in ("num_taxis", "eval_time_limit_steps"):
+            if getattr(self, name) is not None:
+                check_integer(_flag(name), getattr(self, name), 1)
+        for name, (low, high, low_open) in _RANGES.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            check_number(_flag(name), value)
+            if (value <= low if low_open else value < low) or (high is not None and value > high):
+                interval = f"{'(' if low_open else '['}{low:g}, {'inf)' if high is None else f'{high:g}]'}"
+                raise ConfigError(f"{_flag(name)}={value!r} is out of range: it must lie in {interval}.")
+
+    def _check_thresholds(self) -> None:
+        """--thresholds: a list of distinct dB values, not given together with --sinr-min-db (stored as a tuple)."""
+        if isinstance(self.thresholds, str | bytes) or not hasattr(self.thresholds, "__iter__"):
+            raise ConfigError(f"--thresholds={self.thresholds!r} must be a list of dB values, e.g. -7 -6 -5.")
+        self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
+        repeated = sorted({t for t in self.thresholds if self.thresholds.count(t) > 1})
+        if repeated:
+            raise ConfigError(
+                f"--thresholds={list(self.thresholds)} repeats {repeated}: each threshold is one share of the envs; "
+                "give each once."
+            )
+        if self.thresholds and self.sinr_min_db is not None:
+            raise ConfigError(
+                f"--sinr-min-db={self.sinr_min_db} and --thresholds={list(self.thresholds)} both set the threshold; "
+                "give one of them."
+            )
+
+    @property
+    def name(self) -> str:
+        if self.run_name:
+            return self.run_name
+        sinr = "default" if self.sinr_min_db is None else f"{self.sinr_min_db:g}"
+        return f"{self.scenario}_{sinr}dB_{self.variant}_s{self.seed}"
+
+    def env_overrides(self, training: bool = True) -> dict[str, Any]:
+        overrides: dict[str, Any] = {"feasibility": self.feasibility}
+        if self.sinr_min_db is not None:
+            overrides["sinr_min_db"] = self.sinr_min_db
+        if self.num_taxis is not None:
+            overrides["num_taxis"] = self.num_taxis
+        limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
+        overrides["time_limit_steps"] = limit
+        return overrides
+
+
+# Lower bounds of TrainArgs' integer options.
+_COUNTS: dict[str, int] = {
+    "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
+    "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
+    "checkpoint_every": 1, "threads": 0, "eval_instances": 0,
+}  # fmt: skip
+# (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
+_RANGES: dict[str, tuple[float, float | None, bool]] = {
+    "sinr_min_db": (-math.inf, None, True), "shaping": (0.0, None, False), "shaping_gamma": (0.0, 1.0, True),
+    "shaping_anneal_frac": (0.0, 1.0, False), "learning_rate": (0.0, None, True), "gamma": (0.0, 1.0, True),
+    "gae_lambda": (0.0, 1.0, False), "clip_coef": (0.0, None, True), "ent_coef": (0.0, None, False),
+    "vf_coef": (0.0, None, False), "max_grad_norm": (0.0, None, True), "target_kl": (0.0, None, True),
+    "stop_at_td_m": (0.0, None, False), "max_wall_s": (0.0, None, True),
+}  # fmt: skip
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool = True) -> EnvConfig:
+    """The env config a run trains (or evaluates) on: the scenario with the run's overrides and shaping.
+
+    The shaping term uses the trainer's discount unless ``args.shaping_gamma`` is set, so by default it stays
+    potential-based for the return PPO maximises (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own
+    gamma)."""
+    cfg = make_config(scenario, **args.env_overrides(training=training))
+    reward = dataclasses.replace(
+        cfg.reward,
+        shaping=args.shaping,
+        shaping_metric=args.shaping_metric,
+        shaping_gamma=args.gamma if args.shaping_gamma is None else args.shaping_gamma,
+    )
+    return cfg.replace(reward=reward)
+
+
+def plain_args(args: TrainArgs) -> dict[str, Any]:
+    """The options as plain values (paths as strings), as a checkpoint stores them."""
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()}
