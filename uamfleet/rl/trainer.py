@@ -111,8 +111,9 @@ class TrainArgs:
     # network
     variant: VariantName = "de_msfea"
     """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
-    Default de_msfea: on Berlin P4 it came within 5 % of the optimum in 40-140k agent-steps in 8 of 10 runs, at
-    3x the full model's speed per step; the full model learned slower per step too (docs/results.md)"""
+    Default de_msfea: on Berlin P4 it came within 5 % of raster_opt (a raster planner, not an optimum of the env's
+    moves) in 40-140k agent-steps in 8 of 10 runs, at 3x the full model's speed per step; the full model learned
+    slower per step too (docs/results.md)"""
     d_model: int = 64
     """token / feature width of the network"""
     num_heads: int = 4
@@ -491,6 +492,12 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, world: World, device
             f"one iteration's batch of {batch} agent-steps (--num-steps {args.num_steps} x --num-envs "
             f"{args.num_envs} x {taxis} taxi(s)) to split; raise --total-timesteps to >= {batch} or lower "
             "--num-envs / --num-steps."
+        )
+    if batch % args.num_minibatches:  # else the last minibatch would be a silent extra, smaller update
+        divisor = max(d for d in range(1, args.num_minibatches) if batch % d == 0)
+        raise ConfigError(
+            f"--num-minibatches={args.num_minibatches} does not divide the batch of {batch} agent-steps (--num-steps "
+            f"x --num-envs x taxis); choose a divisor of {batch}, e.g. {divisor}."
         )
     return Run(
         args=args, world=world, device=device, folder=args.run_dir / args.name, cfg=cfg,
