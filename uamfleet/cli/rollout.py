@@ -5,8 +5,8 @@ episode's metrics.
     .venv/bin/python -m eval.rollout --scenario berlin_random --policy greedy --num-taxis 4
 
 Undefined figures print as "–": ATT / AWT when no ride finished or began, and "(min –)" when a taxi's path
-crosses a cell the radio map never measured (NaN, e.g. outside the WinProp area or under a building): such a
-sample counts as an outage in connectivity, and the minimum SINR along the path is then -inf.
+crosses a cell the radio map has no value for (NaN: "N.C.", not computed, in a WinProp file; black in the
+viewer): such a sample counts as an outage in connectivity, and the minimum SINR along the path is then -inf.
 """
 
 from __future__ import annotations
