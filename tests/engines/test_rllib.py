@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import uamfleet
-from tests.engines.conftest import require
+from tests.engines.required import require
 from uamfleet.engines.rllib import POLICY_ID, FlatMaskedParallelEnv, flat_masked_env, ppo_config
 
 

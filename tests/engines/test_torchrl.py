@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tests.engines.conftest import require
+from tests.engines.required import require
 from uamfleet.engines.torchrl import GROUP, masked_policy, observation_fields, torchrl_env
 
 

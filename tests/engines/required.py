@@ -1,5 +1,5 @@
 """The engine tests need RLlib or TorchRL, which the default .venv lacks: they are skipped there, and
-``bash scripts/engines.sh`` runs them in .venv-engines with UAMFLEET_REQUIRE_ENGINES=1, where a missing engine
+``bash scripts/engines.sh`` runs them in the engines venv with UAMFLEET_REQUIRE_ENGINES=1, where a missing engine
 is an error instead of a skip (so the CI step cannot pass by skipping)."""
 
 from __future__ import annotations
