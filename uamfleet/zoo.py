@@ -38,8 +38,15 @@ def pretrained_path(name: str = "berlin") -> Path:
 
 def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
     """The shipped policy ``name`` (:data:`PRETRAINED`) as a greedy planner: call it on observations, or
-    ``.fly(cfg)`` any config of its map (``.layout(cfg)`` fits the passenger axis and features to it)."""
-    return load_policy(pretrained_path(name), device=device)[0]
+    ``.fly(cfg)`` any config of its map (``.layout(cfg)`` fits the passenger axis and features to it). Flown at a
+    threshold outside those it trained on (its training arguments' ``thresholds``, else ``sinr_min_db``), it
+    warns once."""
+    policy, args = load_policy(pretrained_path(name), device=device)
+    assert policy.trained_on is not None  # load_policy always sets it
+    single = args.sinr_min_db if args.sinr_min_db is not None else policy.trained_on.sinr_min_db
+    trained = [float(t) for t in args.thresholds] if args.thresholds else [float(single)]
+    policy.thresholds_db = (min(trained), max(trained))
+    return policy
 
 
 def export_policy(checkpoint: str | Path, out: str | Path) -> Path:

@@ -5,10 +5,13 @@
 
 Trains on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold) for 150k agent-steps (capped at
 ``--minutes``), keeps the best greedy evaluation (runs/quickstart/best.pt), and prints its TD / ATT / AWT /
-ELR / PR / connectivity next to the paper's MSHA-RL row and our REPLAN and clairvoyant OPT planners flown
-under the same rules (the authors' endpoint-block rule by default). Then it flies the shipped Berlin generalist
+ELR / PR / connectivity next to the paper's MSHA-RL row and our raster planners (``raster_replan``, online;
+``raster_opt``, clairvoyant: best stop orders over shortest feasible paths) flown under the same rules (the
+authors' endpoint-block rule by default). Then it flies the shipped Berlin generalist
 (``uamfleet.pretrained("berlin")``, one policy for any instance) on Berlin P4 at -7 ... -3 dB beside the paper's
-MSHA-RL, and on the held-out test instances beside the planners' recorded rows.
+MSHA-RL, and on the held-out test instances beside the planners' recorded rows. It keeps no files outside
+``--run-dir`` (the distance-table rows it needs are computed in memory; only a complete table, as training on
+random demand fills, is cached in ``~/.cache/uamfleet``).
 """
 
 from __future__ import annotations

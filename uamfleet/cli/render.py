@@ -4,10 +4,10 @@
     .venv/bin/python -m eval.render --scenario berlin_random --policy greedy --num-taxis 4 --out fleet.html
 
 ``--policy``: a planner (single taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known),
-``greedy`` (a simple fleet dispatcher, below) or ``random``. ``--png`` also writes ``<out stem>_routes.png``
-(the route over the radio map, stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along the path over time, with
-the threshold). Screenshot the page with ``scripts/screenshot.sh``. ``--out`` is relative to the current folder;
-its folder must exist or be one new folder inside an existing one.
+a fleet dispatcher (``greedy``, ``insertion``, ``batch_assignment``) or ``random``. ``--png`` also writes
+``<out stem>_routes.png`` (the route over the radio map, stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along
+the path over time, with the threshold). Screenshot the page with ``scripts/screenshot.sh``. ``--out`` is
+relative to the current folder; its folder must exist or be one new folder inside an existing one.
 """
 
 from __future__ import annotations
@@ -47,8 +47,8 @@ class Args:
     scenario: Scenario = "berlin_p4"
     """scenario name"""
     policy: Policy = "raster_replan"
-    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
-    (fleet dispatcher) or random"""
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), a fleet
+    dispatcher (greedy, insertion, batch_assignment) or random"""
     out: Path = Path("render.html")
     """HTML file to write (relative to the current folder; its folder must exist, or be one new folder in an
     existing one)"""

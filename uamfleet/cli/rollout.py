@@ -4,7 +4,9 @@ episode's metrics.
     uamfleet-rollout --scenario berlin_p4 --policy raster_replan --episodes 3
     .venv/bin/python -m eval.rollout --scenario berlin_random --policy greedy --num-taxis 4
 
-Undefined figures print as "–" (ATT when no ride finished, the minimum SINR of an episode without a step).
+Undefined figures print as "–": ATT / AWT when no ride finished or began, and "(min –)" when a taxi's path
+crosses a cell the radio map has no value for (NaN: "N.C.", not computed, in a WinProp file; black in the
+viewer): such a sample counts as an outage in connectivity, and the minimum SINR along the path is then -inf.
 """
 
 from __future__ import annotations
@@ -31,8 +33,8 @@ class Args:
     num_taxis: Annotated[int | None, SCENARIO_DEFAULT] = None
     """fleet size"""
     policy: Policy = "random"
-    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), greedy
-    (fleet dispatcher) or random"""
+    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), a fleet
+    dispatcher (greedy, insertion, batch_assignment) or random"""
     episodes: int = 3
     """number of episodes (>= 1)"""
     seed: int = 0

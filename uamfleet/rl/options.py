@@ -68,8 +68,9 @@ class TrainArgs:
     # network
     variant: VariantName = "de_msfea"
     """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
-    Default de_msfea: on Berlin P4 it came within 5 % of the optimum in 40-140k agent-steps in 8 of 10 runs, at
-    3x the full model's speed per step; the full model learned slower per step too (docs/results.md)"""
+    Default de_msfea: on Berlin P4 it came within 5 % of raster_opt (a raster planner, not an optimum of the env's
+    moves) in 40-140k agent-steps in 8 of 10 runs, at 3x the full model's speed per step; the full model learned
+    slower per step too (docs/results.md)"""
     d_model: int = 64
     """token / feature width of the network"""
     num_heads: int = 4

@@ -9,12 +9,13 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from uamfleet.config import PRESETS, EnvConfig
+from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
 from uamfleet.env.layout import layout_shapes, observation_layout, observation_space
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args
@@ -28,7 +29,9 @@ class GreedyPolicy:
 
     ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
     training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
-    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it."""
+    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it;
+    ``thresholds_db`` (lowest, highest threshold it trained on), when given, makes :meth:`layout` warn once about a
+    threshold outside them."""
 
     def __init__(
         self,
@@ -39,17 +42,29 @@ class GreedyPolicy:
         num_taxis: int | None = None,
         passenger_slots: int | None = None,
         trained_on: EnvConfig | None = None,
+        thresholds_db: tuple[float, float] | None = None,
     ) -> None:
         self.net, self.normalizer, self.device = net, normalizer, device
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
-        self.trained_on = trained_on
+        self.trained_on, self.thresholds_db = trained_on, thresholds_db
+        self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
+        self._warned_threshold = False
 
     def layout(self, cfg: EnvConfig) -> EnvConfig:
         """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
         passenger axis (the instance's requests padded to it), its stop features and its time limit (the
         observation's time feature is a fraction of the limit). The rules, threshold and instance are kept.
         Raises ValueError when the instance has more requests than the policy has passenger slots, or another
-        fleet size."""
+        fleet size. Warns (once per policy) when ``cfg``'s threshold lies outside :attr:`thresholds_db`."""
+        low, high = self.thresholds_db or (-math.inf, math.inf)
+        if not low <= cfg.sinr_min_db <= high and not self._warned_threshold:
+            self._warned_threshold = True  # once: a sweep over thresholds would otherwise repeat it per episode
+            warnings.warn(
+                f"sinr_min_db={cfg.sinr_min_db:g} dB lies outside the thresholds this policy trained on "
+                f"({low:g} ... {high:g} dB); it flies, but nothing was measured there (docs/results.md).",
+                UserWarning,
+                stacklevel=3,
+            )
         if self.trained_on is None:
             return cfg
         like = self.trained_on
@@ -60,9 +75,10 @@ class GreedyPolicy:
             )
         if cfg.num_taxis != like.num_taxis:
             raise ValueError(
-                f"the config has {cfg.num_taxis} taxi(s); this policy was trained with {like.num_taxis}: set "
-                f"num_taxis={like.num_taxis}, or fly policy.for_fleet({cfg.num_taxis}) (a designed variant reads "
-                "any fleet size zero-shot), or train a policy for this fleet."
+                f"the config has {cfg.num_taxis} taxi(s); this policy is laid out for {like.num_taxis} (its weights "
+                f"were trained with {self.trained_num_taxis}): set num_taxis={like.num_taxis}, or fly "
+                f"policy.for_fleet({cfg.num_taxis}) (a designed variant reads any fleet size zero-shot), or train a "
+                "policy for this fleet."
             )
         return cfg.with_layout_of(like)
 
@@ -72,6 +88,7 @@ class GreedyPolicy:
         (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
         their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
         position (the linear encoder) or a policy without its training config."""
+        num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS, fix=" (the fleet size to fly)")
         slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
         if num_taxis == self.num_taxis and slots == self.passenger_slots:
             return self
@@ -101,7 +118,9 @@ class GreedyPolicy:
         net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
         net.shapes = shapes
         normalizer = self.normalizer.resized(shapes) if self.normalizer is not None else None
-        return GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like)
+        fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db)
+        fitted.trained_num_taxis = self.trained_num_taxis
+        return fitted
 
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
         """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with

@@ -158,6 +158,12 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
             f"{args.num_envs} x {taxis} taxi(s)) to split; raise --total-timesteps to >= {batch} or lower "
             "--num-envs / --num-steps."
         )
+    if batch % args.num_minibatches:  # else the last minibatch would be a silent extra, smaller update
+        divisor = max(d for d in range(1, args.num_minibatches) if batch % d == 0)
+        raise ConfigError(
+            f"--num-minibatches={args.num_minibatches} does not divide the batch of {batch} agent-steps (--num-steps "
+            f"x --num-envs x taxis); choose a divisor of {batch}, e.g. {divisor}."
+        )
     return Run(
         args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
         eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes,
