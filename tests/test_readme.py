@@ -313,3 +313,32 @@ TITLES = {
 def test_every_readme_screenshot_exists_and_its_caption_names_its_title(caption: str, path: str):
     assert (ROOT / path).is_file()
     assert TITLES[Path(path).name] in caption
+
+
+# ---- issue 20 (guided search) and issue 21 (the separation shield) ----
+
+
+def test_guided_search_on_the_test_set():
+    by: dict[str, dict[str, float]] = defaultdict(dict)
+    for r in rows("benchmark_berlin_test_guided.csv"):
+        by[r["method"]][r["instance"]] = float(r["td_m"])
+    names = sorted(by["learned_guided"])
+    assert len(names) == 200
+    guided, greedy, replan = (np.array([by[k][i] for i in names]) for k in ("learned_guided", "learned", "replan"))
+    diff = guided - greedy
+    half = 1.96 * diff.std(ddof=1) / np.sqrt(len(diff))
+    says(GLANCE, f"flies a mean TD of {m(guided.mean())} m on the 200 test instances")
+    says(GLANCE, f"{m(-diff.mean())} ± {m(half)} m per instance shorter than its greedy decoding (paired, 95 %)")
+    says(GLANCE, f"still {pct(guided.mean() / replan.mean())} % above `replan` as a ratio of means")
+
+
+def test_the_separation_shield():
+    shielded = [r for name in ("fleet_shield_4x24_first20.csv", "fleet_shield_8x48_first20.csv")
+                for r in rows(name) if r["separation"] == "shield"]  # fmt: skip
+    assert len(shielded) == 160 and all(int(r["separation_violations"]) == 0 for r in shielded)
+    says(GLANCE, f"no loss of separation in {len(shielded)} shielded episodes")
+    short = [r for r in shielded if int(r["delivered"]) < int(r["num_requests"])]
+    assert [(r["dispatcher"], r["setting"], r["delivered"], r["num_requests"]) for r in short] == [
+        ("batch_assignment", "8x48", "46", "48")
+    ]
+    says(GLANCE, "2 of 48 passengers were not delivered")
