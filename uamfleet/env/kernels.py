@@ -515,36 +515,49 @@ def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: i
 
     Only the sets R a tour can leave are computed: where a waiting passenger's origin is still to visit, so is her
     destination (the recursion from the full set reads no other; the rest stay inf). With k waiting passengers
-    that is 3**k of the 4**k sets."""
+    that is 3**k of the 4**k sets. Likewise only the stops i that can be visited just before R: not an origin
+    whose destination is done, not a destination whose origin is still to visit."""
     rest = np.full((1 << n, n), math.inf)
     origins = 0  # bits of the origins whose destination is pending too (then at the origin's bit + 1)
+    after = np.zeros(n, np.int64)  # after[j]: the bit of the origin destination j must wait for (0: none)
     for k in range(n):
         if ids[k] % 2 == 0:
             origins |= 1 << k
+        elif origin_of[k] >= 0:
+            after[k] = 1 << origin_of[k]
     for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
         if ((remaining & origins) << 1) & ~remaining:
             continue  # an origin pending without its destination: no tour gets here
-        free = seats
-        for k in range(n):
-            if not (remaining >> k) & 1:
-                free += 1 if ids[k] % 2 else -1
+        nexts = _next_stops(remaining, ids, after, n, seats)
         for i in range(n):
             if (remaining >> i) & 1:
                 continue
+            if remaining & after[i] or ((origins >> i) & 1 and not (remaining >> (i + 1)) & 1):
+                continue  # i cannot be visited just before R (no tour reads this rest)
             if remaining == 0:
                 rest[remaining, i] = 0.0
                 continue
             best = math.inf
             for j in range(n):
-                if not (remaining >> j) & 1:
-                    continue
-                if ids[j] % 2 == 0 and free <= 0:
-                    continue
-                if ids[j] % 2 == 1 and origin_of[j] >= 0 and (remaining >> origin_of[j]) & 1:
-                    continue
-                best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
+                if (nexts >> j) & 1:
+                    best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
             rest[remaining, i] = best
     return rest
+
+
+@njit(cache=True, inline="always")
+def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int) -> int:
+    """The bits of the stops of set R that may come next (:func:`_subset_rests`): a drop-off whose pick-up is
+    done, a pick-up while a seat is free once the stops outside R are visited."""
+    free = seats
+    for k in range(n):
+        if not (remaining >> k) & 1:
+            free += 1 if ids[k] % 2 else -1
+    nexts = 0
+    for j in range(n):
+        if (remaining >> j) & 1 and not remaining & after[j] and (ids[j] % 2 == 1 or free > 0):
+            nexts |= 1 << j
+    return nexts
 
 
 @njit(cache=True)
