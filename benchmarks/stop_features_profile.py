@@ -98,7 +98,7 @@ def snapshots(env: uamfleet.VectorEnv, count: int, every: int) -> list[FleetStat
     return kept
 
 
-@njit(cache=True)
+@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
 def tour_rests_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
     """Every taxi's tour rests as :func:`kernels.stop_features` brings them up to date (``_update_rests``: the
     exact DP, or beyond ``MAX_EXACT_STOPS`` stops the nearest-stop order's, when its stops or seats changed);
@@ -117,7 +117,7 @@ def tour_rests_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, 
     return computed
 
 
-@njit(cache=True)
+@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
 def lookups_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
     """Each taxi's table look-ups towards its actionable stops: to the stop, and after each allowed move
     (:func:`kernels._progress_heading`); returns the number of rows."""

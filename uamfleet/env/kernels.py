@@ -447,14 +447,18 @@ def _progress_key(s: FleetState, e: int, a: int) -> int:
     """Env e's progress as a key of taxi a's tours, for any passenger axis: within an episode a passenger's status
     only moves forward (HIDDEN 0, WAITING 1, ON_BOARD 2, DELIVERED 3; the carrier is set on the way) and the kept
     key is cleared with the stops (``generator``), so the sum of the statuses takes a new value at every change
-    of any passenger's (and with it every change of the taxi's stops or seats). A status-weighted sum of the row
-    numbers and the free seats go in too, so that a state edited by hand still changes its key. Bit 61 keeps it
-    apart from :func:`_pending_key`'s keys."""
+    of any passenger's (and with it every change of the taxi's stops or seats). Another taxi's drop-off changes
+    nothing of taxi a's tours: it counts as still on board. A status-weighted sum of the row numbers and the free
+    seats go in too, so that a state edited by hand still changes its key. Bit 61 keeps it apart from
+    :func:`_pending_key`'s keys."""
     total, weighted = 0, 0
     for p in range(s.pax_status.shape[1]):
         if s.pax_exists[e, p]:
-            total += s.pax_status[e, p]
-            weighted += (p + 1) * s.pax_status[e, p]
+            status = s.pax_status[e, p]
+            if status == DELIVERED and s.pax_taxi[e, p] != a:
+                status = ON_BOARD
+            total += status
+            weighted += (p + 1) * status
     return (total & 0xFFFFF) | ((weighted & 0xFFFFFFFF) << 20) | ((s.free_seats[e, a] & 0xFF) << 52) | (1 << 61)
 
 
