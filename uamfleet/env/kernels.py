@@ -565,31 +565,17 @@ def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seat
 
 
 @njit(cache=True)
-def _nearest_stop_tour(
-    s: FleetState, e: int, a: int, first: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray,
-    block_m: float, nbx: int, nby: int, todo: np.ndarray,
-) -> float:  # fmt: skip
-    """Length of the rest of taxi a's tour after it reaches stop point ``first`` (2p: p's origin, 2p + 1: p's
-    destination), flown in nearest-stop order through every stop it knows of: the destinations of its riders and
-    the origins of the waiting passengers (while a seat is free), pick-up before drop-off. NaN: a table row is
-    missing. ``todo`` [2P] is scratch (1: the stop is still to visit); each leg scans only the stops that can
-    join the tour (in point order, so ties go to the lowest point as over all 2P)."""
-    num_pax = s.pax_status.shape[1]
-    seats = s.free_seats[e, a]
-    stops = np.empty(2 * num_pax, np.int64)  # the points that are or may become todo, ascending
-    m = 0
-    for p in range(num_pax):
-        status = s.pax_status[e, p]
-        waiting = s.pax_exists[e, p] and status == WAITING
-        todo[2 * p] = 1 if waiting else 0
-        todo[2 * p + 1] = 1 if s.pax_exists[e, p] and status == ON_BOARD and s.pax_taxi[e, p] == a else 0
-        if waiting:
-            stops[m] = 2 * p
-            m += 1
-        if waiting or todo[2 * p + 1]:
-            stops[m] = 2 * p + 1
-            m += 1
-    if first % 2 == 0:  # boarding p0: her destination joins the tour
+def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray, first: int, seats: int,
+                       todo: np.ndarray) -> float:  # fmt: skip
+    """Length of the rest of a taxi's tour after it reaches local stop ``first``, flown in nearest-stop order
+    through every stop it knows of (:func:`_nearest_rests`: ``stops`` [m] its stop points, ascending, a waiting
+    passenger's destination right after her origin; ``dist`` [m, m] between them; ``pending`` [m] 1 for the stops
+    to visit from the start, 0 for the destinations of passengers not aboard yet; ``seats`` free at the start).
+    Pick-up before drop-off, an origin only while a seat is free; ties go to the lowest stop point. ``todo`` [m]
+    is scratch."""
+    m = stops.size
+    todo[:m] = pending[:m]
+    if stops[first] % 2 == 0:  # boarding: her destination joins the tour
         todo[first], todo[first + 1] = 0, 1
         seats -= 1
     else:
@@ -598,13 +584,10 @@ def _nearest_stop_tour(
     total, here = 0.0, first
     while True:
         best, best_d = -1, math.inf
-        for k in range(m):
-            i = stops[k]
-            if todo[i] == 0 or (i % 2 == 0 and seats <= 0):
+        for i in range(m):
+            if todo[i] == 0 or (stops[i] % 2 == 0 and seats <= 0):
                 continue
-            d = _stop_distance(memo, pts, here, i, table, block_m, nbx, nby)
-            if math.isnan(d):
-                return math.nan
+            d = dist[here, i]
             if d < best_d:
                 best, best_d = i, d
         if best < 0:
@@ -612,7 +595,7 @@ def _nearest_stop_tour(
         total += best_d
         here = best
         todo[best] = 0
-        if best % 2 == 0:
+        if stops[best] % 2 == 0:
             todo[best + 1] = 1
             seats -= 1
         else:
@@ -725,15 +708,32 @@ def _nearest_rests(
     s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
     nbx: int, nby: int, out: np.ndarray,
 ) -> bool:  # fmt: skip
-    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`); False when
-    a table row is missing."""
-    todo = np.empty(2 * s.pax_status.shape[1], np.int8)
-    for p in range(s.pax_status.shape[1]):
-        point = row_stop(s, e, a, p)
-        if point >= 0:
-            out[point] = _nearest_stop_tour(s, e, a, point, memo, pts, table, block_m, nbx, nby, todo)
-            if math.isnan(out[point]):
-                return False
+    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`: its riders'
+    destinations, the waiting passengers' origins while a seat is free); False when a table row is missing. The
+    distances between the taxi's stops are read from the memo once, into a local matrix every tour scans."""
+    num_pax = s.pax_status.shape[1]
+    stops = np.empty(2 * num_pax, np.int64)
+    pending = np.empty(2 * num_pax, np.int8)
+    m = 0
+    for p in range(num_pax):
+        if s.pax_status[e, p] == WAITING and s.pax_exists[e, p]:
+            stops[m], pending[m], stops[m + 1], pending[m + 1] = 2 * p, 1, 2 * p + 1, 0
+            m += 2
+        elif s.pax_status[e, p] == ON_BOARD and s.pax_exists[e, p] and s.pax_taxi[e, p] == a:
+            stops[m], pending[m] = 2 * p + 1, 1
+            m += 1
+    dist = np.zeros((m, m))
+    for i in range(m):
+        for j in range(m):
+            if i != j:
+                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], table, block_m, nbx, nby)
+                if math.isnan(dist[i, j]):
+                    return False
+    todo = np.empty(m, np.int8)
+    seats = s.free_seats[e, a]
+    for k in range(m):
+        if pending[k] and (stops[k] % 2 == 1 or seats > 0):  # an offered stop (row_stop)
+            out[stops[k]] = _nearest_stop_tour(dist, stops[:m], pending, k, seats, todo)
     return True
 
 
