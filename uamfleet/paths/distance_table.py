@@ -13,7 +13,7 @@ the step and the lookup into numba:
   :func:`~uamfleet.paths.graph_for` (16-connected, 10 m cells on the packaged maps; on a raster much finer than
   the blocks, a coarser one: :func:`table_graph`) + gap_j, float32; ``inf`` where no feasible path joins them.
   Row i is one Dijkstra from node i (:func:`~uamfleet.paths.bucket_dijkstra.lattice_distances`, compiled: the
-  same float64 numbers as ``scipy.sparse.csgraph.dijkstra``, ~15 x faster).
+  same float64 numbers as ``scipy.sparse.csgraph.dijkstra``, ~10 x faster).
 - **Rows on demand**: a row is computed the first time a stop needs it (:meth:`DistanceTable.ensure`, called
   when an instance is written), so a fixed instance costs a few Dijkstras and random demand fills the table
   over its first episodes (Berlin, 33 x 33 blocks: 1,089 rows, 4.7 MB, ~2.5 s in all on one core;
