@@ -11,10 +11,12 @@ import pytest
 from tests.conftest import drawn_map, small_config
 from uamfleet.config import ConfigError, DemandConfig, Request, make_config
 from uamfleet.env.generator import sample_requests
+from uamfleet.env import kernels
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
 from uamfleet.paths import table_for
+from uamfleet.paths.distance_table import table_distance
 from uamfleet.types import NUM_HEADINGS, WAITING
 
 # A wall at x = 300-400 m from y = 100 m to 500 m: from the west side, the stop on the east side is reached over the
@@ -376,3 +378,74 @@ def test_beyond_twelve_pending_stops_tours_follow_the_nearest_stop_order() -> No
         expected = float(table.distance(env.state.pos_m[0, 0], env.state.pax_origin_m[0, p]))
         expected += _python_nearest_rest(table, env.state, 0, 2 * p)
         assert obs["stop_paths"][0, 0, p, 2] == pytest.approx(expected / side, rel=1e-5)
+
+
+def _costing_every_move(world: World, table, allowed: np.ndarray, x: float, y: float, gx: float, gy: float) -> int:  # type: ignore[no-untyped-def]
+    """The progress heading as first written: every allowed move costed in order, the first least one kept (the
+    same float operations as the kernel, in Python)."""
+    w = world.arrays
+    nbx, nby = table.shape
+    best, best_cost = -1, np.inf
+    for h in range(NUM_HEADINGS):
+        if not allowed[h]:
+            continue
+        qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+        if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
+            cost = w.step_m
+        else:
+            cost = w.step_m + table_distance(table.distance_m, w.block_m, nbx, nby, qx, qy, gx, gy)
+        if cost < best_cost:
+            best, best_cost = h, cost
+    return best
+
+
+def test_progress_heading_equals_costing_every_move_in_order() -> None:
+    env = VectorEnv(make_config("berlin_random", num_taxis=1, stop_features=True, sinr_min_db=-5.0), num_envs=1)
+    world, table = env.world, table_for(env.world).fill()
+    nbx, nby = table.shape
+    rng = np.random.default_rng(5)
+    side, radius = world.side_m, world.cfg.radius_m
+    cases = [(rng.uniform(0, side, 2), rng.uniform(0, side, 2)) for _ in range(400)]
+    # the stop straight north, east or diagonal (mirror-image moves may tie), and within one move (several moves
+    # end within the pick-up radius: all cost the move alone, the lowest heading wins)
+    centre = np.array([side / 2, side / 2])
+    cases += [(centre, centre + d) for d in ([0.0, 700.0], [700.0, 0.0], [500.0, 500.0], [0.0, 30.0], [10.0, 0.0])]
+    mask = np.empty((1, NUM_HEADINGS), bool)
+    ties = 0
+    for pos, goal in cases:
+        kernels.action_mask(pos[None], world.arrays, mask)
+        for allowed in (mask[0], mask[0] & (rng.random(NUM_HEADINGS) < 0.5)):
+            expected = _costing_every_move(world, table, allowed, pos[0], pos[1], goal[0], goal[1])
+            got = kernels._progress_heading(allowed, world.arrays, table.distance_m, nbx, nby, *pos, *goal)
+            assert got == expected, (pos, goal, allowed)
+        ends = pos + world.moves_m[mask[0]]
+        ties += int((np.linalg.norm(ends - goal, axis=-1) <= radius).sum() > 1)
+    assert ties >= 1  # a case with several moves ending at the stop was checked
+
+
+@pytest.mark.parametrize("num_taxis", [4, 8])
+def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) -> None:
+    """The tour rests are kept in the state while a taxi's stops and seats stay the same (4 taxis: 24 passenger
+    rows, a key with a bit per stop, more than 12 stops pending: nearest-stop tours; 8 taxis: 48 rows, the
+    progress key). Every step's stop features equal those computed from a copy whose kept rests are cleared."""
+    env = VectorEnv(make_config("berlin_fleet", num_taxis=num_taxis, separation="none"), num_envs=2)
+    table = table_for(env.world).fill()
+    nbx, nby = table.shape
+    obs, _ = env.reset(seed=6)
+    rng = np.random.default_rng(6)
+    kept_steps = 0
+    for _ in range(60):
+        keys = env.state.stop_tour_key.copy()
+        actions = np.argmax(rng.random(obs["action_mask"].shape) * obs["action_mask"], axis=-1)
+        obs, *_ = env.step(actions)
+        kept_steps += int(((env.state.stop_tour_key == keys) & (keys != -1)).sum())
+        fresh = env.state.copy()
+        fresh.stop_tour_key[:] = -1
+        fresh.stop_tour_m[:] = np.nan
+        paths, heading = np.empty_like(obs["stop_paths"]), np.empty_like(obs["stop_heading_mask"])
+        assert kernels.stop_features(fresh, env.world.arrays, table.distance_m, nbx, nby, paths, heading)
+        np.testing.assert_array_equal(obs["stop_paths"], paths)
+        np.testing.assert_array_equal(obs["stop_heading_mask"], heading)
+    many = [kernels._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0
+            for e in range(2) for a in range(num_taxis)]  # fmt: skip
+    assert kept_steps > 50 and any(many)  # rests were kept, some of them nearest-stop tours

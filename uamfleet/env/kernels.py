@@ -190,11 +190,12 @@ subsets); beyond, the nearest-stop order's."""
 
 @njit(cache=True)
 def _pending_key(s: FleetState, e: int, a: int) -> int:
-    """A number that changes whenever taxi a's shortest tours can change: its stops still to visit (bits over the
-    2P stop points) and its free seats; -2 when the passenger axis is too long to encode (then no exact tours)."""
+    """A number that changes whenever taxi a's tours can change: its stops still to visit (bits over the 2P stop
+    points) and its free seats. On a passenger axis too long for a bit per stop (2P > 56), a count of the episode's
+    status changes instead (:func:`_progress_key`)."""
     num_pax = s.pax_status.shape[1]
     if 2 * num_pax > 56:
-        return -2
+        return _progress_key(s, e, a)
     key = 0
     for p in range(num_pax):
         if not s.pax_exists[e, p]:
@@ -204,6 +205,26 @@ def _pending_key(s: FleetState, e: int, a: int) -> int:
         elif s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
             key |= 2 << (2 * p)
     return key | (s.free_seats[e, a] << (2 * num_pax)) | (1 << 60)
+
+
+@njit(cache=True)
+def _progress_key(s: FleetState, e: int, a: int) -> int:
+    """Env e's progress as a key of taxi a's tours, for any passenger axis: within an episode a passenger's status
+    only moves forward (HIDDEN 0, WAITING 1, ON_BOARD 2, DELIVERED 3; the carrier is set on the way) and the kept
+    key is cleared with the stops (``generator``), so the sum of the statuses takes a new value at every change
+    of any passenger's (and with it every change of the taxi's stops or seats). Another taxi's drop-off changes
+    nothing of taxi a's tours: it counts as still on board. A status-weighted sum of the row numbers and the free
+    seats go in too, so that a state edited by hand still changes its key. Bit 61 keeps it apart from
+    :func:`_pending_key`'s keys."""
+    total, weighted = 0, 0
+    for p in range(s.pax_status.shape[1]):
+        if s.pax_exists[e, p]:
+            status = s.pax_status[e, p]
+            if status == DELIVERED and s.pax_taxi[e, p] != a:
+                status = ON_BOARD
+            total += status
+            weighted += (p + 1) * status
+    return (total & 0xFFFFF) | ((weighted & 0xFFFFFFFF) << 20) | ((s.free_seats[e, a] & 0xFF) << 52) | (1 << 61)
 
 
 @njit(cache=True)
@@ -259,48 +280,67 @@ def _pending_stops(s: FleetState, e: int, a: int, ids: np.ndarray, origin_of: np
 @njit(cache=True)
 def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: int, seats: int) -> np.ndarray:
     """rest[R, i]: the shortest rest from local stop i with the stops of bit set R still to visit (pick-up before
-    drop-off; an origin only with a free seat, ``seats`` being free before any of the n stops)."""
+    drop-off; an origin only with a free seat, ``seats`` being free before any of the n stops).
+
+    Only the sets R a tour can leave are computed: where a waiting passenger's origin is still to visit, so is her
+    destination (the recursion from the full set reads no other; the rest stay inf). With k waiting passengers
+    that is 3**k of the 4**k sets. Likewise only the stops i that can be visited just before R: not an origin
+    whose destination is done, not a destination whose origin is still to visit."""
     rest = np.full((1 << n, n), math.inf)
+    origins = 0  # bits of the origins whose destination is pending too (then at the origin's bit + 1)
+    after = np.zeros(n, np.int64)  # after[j]: the bit of the origin destination j must wait for (0: none)
+    for k in range(n):
+        if ids[k] % 2 == 0:
+            origins |= 1 << k
+        elif origin_of[k] >= 0:
+            after[k] = 1 << origin_of[k]
     for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
-        free = seats
-        for k in range(n):
-            if not (remaining >> k) & 1:
-                free += 1 if ids[k] % 2 else -1
+        if ((remaining & origins) << 1) & ~remaining:
+            continue  # an origin pending without its destination: no tour gets here
+        nexts = _next_stops(remaining, ids, after, n, seats)
         for i in range(n):
             if (remaining >> i) & 1:
                 continue
+            if remaining & after[i] or ((origins >> i) & 1 and not (remaining >> (i + 1)) & 1):
+                continue  # i cannot be visited just before R (no tour reads this rest)
             if remaining == 0:
                 rest[remaining, i] = 0.0
                 continue
             best = math.inf
             for j in range(n):
-                if not (remaining >> j) & 1:
-                    continue
-                if ids[j] % 2 == 0 and free <= 0:
-                    continue
-                if ids[j] % 2 == 1 and origin_of[j] >= 0 and (remaining >> origin_of[j]) & 1:
-                    continue
-                best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
+                if (nexts >> j) & 1:
+                    best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
             rest[remaining, i] = best
     return rest
 
 
+@njit(cache=True, inline="always")
+def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int) -> int:
+    """The bits of the stops of set R that may come next (:func:`_subset_rests`): a drop-off whose pick-up is
+    done, a pick-up while a seat is free once the stops outside R are visited."""
+    free = seats
+    for k in range(n):
+        if not (remaining >> k) & 1:
+            free += 1 if ids[k] % 2 else -1
+    nexts = 0
+    for j in range(n):
+        if (remaining >> j) & 1 and not remaining & after[j] and (ids[j] % 2 == 1 or free > 0):
+            nexts |= 1 << j
+    return nexts
+
+
 @njit(cache=True)
-def _nearest_stop_tour(
-    s: FleetState, e: int, a: int, first: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray,
-    block_m: float, nbx: int, nby: int, todo: np.ndarray,
-) -> float:  # fmt: skip
-    """Length of the rest of taxi a's tour after it reaches stop point ``first`` (2p: p's origin, 2p + 1: p's
-    destination), flown in nearest-stop order through every stop it knows of: the destinations of its riders and
-    the origins of the waiting passengers (while a seat is free), pick-up before drop-off. NaN: a table row is
-    missing. ``todo`` [2P] is scratch (1: the stop is still to visit)."""
-    num_pax = s.pax_status.shape[1]
-    seats = s.free_seats[e, a]
-    for p in range(num_pax):
-        status = s.pax_status[e, p]
-        todo[2 * p] = 1 if s.pax_exists[e, p] and status == WAITING else 0
-        todo[2 * p + 1] = 1 if s.pax_exists[e, p] and status == ON_BOARD and s.pax_taxi[e, p] == a else 0
-    if first % 2 == 0:  # boarding p0: her destination joins the tour
+def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray, first: int, seats: int,
+                       todo: np.ndarray) -> float:  # fmt: skip
+    """Length of the rest of a taxi's tour after it reaches local stop ``first``, flown in nearest-stop order
+    through every stop it knows of (:func:`_nearest_rests`: ``stops`` [m] its stop points, ascending, a waiting
+    passenger's destination right after her origin; ``dist`` [m, m] between them; ``pending`` [m] 1 for the stops
+    to visit from the start, 0 for the destinations of passengers not aboard yet; ``seats`` free at the start).
+    Pick-up before drop-off, an origin only while a seat is free; ties go to the lowest stop point. ``todo`` [m]
+    is scratch."""
+    m = stops.size
+    todo[:m] = pending[:m]
+    if stops[first] % 2 == 0:  # boarding: her destination joins the tour
         todo[first], todo[first + 1] = 0, 1
         seats -= 1
     else:
@@ -309,12 +349,10 @@ def _nearest_stop_tour(
     total, here = 0.0, first
     while True:
         best, best_d = -1, math.inf
-        for i in range(2 * num_pax):
-            if todo[i] == 0 or (i % 2 == 0 and seats <= 0):
+        for i in range(m):
+            if todo[i] == 0 or (stops[i] % 2 == 0 and seats <= 0):
                 continue
-            d = _stop_distance(memo, pts, here, i, table, block_m, nbx, nby)
-            if math.isnan(d):
-                return math.nan
+            d = dist[here, i]
             if d < best_d:
                 best, best_d = i, d
         if best < 0:
@@ -322,7 +360,7 @@ def _nearest_stop_tour(
         total += best_d
         here = best
         todo[best] = 0
-        if best % 2 == 0:
+        if stops[best] % 2 == 0:
             todo[best + 1] = 1
             seats -= 1
         else:
@@ -346,7 +384,8 @@ def stop_features(
     stop; ``[..., STOP_RIDE_PATH]``: from p's origin to p's destination (the ride still to fly once p is aboard);
     ``[..., STOP_TOUR_VIA_STOP]``: the shortest whole tour through every stop the taxi knows of when that stop is flown
     to first (:func:`_shortest_rests`, exact up to :data:`MAX_EXACT_STOPS` pending stops; beyond, the
-    nearest-stop order after it, :func:`_nearest_stop_tour`); all in map sides, clipped to
+    nearest-stop order after it, :func:`_nearest_stop_tour`; both kept per taxi until its stops or seats change,
+    :func:`_update_rests`); all in map sides, clipped to
     :data:`STOP_PATH_CLIP`. ``o_heading``: one-hot, the allowed heading that makes most
     progress along the feasible path to the stop (the move plus the distance left after it; a move ending
     within the pick-up radius costs the move only); all zero for a row that is not actionable. Distances are
@@ -357,7 +396,6 @@ def stop_features(
     num_pax = s.pax_status.shape[1]
     side, block_m = w.side_m, w.block_m
     pts = np.empty((2 * num_pax, 2))
-    todo = np.empty(2 * num_pax, np.int8)
     for e in range(num_envs):
         memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
         for p in range(num_pax):
@@ -365,8 +403,7 @@ def stop_features(
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            exact = _update_rests(s, e, a, memo, pts, table, block_m, nbx, nby)
-            if exact < 0:
+            if _update_rests(s, e, a, memo, pts, table, block_m, nbx, nby) < 0:
                 return False
             for p in range(num_pax):
                 for h in range(NUM_HEADINGS):
@@ -389,16 +426,9 @@ def stop_features(
                 if math.isnan(here):
                     return False
                 o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
-                if exact == 1:
-                    rest = s.stop_tour_m[e, a, point]
-                else:
-                    rest = _nearest_stop_tour(s, e, a, point, memo, pts, table, block_m, nbx, nby, todo)
-                if math.isnan(rest):
-                    return False
+                rest = s.stop_tour_m[e, a, point]
                 o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-                best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)
-                if best == -2:
-                    return False
+                best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)  # rows read above
                 if best >= 0:
                     o_heading[e, a, p, best] = 1
     return True
@@ -421,19 +451,55 @@ def _update_rests(
     s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
     nbx: int, nby: int,
 ) -> int:  # fmt: skip
-    """Bring taxi a's exact shortest rests (``s.stop_tour_m``) up to date; they change only when a stop or seat
-    does, so they are kept in the state under the key of what they were computed for. 1: exact rests are in
-    the state; 0: too many stops (use the nearest-stop order); -1: a table row is missing."""
+    """Bring taxi a's tour rests (``s.stop_tour_m``) up to date: the exact shortest ones, or beyond
+    :data:`MAX_EXACT_STOPS` pending stops the nearest-stop order's (:func:`_nearest_stop_tour`) of every stop
+    the taxi's rows offer. Both change only when a stop or seat does, so they are kept in the state under the key
+    of what they were computed for. 1: the rests are in the state; -1: a table row is missing."""
     key = _pending_key(s, e, a)
-    if key < 0:
-        return 0
     if s.stop_tour_key[e, a] == key:
         return 1
     found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
     if found == 0:
         return -1
-    s.stop_tour_key[e, a] = key if found == 1 else -1
-    return 1 if found == 1 else 0
+    if found == -1 and not _nearest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a]):
+        s.stop_tour_key[e, a] = -1
+        return -1
+    s.stop_tour_key[e, a] = key
+    return 1
+
+
+@njit(cache=True)
+def _nearest_rests(
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
+    nbx: int, nby: int, out: np.ndarray,
+) -> bool:  # fmt: skip
+    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`: its riders'
+    destinations, the waiting passengers' origins while a seat is free); False when a table row is missing. The
+    distances between the taxi's stops are read from the memo once, into a local matrix every tour scans."""
+    num_pax = s.pax_status.shape[1]
+    stops = np.empty(2 * num_pax, np.int64)
+    pending = np.empty(2 * num_pax, np.int8)
+    m = 0
+    for p in range(num_pax):
+        if s.pax_status[e, p] == WAITING and s.pax_exists[e, p]:
+            stops[m], pending[m], stops[m + 1], pending[m + 1] = 2 * p, 1, 2 * p + 1, 0
+            m += 2
+        elif s.pax_status[e, p] == ON_BOARD and s.pax_exists[e, p] and s.pax_taxi[e, p] == a:
+            stops[m], pending[m] = 2 * p + 1, 1
+            m += 1
+    dist = np.zeros((m, m))
+    for i in range(m):
+        for j in range(m):
+            if i != j:
+                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], table, block_m, nbx, nby)
+                if math.isnan(dist[i, j]):
+                    return False
+    todo = np.empty(m, np.int8)
+    seats = s.free_seats[e, a]
+    for k in range(m):
+        if pending[k] and (stops[k] % 2 == 1 or seats > 0):  # an offered stop (row_stop)
+            out[stops[k]] = _nearest_stop_tour(dist, stops[:m], pending, k, seats, todo)
+    return True
 
 
 @njit(cache=True)
@@ -442,21 +508,56 @@ def _progress_heading(
     gy: float,
 ) -> int:  # fmt: skip
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
-    ends within the pick-up radius); -1 when none is allowed or reachable, -2 when a table row is missing."""
-    best, best_cost = -1, math.inf
+    ends within the pick-up radius), ties to the lowest heading; -1 when none is allowed or reachable. The stop's
+    table rows must be computed (the caller has read them).
+
+    A move costs at least ``step_m`` + its end's straight-line distance to the stop (:func:`_move_bound`; the table
+    distance never undercuts the straight line), so the move with the least bound is costed first and a move
+    whose bound cannot beat the best so far is never looked up: the same heading as costing all 16 in order, for
+    a few look-ups instead of 16."""
+    first, first_bound = -1, math.inf
     for h in range(NUM_HEADINGS):
-        if not allowed[h]:
+        if allowed[h]:
+            bound = _move_bound(w, x, y, h, gx, gy)
+            if bound < first_bound:
+                first, first_bound = h, bound
+    if first < 0:
+        return -1
+    best, best_cost = first, _move_cost(w, table, nbx, nby, x, y, h=first, gx=gx, gy=gy)
+    if best_cost == math.inf:
+        best = -1
+    for h in range(NUM_HEADINGS):
+        if not allowed[h] or h == first:
             continue
-        qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
-        if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
-            cost = w.step_m
-        else:
-            cost = w.step_m + table_distance(table, w.block_m, nbx, nby, qx, qy, gx, gy)
-            if math.isnan(cost):
-                return -2
-        if cost < best_cost:
+        bound = _move_bound(w, x, y, h, gx, gy)
+        if bound > best_cost or (bound == best_cost and h > best):
+            continue  # its cost is >= bound: it cannot win, not even a tie
+        cost = _move_cost(w, table, nbx, nby, x, y, h, gx, gy)
+        if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
+
+
+@njit(cache=True, inline="always")
+def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
+    """A lower bound of :func:`_move_cost`, in the same float operations: the move plus the straight line left."""
+    qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+    if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
+        return w.step_m
+    dx, dy = qx - gx, qy - gy
+    return w.step_m + math.sqrt(dx * dx + dy * dy)
+
+
+@njit(cache=True, inline="always")
+def _move_cost(
+    w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, h: int, gx: float, gy: float
+) -> float:
+    """Heading h's move plus the table distance left from its end to (gx, gy); the move alone within the
+    pick-up radius."""
+    qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+    if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
+        return w.step_m
+    return w.step_m + table_distance(table, w.block_m, nbx, nby, qx, qy, gx, gy)
 
 
 @njit(cache=True)

@@ -1,0 +1,205 @@
+"""The stop features' cost: the step with them against the core without them, and where their time goes.
+
+Part 1 times ``VectorEnv.step`` (dynamics, rewards, observations, autoreset) by this thread's CPU time, side by side
+in one run, for each case with ``stop_features`` off and on (the scenario's other settings as they are; distance
+tables filled before timing; random allowed actions drawn outside the timed calls).
+
+Part 2 takes the states the observer hands the stop-feature kernels during such a rollout (snapshots, with the
+kernels' per-episode caches as they were at that moment) and times, on a fresh copy of each, the kernels whole
+(``stop_features``, ``stop_rivals``) and their parts (which overlap: each runs what it needs of the others):
+the tour rests (``_update_rests``: the subset DP, or beyond ``MAX_EXACT_STOPS`` pending stops the nearest-stop
+order's, when a taxi's stops or seats changed), the per-taxi look-ups (to each stop and after each of the 16
+moves, ``_progress_heading``), and the rivals/claims. Run on one core:
+
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import tyro
+from numba import njit
+
+import uamfleet
+from uamfleet.env import kernels
+from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
+from uamfleet.env.observer import Observer
+from uamfleet.env.world import WorldArrays
+from uamfleet.paths import table_for
+from uamfleet.paths.distance_table import table_distance
+from uamfleet.types import DELIVERED, HIDDEN, FleetState
+
+
+@dataclass
+class Args:
+    cases: tuple[str, ...] = ("berlin_instances:64:1", "berlin_fleet:64:4", "berlin_fleet:64:8",
+                              "berlin_random:64:4", "berlin_random:64:8")  # fmt: skip
+    """scenario:E:A"""
+    seconds: float = 3.0
+    """time each configuration for about this long (thread CPU time)"""
+    snapshots: int = 40
+    """states kept for the kernel breakdown (one every few steps)"""
+    every: int = 3
+    """keep one state every this many steps"""
+
+
+def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    scores = rng.random(mask.shape) * np.where(mask.any(-1, keepdims=True), mask, 1)
+    return np.argmax(scores, axis=-1)
+
+
+def make_env(scenario: str, num_envs: int, num_taxis: int, stop_features: bool) -> uamfleet.VectorEnv:
+    off = {} if stop_features else {"stop_rivals": False, "stop_claims": False}  # the fleet presets' extras too
+    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, stop_features=stop_features, **off)
+    if stop_features:
+        table_for(env.world).fill()
+    return env
+
+
+def step_rate(env: uamfleet.VectorEnv, seconds: float) -> float:
+    """Agent-steps per second of thread CPU time spent in ``env.step``."""
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    obs, *_ = env.step(_allowed_actions(obs["action_mask"], rng))  # compiles on a cold cache: not timed
+    steps, elapsed = 0, 0.0
+    while elapsed < seconds or steps < 5:
+        actions = _allowed_actions(obs["action_mask"], rng)
+        start = time.thread_time()
+        obs, *_ = env.step(actions)
+        elapsed += time.thread_time() - start
+        steps += 1
+    return steps * env.num_envs * env.world.cfg.num_taxis / elapsed
+
+
+def snapshots(env: uamfleet.VectorEnv, count: int, every: int) -> list[FleetState]:
+    """States as the observer receives them (after the dynamics, before the stop features), every few steps."""
+    kept: list[FleetState] = []
+    original = Observer._stop_fields
+    calls = [0]
+
+    def keep(self: Observer, state: FleetState, obs: dict[str, np.ndarray]) -> None:
+        calls[0] += 1
+        if calls[0] % every == 0 and len(kept) < count:
+            kept.append(state.copy())
+        original(self, state, obs)
+
+    Observer._stop_fields = keep  # type: ignore[method-assign]
+    try:
+        obs, _ = env.reset(seed=1)
+        rng = np.random.default_rng(1)
+        while len(kept) < count:
+            obs, *_ = env.step(_allowed_actions(obs["action_mask"], rng))
+    finally:
+        Observer._stop_fields = original  # type: ignore[method-assign]
+    return kept
+
+
+@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
+def tour_rests_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
+    """Every taxi's tour rests as :func:`kernels.stop_features` brings them up to date (``_update_rests``: the
+    exact DP, or beyond ``MAX_EXACT_STOPS`` stops the nearest-stop order's, when its stops or seats changed);
+    returns how many taxis' rests were computed (not kept from an earlier step)."""
+    num_pax = s.pax_status.shape[1]
+    pts = np.empty((2 * num_pax, 2))
+    computed = 0
+    for e in range(s.free_seats.shape[0]):
+        for p in range(num_pax):
+            pts[2 * p] = s.pax_origin_m[e, p]
+            pts[2 * p + 1] = s.pax_dest_m[e, p]
+        for a in range(s.free_seats.shape[1]):
+            kept = s.stop_tour_key[e, a]
+            _update_rests(s, e, a, s.stop_pair_m[e], pts, table, w.block_m, nbx, nby)
+            computed += s.stop_tour_key[e, a] != kept
+    return computed
+
+
+@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
+def lookups_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
+    """Each taxi's table look-ups towards its actionable stops: to the stop, and after each allowed move
+    (:func:`kernels._progress_heading`); returns the number of rows."""
+    rows = 0
+    total = 0.0
+    for e in range(s.free_seats.shape[0]):
+        for a in range(s.free_seats.shape[1]):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            for p in range(s.pax_status.shape[1]):
+                status = s.pax_status[e, p]
+                if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
+                    continue
+                point = row_stop(s, e, a, p)
+                if point < 0:
+                    continue
+                g = s.pax_origin_m[e, p] if point % 2 == 0 else s.pax_dest_m[e, p]
+                total += table_distance(table, w.block_m, nbx, nby, x, y, g[0], g[1])
+                total += _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, g[0], g[1])
+                rows += 1
+    return rows if not math.isnan(total) else -rows
+
+
+def _time(kernel, states: list[FleetState], *args) -> float:  # type: ignore[no-untyped-def]
+    """Thread CPU seconds of ``kernel(copy, *args)`` summed over fresh copies of ``states``."""
+    kernel(states[0].copy(), *args)  # compile
+    total = 0.0
+    for s in states:
+        c = s.copy()
+        start = time.thread_time()
+        kernel(c, *args)
+        total += time.thread_time() - start
+    return total
+
+
+def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
+    env = make_env(scenario, num_envs, num_taxis, True)
+    states = snapshots(env, args.snapshots, args.every)
+    table = table_for(env.world)
+    nbx, nby = table.shape
+    w = env.world.arrays
+    agent_steps = len(states) * num_envs * num_taxis
+    layout = env.observer.layout
+    fields = ("stop_paths", "stop_heading_mask")
+    paths = [np.empty((num_envs, num_taxis, *layout[k].shape), layout[k].dtype) for k in fields]
+    rows: list[tuple[str, float]] = [
+        ("stop_features (whole)", _time(kernels.stop_features, states, w, table.distance_m, nbx, nby, *paths)),
+        ("  tour rests (_update_rests)", _time(tour_rests_only, states, w, table.distance_m, nbx, nby)),
+        ("  look-ups: to stop + 16 moves", _time(lookups_only, states, w, table.distance_m, nbx, nby)),
+    ]
+    if "stop_rivals" in layout:
+        rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)
+        shape = layout["stop_claims"].shape if "stop_claims" in layout else None
+        claims = np.empty((num_envs, num_taxis, *shape), np.int8) if shape else np.zeros((0, 0, 0, 0), np.int8)
+        rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.distance_m, nbx, nby,
+                                                     rivals, claims)))  # fmt: skip
+    exact = 0
+    for s in states:
+        for e in range(num_envs):
+            for a in range(num_taxis):
+                exact += kernels._pending_stops(s, e, a, np.empty(kernels.MAX_EXACT_STOPS, np.int64),
+                                                np.empty(kernels.MAX_EXACT_STOPS, np.int64)) >= 0  # fmt: skip
+    share = 1.0 - exact / (len(states) * num_envs * num_taxis)
+    print(f"\n{scenario}, E = {num_envs}, A = {num_taxis}, P = {env.world.cfg.max_passengers}: {len(states)} "
+          f"observed states; taxis with more than MAX_EXACT_STOPS pending stops: {share:.0%}")  # fmt: skip
+    print(f"{'kernel':<44} {'us / agent-step':>16} {'agent-steps/s':>14}")
+    for name, seconds in rows:
+        rate = agent_steps / seconds if seconds > 0 else math.inf
+        print(f"{name:<44} {1e6 * seconds / agent_steps:>16.2f} {rate:>14,.0f}")
+
+
+def main(args: Args) -> None:
+    cases = [(name, int(e), int(a)) for name, e, a in (c.split(":") for c in args.cases)]
+    print("env.step, agent-steps per second of thread CPU time (stop features off | on)")
+    print(f"{'scenario':<18} {'E':>4} {'A':>3} {'core':>12} {'+ stop feat.':>13} {'ratio':>6}")
+    for scenario, num_envs, num_taxis in cases:
+        core = step_rate(make_env(scenario, num_envs, num_taxis, False), args.seconds)
+        full = step_rate(make_env(scenario, num_envs, num_taxis, True), args.seconds)
+        print(f"{scenario:<18} {num_envs:>4} {num_taxis:>3} {core:>12,.0f} {full:>13,.0f} {core / full:>5.1f}x",
+              flush=True)  # fmt: skip
+    for scenario, num_envs, num_taxis in cases:
+        breakdown(scenario, num_envs, num_taxis, args)
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))

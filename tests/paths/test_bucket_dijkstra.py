@@ -1,0 +1,67 @@
+"""The compiled bucket Dijkstra against scipy's Dijkstra, bit for bit, and its refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from uamfleet.paths.bucket_dijkstra import _bucket_rows, lattice_distances, lattice_of
+from uamfleet.paths.grid_graph import GridGraph
+
+
+def cluttered_graph(connectivity: int, seed: int) -> GridGraph:
+    """A 40 x 37 raster of 7.5 m cells, about a third of them blocked at random (walls, pockets, islands)."""
+    rng = np.random.default_rng(seed)
+    return GridGraph(rng.random((40, 37)) > 0.35, 7.5, connectivity=connectivity, label="cluttered")
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_distances_equal_scipy_dijkstra_bit_for_bit(connectivity: int, seed: int) -> None:
+    graph = cluttered_graph(connectivity, seed)
+    nodes = np.flatnonzero(graph.feasible)
+    sources = nodes[:: max(nodes.size // 25, 1)]
+    expected = csgraph.dijkstra(graph.adjacency, directed=True, indices=sources)
+    got = lattice_distances(lattice_of(graph.adjacency), sources, np.arange(graph.feasible.size))
+    assert np.isinf(expected).any() and np.isfinite(expected).any()  # the clutter walls some cells off
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_a_path_round_a_corner_by_hand() -> None:
+    # 3 x 3 cells of 10 m, the centre blocked, 8-connected: a diagonal move may not cut the blocked cell's
+    # corner, so from (0, 0) to (2, 2) the path runs along the edge: 4 straight moves, 40 m.
+    feasible = np.ones((3, 3), bool)
+    feasible[1, 1] = False
+    graph = GridGraph(feasible, 10.0, connectivity=8)
+    d = lattice_distances(lattice_of(graph.adjacency), [0], [8, 1, 4])
+    assert d.tolist() == [[40.0, 10.0, np.inf]]
+
+
+def test_a_bucket_overflow_redoes_the_row_with_more_room() -> None:
+    graph = cluttered_graph(16, 2)
+    lattice = lattice_of(graph.adjacency)
+    sources, targets = np.flatnonzero(graph.feasible)[:3], np.arange(graph.feasible.size)
+    out = np.empty((3, targets.size))
+    # Room for 2 nodes per bucket: the first row's wavefront overflows it, and the call says where it stopped.
+    assert _bucket_rows(lattice.offsets, lattice.weights, lattice.moves, sources, targets, 2, 0, out) == 0
+    expected = csgraph.dijkstra(graph.adjacency, directed=True, indices=sources)
+    np.testing.assert_array_equal(lattice_distances(lattice, sources, targets), expected)
+
+
+def test_a_graph_without_edges_reaches_only_its_sources() -> None:
+    graph = GridGraph(np.eye(4, dtype=bool), 10.0, connectivity=8)  # diagonal cells: corners cut, no edges
+    assert graph.adjacency.nnz == 0
+    d = lattice_distances(lattice_of(graph.adjacency), [0, 5], [0, 5, 15])
+    assert d.tolist() == [[0.0, np.inf, np.inf], [np.inf, 0.0, np.inf]]
+
+
+def test_a_graph_that_is_not_a_lattice_is_refused() -> None:
+    uneven = sp.csr_matrix(np.array([[0, 1.0, 0], [1.0, 0, 1.0], [0, 2.0, 0]]))  # offset +-1 weighs 1 and 2
+    with pytest.raises(ValueError, match="one finite weight > 0 per move"):
+        lattice_of(uneven)
+    rng = np.random.default_rng(0)
+    scattered = sp.random(200, 200, density=0.3, random_state=rng, format="csr")  # ~200 distinct offsets
+    with pytest.raises(ValueError, match="at most 32 distinct moves"):
+        lattice_of(scattered)
