@@ -71,3 +71,25 @@ def test_guided_search_plans_again_at_a_release() -> None:
 def test_guided_search_checks_its_arguments() -> None:
     with pytest.raises(ValueError, match="top_k"):
         GuidedSearchPolicy(None, top_k=0)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("start", "requests"), INSTANCES)
+def test_with_the_search_as_a_candidate_it_is_never_longer_than_either(start, requests) -> None:
+    """expert_beam: replan's plan over the known requests competes with the policy's flights, so on an instance
+    known at the start the flight is never longer than the greedy decoding or the search alone."""
+    from uamfleet.baselines.step_planner import SearchSettings, StepSearch
+
+    cfg = small_config(WALLED_7, starts_m=(start,), requests=requests, time_limit_steps=60, stop_features=True,
+                       max_passengers=3)  # fmt: skip
+    greedy = _policy(cfg, 0)
+    g = episode_metrics(greedy.fly(cfg), cfg.radio)
+    env = VectorEnv(cfg, 1, autoreset=False)
+    env.reset(seed=0)
+    alone = StepSearch(cfg).solve(env.state, [SearchSettings(beam=32, rank_slack=0.5)])
+    assert alone is not None
+    hybrid = GuidedSearchPolicy(greedy, top_k=2, samples=2, expert_beam=32)
+    h = episode_metrics(hybrid.fly(cfg), cfg.radio)
+    assert h.pr_pct == 100.0 and h.td_m <= alone.moves * cfg.step_m
+    if g.pr_pct == 100.0:
+        assert h.td_m <= g.td_m
+    assert len(hybrid.search_won) == 1

@@ -95,6 +95,8 @@ class Args:
     guided_samples: int = 24
     guided_temperature: float = 2.0
     """softmax temperature of the sampled flights (the defaults were chosen on 25 validation instances)"""
+    guided_expert_beam: int = 0
+    """> 0: replan's beam search of this width over the known requests is one more candidate of guided search"""
     best_known_beams: tuple[int, ...] = (256,)
     """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
     replan_beam: int = 64
@@ -130,8 +132,9 @@ def _config(task: Task) -> EnvConfig:
 
 
 def _policy(
-    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int, guided: tuple[int, int, float]
-) -> Any:
+    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
+    guided: tuple[int, int, float, int],
+) -> Any:  # fmt: skip
     if method in PLANNERS:
         return PlannerPolicy(method)
     if method == "best_known":
@@ -143,8 +146,10 @@ def _policy(
     if method == "learned_guided":
         from uamfleet.rl.guided import GuidedSearchPolicy
 
-        top_k, samples, temperature = guided
-        return GuidedSearchPolicy(learned_policy(checkpoint), top_k=top_k, samples=samples, temperature=temperature)
+        top_k, samples, temperature, expert_beam = guided
+        return GuidedSearchPolicy(
+            learned_policy(checkpoint), top_k=top_k, samples=samples, temperature=temperature, expert_beam=expert_beam
+        )
     return learned_policy(checkpoint)
 
 
@@ -166,7 +171,7 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float]]
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int]]
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
@@ -374,11 +379,12 @@ def check_args(args: Args) -> list[Task]:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     if args.guided and args.checkpoint is None:
         raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
-    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0):
+    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
+            and 0 <= args.guided_expert_beam <= 4096):  # fmt: skip
         raise UsageError(
             f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
             f"{args.guided_temperature}: need 1 <= top-k <= 16, 0 <= samples <= 1024 and a temperature > 0 "
-            "(e.g. 8, 24 and 2)."
+            "(e.g. 8, 24 and 2), and 0 <= --guided-expert-beam <= 4096."
         )
     selected = tasks(args)
     if not selected:
@@ -403,7 +409,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         return earlier
     learned = ("learned", "learned_guided") if args.guided else ("learned",)
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
-    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature)
+    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam)
     jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
     start = time.perf_counter()
     rows = fly_all(args, jobs)
@@ -445,6 +451,15 @@ def merged(earlier: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[di
     return kept + rows
 
 
+def guided_flags(args: Args) -> str:
+    """The guided-search options of a run, as its recorded command line gives them ("" without --guided)."""
+    if not args.guided:
+        return ""
+    flags = (f" --guided --guided-top-k {args.guided_top_k} --guided-samples {args.guided_samples} "
+             f"--guided-temperature {args.guided_temperature:g}")  # fmt: skip
+    return flags + (f" --guided-expert-beam {args.guided_expert_beam}" if args.guided_expert_beam else "")
+
+
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
     """The CSV and the Markdown section of a complete run (each written atomically)."""
     write_csv_atomic(args.out_csv, rows, COLUMNS)
@@ -455,11 +470,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (" --fixed" if args.fixed else "")
         + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
-        + (
-            f" --guided --guided-top-k {args.guided_top_k} --guided-samples {args.guided_samples}"
-            if args.guided
-            else ""
-        )
+        + guided_flags(args)
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )

@@ -11,6 +11,9 @@ and flies the one that delivers every known passenger in the fewest moves (then 
 release, when it plans again. Between releases a decision costs a list pop. Because the greedy flight is always a
 candidate and the scratch core reproduces the env exactly until a release, on an instance whose requests are all
 known at the start it never flies longer than greedy decoding.
+
+With ``expert_beam`` > 0 the plan of ``replan``'s beam search of that width over the same known requests is one more
+candidate (the policy's flights win ties): the search alone is then the yardstick the learned candidates must beat.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import time
 import numpy as np
 import torch
 
+from uamfleet.baselines.step_planner import SearchSettings, StepSearch
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.networks import obs_to_torch
@@ -36,14 +40,18 @@ class GuidedSearchPolicy:
     instances (docs/results.md, "Learning from the search")."""
 
     def __init__(
-        self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0
-    ) -> None:
+        self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
+        expert_beam: int = 0,
+    ) -> None:  # fmt: skip
         if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0):
             raise ValueError(
                 f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}): need top_k >= 1, "
                 "samples >= 0 and temperature > 0 (e.g. top_k=8, samples=24, temperature=2)."
             )
         self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
+        self.expert_beam = expert_beam  # > 0: replan's beam search of this width is one more candidate
+        self.search: StepSearch | None = None
+        self.search_won: list[bool] = []  # per search: the step-level search's plan was shorter than every flight
         self.rng = np.random.default_rng(seed)
         self.env: VectorEnv | None = None
         self.scratch: VectorEnv | None = None
@@ -72,7 +80,8 @@ class GuidedSearchPolicy:
         if self.scratch is None or self.scratch.cfg is not env.cfg:
             self.scratch = VectorEnv(env.cfg, num_envs=self.top_k + self.samples, autoreset=True)
             self.scratch.reset(seed=0)
-        self.queue, self.plans = [], []
+            self.search = StepSearch(env.cfg) if self.expert_beam else None
+        self.queue, self.plans, self.search_won = [], [], []
         self._released = self._released_rows()
         self.queue = self._search()
 
@@ -101,6 +110,7 @@ class GuidedSearchPolicy:
         scratch.state.pax_exists[:] &= scratch.state.pax_status != HIDDEN  # the future is unknown
         if not scratch.state.pax_exists.any():
             return []
+        root = scratch.state.take(np.array([0]))  # the known requests only, as the rollouts see them
         obs = scratch.observer.observe(scratch.state)
         actions: list[list[int]] = [[] for _ in range(K)]
         moves, steps = np.zeros(K, np.int64), np.full(K, -1)
@@ -126,9 +136,17 @@ class GuidedSearchPolicy:
                 break
         done = np.flatnonzero(steps >= 0)
         best = int(done[np.lexsort((steps[done], moves[done]))[0]]) if len(done) else 0
+        chosen_plan = actions[best] if len(done) else []
+        best_key = (int(moves[best]), int(steps[best])) if len(done) else None
+        search_won = False
+        if self.search is not None:  # the search's own plan competes; the policy's flight wins ties
+            plan = self.search.solve(root, [SearchSettings(beam=self.expert_beam, rank_slack=0.5)])
+            if plan is not None and (best_key is None or (plan.moves, plan.steps) < best_key):
+                chosen_plan, best_key, search_won = list(plan.actions), (plan.moves, plan.steps), True
+        self.search_won.append(search_won)
         wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
-        self.plans.append((int(self.env.state.t[0]), K, int(moves[best]), wall, cpu))
-        return actions[best] if len(done) else []
+        self.plans.append((int(self.env.state.t[0]), K, best_key[0] if best_key else -1, wall, cpu))
+        return chosen_plan
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
