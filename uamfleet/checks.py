@@ -1,6 +1,7 @@
-"""The checks every config uses: :class:`ConfigError` and ``check_number`` / ``check_integer`` / ``check_point`` /
-``check_sequence`` (a bad value fails with a message naming the field, the value and the fix), and the upper bounds
-of the sizes. The base of :mod:`uamfleet.config` and :mod:`uamfleet.demand`, importing nothing of the package.
+"""The checks every config uses: :class:`ConfigError` and ``check_number`` / ``check_integer`` / ``check_flag`` /
+``check_point`` / ``check_sequence`` (a bad value fails with a message naming the field, the value and the fix),
+and the upper bounds of the sizes. The base of :mod:`uamfleet.config` and :mod:`uamfleet.demand`, importing nothing
+of the package.
 """
 
 from __future__ import annotations
@@ -19,6 +20,15 @@ MAX_TAXIS = 1024
 MAX_PASSENGERS = 1024
 MAX_COUNT = 2**31 - 1
 """Upper bound of every other count (steps, seats, visits): it must fit the simulator's integer arrays."""
+MAX_TIME_LIMIT_STEPS = 2**24 - 1
+"""Upper bound of an episode's steps: step counts must stay exact in float32 (the observation's visit ratios)."""
+MAX_ENVS = 65_536
+"""Upper bound of ``num_envs`` of the batched core (:class:`uamfleet.VectorEnv`): its state and observations are
+allocated up front, about 10 KB per env of one taxi on ``berlin_p4`` and 60 KB per env of a 4-taxi ``berlin_fleet``
+(4 GB at this bound), so a typo such as ``num_envs=10**12`` fails at once instead of exhausting memory."""
+MAX_SEED = 2**63 - 1
+"""Largest seed of an instance or a reset (NumPy's SeedSequence takes any non-negative integer; this keeps seeds
+plain int64)."""
 
 
 class ConfigError(ValueError):
@@ -77,6 +87,14 @@ def check_integer(name: str, value: Any, minimum: int, maximum: int | None = Non
     if value > maximum:
         raise ConfigError(f"{name}={value!r} is too large: at most {maximum}{fix}.")
     return int(value)
+
+
+def check_flag(name: str, value: Any) -> bool:
+    """``value`` as a bool; :class:`ConfigError` naming ``name`` for anything but ``True`` / ``False`` (also NumPy's):
+    a string such as ``'no'`` is truthy, so taking it as a flag would silently mean the opposite."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"{name}={value!r} must be True or False.")
+    return bool(value)
 
 
 def check_point(name: str, value: Any) -> tuple[float, float]:

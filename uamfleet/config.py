@@ -21,7 +21,9 @@ from uamfleet.checks import (
     MAX_PASSENGERS,
     MAX_PATCH_SIZE,
     MAX_TAXIS,
+    MAX_TIME_LIMIT_STEPS,
     ConfigError,
+    check_flag,
     check_integer,
     check_number,
     check_point,
@@ -217,7 +219,8 @@ class EnvConfig:
             if getattr(self, name) is not None:
                 put(name, check_number(f"{name} (None: step_m)", getattr(self, name), positive=True))
         fix = " (step counts must stay exact in float32 for the observation's visit ratios)"
-        put("time_limit_steps", check_integer("time_limit_steps", self.time_limit_steps, 1, 2**24 - 1, fix=fix))
+        limit = check_integer("time_limit_steps", self.time_limit_steps, 1, MAX_TIME_LIMIT_STEPS, fix=fix)
+        put("time_limit_steps", limit)
         put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
         put(
             "patch_size",
@@ -247,11 +250,8 @@ class EnvConfig:
             raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        if not isinstance(self.stop_features, bool):
-            raise ConfigError(f"stop_features={self.stop_features!r} must be True or False.")
-        for name in ("stop_rivals", "stop_claims"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(f"{name}={getattr(self, name)!r} must be True or False.")
+        for name in ("stop_features", "stop_rivals", "stop_claims"):
+            object.__setattr__(self, name, check_flag(name, getattr(self, name)))
         if self.stop_rivals and not self.stop_features:
             raise ConfigError("stop_rivals=True needs stop_features=True (the rivals use the same path distances).")
         if self.stop_claims and not self.stop_features:
@@ -526,7 +526,7 @@ def make_config(scenario: str | EnvConfig = "berlin_p4", **overrides: Any) -> En
     """
     if isinstance(scenario, EnvConfig):
         return _with_overrides(_fields(scenario), overrides)
-    if scenario not in PRESETS:
+    if not isinstance(scenario, str) or scenario not in PRESETS:  # a list would fail the lookup with a TypeError
         raise ConfigError(
             f"Unknown scenario {scenario!r}; choose one of {SCENARIOS} or pass an EnvConfig "
             "(e.g. make_config('berlin_random', radio=my_map))."

@@ -35,11 +35,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uamfleet.checks import MAX_SEED, MAX_TIME_LIMIT_STEPS
 from uamfleet.config import (
     FLEET_ARRIVAL_WINDOW_S,
     FLEET_REQUESTS_PER_TAXI,
+    FLEET_TIME_LIMIT_WINDOWS,
     MAX_PASSENGERS,
     MAX_TAXIS,
+    ConfigError,
     EnvConfig,
     FeasibilityRule,
     Request,
@@ -85,12 +88,9 @@ FAMILIES: dict[str, InstanceFamily] = {
 }
 
 
-MAX_SEED = 2**63 - 1
-"""Largest instance seed (NumPy's SeedSequence takes any non-negative integer; this keeps seeds plain int64)."""
-
-
 def check_family(family: str) -> None:
-    if family not in FAMILIES:
+    # A non-string (e.g. a list, unhashable) is refused by the same message instead of a TypeError of the lookup.
+    if not isinstance(family, str) or family not in FAMILIES:
         raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
 
 
@@ -173,15 +173,28 @@ def make_fleet_instance(
         raise ValueError(f"num_vertiports={num_vertiports} must be 0 (random sites) or >= 2.")
     check_number("arrival_window_s", arrival_window_s, positive=True)
     fam = FAMILIES[family]
+
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
     base = make_config(
         fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation
     )
+    # The episode lasts FLEET_TIME_LIMIT_WINDOWS arrival windows, and an episode's steps are bounded.
+    longest_s = MAX_TIME_LIMIT_STEPS // FLEET_TIME_LIMIT_WINDOWS * base.slot_s
+    if arrival_window_s > longest_s:
+        raise ConfigError(
+            f"arrival_window_s={arrival_window_s!r} is too long: an episode lasts {FLEET_TIME_LIMIT_WINDOWS} arrival "
+            f"windows, {MAX_TIME_LIMIT_STEPS} steps of {base.slot_s:g} s at most; use at most {longest_s:.0f} s."
+        )
     world = World(base)
     flyable = flyable_sites(world)
-    if len(flyable) < num_taxis:
-        raise RuntimeError(f"{family!r} at {threshold} dB has {len(flyable)} flyable sites for {num_taxis} taxis.")
+    # Starts and vertiports are distinct flyable sites (drawn without replacement): too few would end in NumPy.
+    for name, count, fix in (("num_taxis", num_taxis, ""), ("num_vertiports", num_vertiports, " (0: every site)")):
+        if count > len(flyable):
+            raise ConfigError(
+                f"{name}={count}: {family!r} seed {seed} (at {threshold:g} dB) has only {len(flyable)} flyable "
+                f"sites, one per {name[4:-1]}; use {name} <= {len(flyable)}{fix}."
+            )
     fields = DistanceFields(world)
     window_steps = fleet_window_steps(base.slot_s, arrival_window_s)
     for _ in range(MAX_ATTEMPTS):

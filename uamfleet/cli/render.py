@@ -113,10 +113,11 @@ def main(args: Args) -> dict[str, Path]:
         routes = {f"taxi {a}" if cfg.num_taxis > 1 else args.policy: traj.positions_m[a] for a in range(cfg.num_taxis)}
         exists = traj.pax_exists
         written.update(figure_paths(args.out))
-        # Fleet routes take the taxis' colours of the 3-D page (plot_routes colours unnamed routes by the cycle).
+        # Fleet routes take the taxis' colours of the 3-D page (plot_routes colours unnamed routes by the cycle);
+        # every taxi's start is starred in its colour.
         with matplotlib.rc_context({"axes.prop_cycle": cycler(color=list(TAXI_HEX))}):
             plot_routes(radio, threshold, routes, traj.origin_m[exists], traj.destination_m[exists],
-                        traj.start_pos_m[0], f"{title}\n{m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
+                        traj.start_pos_m, f"{title}\n{m.delivered}/{m.num_requests} delivered, TD {m.td_m:.0f} m, "
                         f"connectivity {m.connectivity_pct:.1f} %", written["routes"])  # fmt: skip
         plot_sinr_strip(traj, radio, threshold, written["sinr"])
     end = "all delivered" if traj.terminated else "truncated"

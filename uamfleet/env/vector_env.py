@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from uamfleet.checks import MAX_ENVS, MAX_SEED, check_flag, check_integer
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
 from uamfleet.env import dynamics, generator, motion, reward
 from uamfleet.env.observer import Observer
@@ -30,20 +31,20 @@ class VectorEnv:
 
     Args:
         cfg: the environment config (see :func:`uamfleet.config.make_config`).
-        num_envs: number E of independent envs stepped together.
-        autoreset: reset finished envs inside ``step`` (see the module docstring).
+        num_envs: number E of independent envs stepped together, 1 ... :data:`~uamfleet.checks.MAX_ENVS` (65,536).
+        autoreset: ``True`` / ``False``: reset finished envs inside ``step`` (see the module docstring).
 
-    ``reset(seed)`` seeds env e with ``seed + e`` (Gymnasium's vector convention), so env e here and a
-    PettingZoo env reset with ``seed + e`` run the same episodes.
+    ``reset(seed)`` (an integer 0 ... :data:`~uamfleet.checks.MAX_SEED`, or None) seeds env e with ``seed + e``
+    (Gymnasium's vector convention), so env e here and a PettingZoo env reset with ``seed + e`` run the same
+    episodes.
     """
 
     def __init__(self, cfg: EnvConfig, num_envs: int = 1, autoreset: bool = True) -> None:
-        if int(num_envs) != num_envs or num_envs < 1:
-            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1.")
+        fix = " (every env is allocated up front; the bound is uamfleet.checks.MAX_ENVS)"
+        self.num_envs = check_integer("num_envs", num_envs, 1, MAX_ENVS, fix=fix)
+        self.autoreset = check_flag("autoreset", autoreset)
         self.cfg = cfg
-        self.num_envs = int(num_envs)
         self.num_taxis = cfg.num_taxis
-        self.autoreset = autoreset
         self.world = World(cfg)
         self.observer = Observer(self.world)
         self._step_kernel = PreTyped(motion.step)  # the step without numba typing the state on every call
@@ -66,9 +67,8 @@ class VectorEnv:
             if not self.rngs:
                 self.rngs = [np.random.default_rng(s) for s in np.random.SeedSequence().spawn(self.num_envs)]
         else:
-            if int(seed) != seed or seed < 0:
-                raise ValueError(f"seed={seed!r} must be a non-negative integer or None.")
-            self.rngs = [np.random.default_rng(int(seed) + e) for e in range(self.num_envs)]
+            seed = check_integer("seed", seed, 0, MAX_SEED, fix=" (or None: continue the last seeded generators)")
+            self.rngs = [np.random.default_rng(seed + e) for e in range(self.num_envs)]
         for e in range(self.num_envs):
             self._reset_env(e)
         self.needs_reset = False

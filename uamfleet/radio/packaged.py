@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uamfleet.checks import ConfigError
 from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
 from uamfleet.radio.radio_map import BaseStation, RadioMap
 from uamfleet.radio.winprop import read_winprop
@@ -200,6 +201,11 @@ def load_radio_map(name_or_path: str | os.PathLike[str] | RadioMap) -> RadioMap:
     """
     if isinstance(name_or_path, RadioMap):
         return name_or_path
+    if not isinstance(name_or_path, (str, os.PathLike)):  # Path(None) would end in a TypeError traceback
+        raise ConfigError(
+            f"load_radio_map({name_or_path!r}): a {type(name_or_path).__name__} is no radio map; pass a name "
+            f"({', '.join(map(repr, RADIO_MAPS))}), the path to a WinProp ASCII file or a RadioMap."
+        )
     if isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
         return _packaged(name_or_path)
     path = Path(name_or_path)

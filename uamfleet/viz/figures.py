@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.legend_handler import HandlerTuple
 
 from uamfleet.env.world import World
 from uamfleet.io import write_bytes_atomic
@@ -80,12 +82,22 @@ def plot_routes(
     destinations_m: np.ndarray,
     start_m: np.ndarray,
     title: str,
-    path: str | Path,
-) -> None:
+    path: str | Path | None,
+) -> Figure:
     """Routes over the radio map, the paper's Figs. 7-8 style: raster SINR (cells below the threshold greyed),
-    each route a coloured polyline, stops labelled S1…/D1…, the start a star. ``routes_m``: name -> [T, 2]."""
-    fig = _new_figure(7.2, 6.0)
-    ax = fig.add_axes((0.08, 0.08, 0.74, 0.84))
+    each route a coloured polyline, stops labelled S1…/D1…, starts as stars. ``routes_m``: name -> [T, 2];
+    ``start_m``: [2], one start shared by every route (a gold star), or [R, 2], route r's start (a fleet: each
+    taxi's start a star in its route's colour). The legend sits below the map, so it covers no stop or label.
+    Written to ``path`` as a PNG (byte-stable: same input, same bytes) unless it is None; returned either way."""
+    starts = np.asarray(start_m, dtype=float).reshape(-1, 2)
+    if len(starts) not in (1, len(routes_m)):
+        raise ValueError(f"start_m holds {len(starts)} starts for {len(routes_m)} routes; give one, or one per route.")
+    # Inches: the map is MAP_IN square; below it the tick labels and the axis label (0.5 in), then the legend
+    # (two rows at most); above it a two-line title.
+    width_in, height_in, left_in, bottom_in = 7.3, 6.65, 0.8, 1.05
+    fig = _new_figure(width_in, height_in)
+    box = (left_in / width_in, bottom_in / height_in, MAP_IN / width_in, MAP_IN / height_in)
+    ax = fig.add_axes(box)
     side = float(radio.side_m or 0.0)
     ox, oy = radio.origin_m
     half = radio.resolution_m / 2
@@ -101,23 +113,91 @@ def plot_routes(
     ax.imshow(
         below.T, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=1.6, alpha=0.75, interpolation="nearest"
     )
-    cax = fig.add_axes((0.84, 0.08, 0.03, 0.84))
+    cax = fig.add_axes((box[0] + box[2] + 0.2 / width_in, box[1], 0.2 / width_in, box[3]))
     fig.colorbar(im, cax=cax, label=f"SINR [dB] (grey: below γ_T = {threshold_db:g} dB)")
+    handles: list[Any] = []
     for name, route in routes_m.items():
-        ax.plot(route[:, 0], route[:, 1], lw=1.8, color=ROUTE_COLOURS.get(name.split("-")[0]), label=name)
-    ax.plot(*start_m, marker="*", ms=14, color="gold", mec="k", ls="none", label="start")
-    for i, (o, d) in enumerate(zip(origins_m, destinations_m, strict=True)):
+        handles.append(
+            ax.plot(route[:, 0], route[:, 1], lw=1.8, color=ROUTE_COLOURS.get(name.split("-")[0]), label=name)[0]
+        )
+    if len(starts) == 1:
+        handles.append(ax.plot(*starts[0], marker="*", ms=14, color="gold", mec="k", ls="none", label="start")[0])
+    else:  # each taxi's start in its route's colour; the legend pairs a route's line with its star
+        for r, (line, start) in enumerate(zip(list(handles), starts, strict=True)):
+            star = ax.plot(*start, marker="*", ms=14, color=line.get_color(), mec="k", ls="none")[0]
+            handles[r] = (line, star)
+    stops = [(o, f"S{i + 1}") for i, o in enumerate(origins_m)] + [
+        (d, f"D{i + 1}") for i, d in enumerate(destinations_m)
+    ]
+    for o in origins_m:
         ax.plot(*o, marker="^", ms=8, color="white", mec="k", ls="none")
+    for d in destinations_m:
         ax.plot(*d, marker="s", ms=7, color="white", mec="k", ls="none")
-        ax.annotate(f"S{i + 1}", o, xytext=(4, 4), textcoords="offset points", color="w", fontsize=9, weight="bold")
-        ax.annotate(f"D{i + 1}", d, xytext=(4, 4), textcoords="offset points", color="w", fontsize=9, weight="bold")
     ax.set_xlim(0, side)
     ax.set_ylim(0, side)
+    _label_stops(ax, stops, obstacles_m=[*(point for point, _ in stops), *starts])
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(title, fontsize=10)
-    ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
-    save_figure(fig, path)
+    labels = [*routes_m, *(["start"] if len(starts) == 1 else [])]
+    fig.legend(
+        handles, labels, handler_map={tuple: HandlerTuple(ndivide=None)}, loc="upper center", fontsize=8,
+        ncol=min(len(handles), 5), frameon=False, bbox_to_anchor=(box[0] + box[2] / 2, (bottom_in - 0.5) / height_in),
+    )  # fmt: skip
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+MAP_IN = 5.0
+"""Side of the routes figure's map in inches (the map is square: one metre is as long on both axes)."""
+LABEL_PT = 9.0
+"""Font size of the stop labels (S1…/D1…)."""
+LABEL_SIDES = ((0, 0), (-1, 0), (0, -1), (-1, -1), (1, 0), (-2, 0), (0, 1), (-1, 1), (0, -2), (-1, -2))
+"""Where a stop label may go, in label widths / heights from the marker: NE, NW, SE, SW first, then one label
+further out on each side."""
+
+
+def _label_stops(ax: Any, stops: list[tuple[np.ndarray, str]], obstacles_m: list[np.ndarray]) -> None:
+    """Label each stop beside its marker, at the first of :data:`LABEL_SIDES` where the label overlaps no label
+    placed before it, no other stop or start marker (``obstacles_m``: the stops' points in order, then the starts)
+    and stays inside the map; else where it costs least (a label cut off by the map's edge costs most, one over
+    another label next, one over a marker least). Greedy and deterministic (same stops, same figure), in points."""
+    ax.apply_aspect()
+    to_pt = ax.transData + ax.figure.dpi_scale_trans.inverted()  # data -> inches
+    frame = ax.get_window_extent().transformed(ax.figure.dpi_scale_trans.inverted())
+    frame_pt = (frame.x0 * 72, frame.y0 * 72, frame.x1 * 72, frame.y1 * 72)
+    markers = [_box(72 * to_pt.transform(p), 6.0) for p in obstacles_m]
+    placed: list[tuple[float, float, float, float]] = []
+    gap = 4.0  # points between a marker's centre and its label
+    for i, (point, text) in enumerate(stops):
+        others = markers[:i] + markers[i + 1 :]  # its own marker is beside every side alike
+        x, y = 72 * to_pt.transform(point)
+        w, h = 0.7 * LABEL_PT * len(text), LABEL_PT  # bold capitals and digits: about 0.7 em wide, 1 em tall
+        # Side r >= 0: r labels (and gaps) beyond the gap to the right / above; r < 0: -r labels to the left / below.
+        offsets = [(rx * (w + gap) + gap * (rx >= 0), ry * (h + gap) + gap * (ry >= 0)) for rx, ry in LABEL_SIDES]
+        costs = []
+        for dx, dy in offsets:
+            label = (x + dx, y + dy, x + dx + w, y + dy + h)
+            cost = 4 * (w * h - _overlap(label, frame_pt))
+            cost += 2 * sum(_overlap(label, other) for other in placed) + sum(_overlap(label, m) for m in others)
+            costs.append(cost)
+        dx, dy = offsets[int(np.argmin(costs))]  # the first of least cost: NE when nothing is in the way
+        placed.append((x + dx, y + dy, x + dx + w, y + dy + h))
+        ax.annotate(
+            text, point, xytext=(dx, dy), textcoords="offset points", color="w", fontsize=LABEL_PT, weight="bold",
+            va="bottom",  # the box starts at the offset, as estimated (the baseline would leave the descent below)
+        )  # fmt: skip
+
+
+def _box(centre: np.ndarray, half: float) -> tuple[float, float, float, float]:
+    """The square of side ``2 * half`` around ``centre`` as (x0, y0, x1, y1)."""
+    return (centre[0] - half, centre[1] - half, centre[0] + half, centre[1] + half)
+
+
+def _overlap(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> float:
+    """Area shared by two boxes (x0, y0, x1, y1)."""
+    return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
 
 
 def plot_connectivity(
