@@ -21,7 +21,7 @@ from numba import njit
 
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
 from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
-from uamfleet.paths.distance_table import table_distance
+from uamfleet.paths.distance_table import TableArrays, table_distance
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -195,12 +195,11 @@ def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndar
 
 
 @njit(cache=True)
-def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, table: np.ndarray, block_m: float,
-                   nbx: int, nby: int) -> float:  # fmt: skip
+def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, t: TableArrays) -> float:
     """Table distance from point i to point j of ``pts`` [2P, 2] (origin 2p, destination 2p + 1), memoised."""
     d = memo[i, j]
     if math.isnan(d):
-        d = table_distance(table, block_m, nbx, nby, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
+        d = table_distance(t, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
         memo[i, j] = d
     return d
 
@@ -251,8 +250,7 @@ def _progress_key(s: FleetState, e: int, a: int) -> int:
 
 @njit(cache=True)
 def _shortest_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int, out: np.ndarray,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
 ) -> int:  # fmt: skip
     """out[point] = the shortest rest of taxi a's tour after it reaches stop ``point`` first (2p: p's origin, 2p + 1:
     her destination), through every stop it knows of (its riders' destinations, the waiting passengers' origins
@@ -267,7 +265,7 @@ def _shortest_rests(
     dist = np.empty((n, n))
     for i in range(n):
         for j in range(n):
-            d = _stop_distance(memo, pts, ids[i], ids[j], table, block_m, nbx, nby) if i != j else 0.0
+            d = _stop_distance(memo, pts, ids[i], ids[j], t) if i != j else 0.0
             if math.isnan(d):
                 return 0
             dist[i, j] = d
@@ -393,9 +391,7 @@ def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray,
 def stop_features(
     s: FleetState,
     w: WorldArrays,
-    table: np.ndarray,  # DistanceTable.distance_m
-    nbx: int,
-    nby: int,
+    t: TableArrays,  # DistanceTable.arrays
     o_paths: np.ndarray,  # [E, A, P, len(STOP_PATH_FEATURES)] float32 out
     o_heading: np.ndarray,  # [E, A, P, NUM_HEADINGS] int8 out
 ) -> bool:
@@ -423,18 +419,18 @@ def stop_features(
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            if _update_rests(s, e, a, memo, pts, table, w.block_m, nbx, nby) < 0:
+            if _update_rests(s, e, a, memo, pts, t) < 0:
                 return False
             for p in range(num_pax):
-                if not _stop_row(s, w, e, a, p, memo, pts, table, nbx, nby, o_paths, o_heading):
+                if not _stop_row(s, w, e, a, p, memo, pts, t, o_paths, o_heading):
                     return False
     return True
 
 
 @njit(cache=True)
 def _stop_row(
-    s: FleetState, w: WorldArrays, e: int, a: int, p: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray,
-    nbx: int, nby: int, o_paths: np.ndarray, o_heading: np.ndarray,
+    s: FleetState, w: WorldArrays, e: int, a: int, p: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
+    o_paths: np.ndarray, o_heading: np.ndarray,
 ) -> bool:  # fmt: skip
     """Row p of taxi a's stop features (zeros for a passenger hidden, absent or delivered; only the ride for a
     row that is not actionable); False when a table row it reads is not computed yet."""
@@ -446,8 +442,8 @@ def _stop_row(
     status = s.pax_status[e, p]
     if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
         return True
-    side, block_m = w.side_m, w.block_m
-    trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, table, block_m, nbx, nby)  # kept per episode
+    side = w.side_m
+    trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
     if math.isnan(trip):
         return False
     o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
@@ -456,13 +452,13 @@ def _stop_row(
         return True
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
     gx, gy = pts[point, 0], pts[point, 1]
-    here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
+    here = table_distance(t, x, y, gx, gy)
     if math.isnan(here):
         return False
     o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
     rest = s.stop_tour_m[e, a, point]
     o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-    best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)  # rows read above
+    best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
     if best >= 0:
         o_heading[e, a, p, best] = 1
     return True
@@ -482,8 +478,7 @@ def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
 
 @njit(cache=True)
 def _update_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
 ) -> int:  # fmt: skip
     """Bring taxi a's tour rests (``s.stop_tour_m``) up to date: the exact shortest ones, or beyond
     :data:`MAX_EXACT_STOPS` pending stops the nearest-stop order's (:func:`_nearest_stop_tour`) of every stop
@@ -492,10 +487,10 @@ def _update_rests(
     key = _pending_key(s, e, a)
     if s.stop_tour_key[e, a] == key:
         return 1
-    found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
+    found = _shortest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a])
     if found == 0:
         return -1
-    if found == -1 and not _nearest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a]):
+    if found == -1 and not _nearest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a]):
         s.stop_tour_key[e, a] = -1
         return -1
     s.stop_tour_key[e, a] = key
@@ -504,8 +499,7 @@ def _update_rests(
 
 @njit(cache=True)
 def _nearest_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int, out: np.ndarray,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
 ) -> bool:  # fmt: skip
     """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`: its riders'
     destinations, the waiting passengers' origins while a seat is free); False when a table row is missing. The
@@ -525,7 +519,7 @@ def _nearest_rests(
     for i in range(m):
         for j in range(m):
             if i != j:
-                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], table, block_m, nbx, nby)
+                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], t)
                 if math.isnan(dist[i, j]):
                     return False
     todo = np.empty(m, np.int8)
@@ -538,7 +532,7 @@ def _nearest_rests(
 
 @njit(cache=True)
 def _progress_heading(
-    allowed: np.ndarray, w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, gx: float,
+    allowed: np.ndarray, w: WorldArrays, t: TableArrays, x: float, y: float, gx: float,
     gy: float,
 ) -> int:  # fmt: skip
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
@@ -557,7 +551,7 @@ def _progress_heading(
                 first, first_bound = h, bound
     if first < 0:
         return -1
-    best, best_cost = first, _move_cost(w, table, nbx, nby, x, y, h=first, gx=gx, gy=gy)
+    best, best_cost = first, _move_cost(w, t, x, y, h=first, gx=gx, gy=gy)
     if best_cost == math.inf:
         best = -1
     for h in range(NUM_HEADINGS):
@@ -566,7 +560,7 @@ def _progress_heading(
         bound = _move_bound(w, x, y, h, gx, gy)
         if bound > best_cost or (bound == best_cost and h > best):
             continue  # its cost is >= bound: it cannot win, not even a tie
-        cost = _move_cost(w, table, nbx, nby, x, y, h, gx, gy)
+        cost = _move_cost(w, t, x, y, h, gx, gy)
         if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
@@ -583,24 +577,20 @@ def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float
 
 
 @njit(cache=True, inline="always")
-def _move_cost(
-    w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, h: int, gx: float, gy: float
-) -> float:
+def _move_cost(w: WorldArrays, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
     """Heading h's move plus the table distance left from its end to (gx, gy); the move alone within the
     pick-up radius."""
     qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
     if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
         return w.step_m
-    return w.step_m + table_distance(table, w.block_m, nbx, nby, qx, qy, gx, gy)
+    return w.step_m + table_distance(t, qx, qy, gx, gy)
 
 
 @njit(cache=True)
 def stop_rivals(
     s: FleetState,
     w: WorldArrays,
-    table: np.ndarray,  # DistanceTable.distance_m
-    nbx: int,
-    nby: int,
+    t: TableArrays,  # DistanceTable.arrays
     o_rivals: np.ndarray,  # [E, A, P, len(STOP_RIVAL_FEATURES)] float32 out
     o_claims: np.ndarray,  # [E, A, P, len(STOP_CLAIM_FEATURES)] int8 out, or a 0-size array: no claims
 ) -> bool:
@@ -619,7 +609,7 @@ def stop_rivals(
     """
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
-    side, block_m = w.side_m, w.block_m
+    side = w.side_m
     claims = o_claims.shape[0] > 0
     dist = np.empty((num_taxis, num_pax))  # [A, P] taxi -> waiting origin, inf for other rows
     for e in range(num_envs):
@@ -630,7 +620,7 @@ def stop_rivals(
                 if not waiting:
                     dist[b, p] = math.inf
                     continue
-                d = table_distance(table, block_m, nbx, nby, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                d = table_distance(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
                 if math.isnan(d):
                     return False
                 dist[b, p] = d
