@@ -532,9 +532,8 @@ def _nearest_rests(
 
 @njit(cache=True)
 def _progress_heading(
-    allowed: np.ndarray, w: WorldArrays, t: TableArrays, x: float, y: float, gx: float,
-    gy: float,
-) -> int:  # fmt: skip
+    allowed: np.ndarray, w: WorldArrays, t: TableArrays, x: float, y: float, gx: float, gy: float
+) -> int:
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
     ends within the pick-up radius), ties to the lowest heading; -1 when none is allowed or reachable. The stop's
     table rows must be computed (the caller has read them).
@@ -543,12 +542,7 @@ def _progress_heading(
     distance never undercuts the straight line), so the move with the least bound is costed first and a move
     whose bound cannot beat the best so far is never looked up: the same heading as costing all 16 in order, for
     a few look-ups instead of 16."""
-    first, first_bound = -1, math.inf
-    for h in range(NUM_HEADINGS):
-        if allowed[h]:
-            bound = _move_bound(w, x, y, h, gx, gy)
-            if bound < first_bound:
-                first, first_bound = h, bound
+    first = _least_bound_move(allowed, w, x, y, gx, gy)
     if first < 0:
         return -1
     best, best_cost = first, _move_cost(w, t, x, y, h=first, gx=gx, gy=gy)
@@ -564,6 +558,18 @@ def _progress_heading(
         if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
+
+
+@njit(cache=True)
+def _least_bound_move(allowed: np.ndarray, w: WorldArrays, x: float, y: float, gx: float, gy: float) -> int:
+    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed."""
+    first, first_bound = -1, math.inf
+    for h in range(NUM_HEADINGS):
+        if allowed[h]:
+            bound = _move_bound(w, x, y, h, gx, gy)
+            if bound < first_bound:
+                first, first_bound = h, bound
+    return first
 
 
 @njit(cache=True, inline="always")
