@@ -32,7 +32,7 @@ import torch
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, make_config
-from uamfleet.env.layout import Layout, layout_from_dict, layout_to_dict, observation_layout
+from uamfleet.env.layout import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
 from uamfleet.io import write_bytes_atomic
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs
@@ -207,9 +207,11 @@ class Checkpoint:
                 yield f"normaliser {field_name!r} {key}", value
 
     def check_matches(
-        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
-    ) -> None:
-        """Raise ValueError naming every architecture, scenario or observation-layout field that differs;
+        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False,
+        layout: Layout | None = None,
+    ) -> None:  # fmt: skip
+        """Raise ValueError naming every architecture, scenario or observation-layout field that differs (with
+        ``layout``, the env's spec, also what a field of the same shape means: bounds, columns, kind, dtype);
         ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
         diffs = []
         if args is not None:
@@ -222,11 +224,21 @@ class Checkpoint:
                 continue
             if saved is None or now is None or tuple(saved) != tuple(now):
                 diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
+        diffs += self._spec_differences(layout) if layout is not None else []
         if diffs:
             raise ValueError(
                 "the checkpoint was trained with another setup: " + "; ".join(diffs) + ". Use the same options "
                 "(or a new --run-name for a new run)."
             )
+
+    def _spec_differences(self, layout: Layout) -> list[str]:
+        """The fields of the same shape whose stored spec differs from ``layout``'s (none for an older file)."""
+        trained = self.layout("the checkpoint")
+        if trained is None:
+            return []
+        same = [k for k in trained if k in layout and layout[k].shape == trained[k].shape]
+        lines = layout_differences({k: trained[k] for k in same}, {k: layout[k] for k in same})
+        return [f"observation field {line} (checkpoint vs this env)" for line in lines]
 
 
 def _is_int(value: object) -> bool:

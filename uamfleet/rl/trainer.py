@@ -223,7 +223,7 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
 
 
 def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
-    ckpt.check_matches(run.args, run.obs_shapes)
+    ckpt.check_matches(run.args, run.obs_shapes, layout=run.layout)
     shapes = {k: tuple(v.shape) for k, v in learner.net.state_dict().items()}
     check_state_dict(ckpt.model, shapes, str(run.folder / "last.pt"), run.args.variant)
     learner.net.load_state_dict(ckpt.model)
