@@ -79,85 +79,85 @@ def observe(
     o_mask: np.ndarray,  # [E, A, NUM_HEADINGS] int8
 ) -> None:
     """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays (C-contiguous:
-    the patches are written through flat views of them)."""
-    num_envs, num_taxis = s.history_m.shape[0], s.history_m.shape[1]
-    for e in range(num_envs):
-        for a in range(num_taxis):
-            _observe_own(s, w, e, a, o_self, o_history)
-            for p in range(s.pax_status.shape[1]):
-                _observe_passenger(s, w, e, a, p, o_pax, o_pax_mask)
-            _observe_others(s, w, e, a, o_others, o_others_mask)
-            for h in range(NUM_HEADINGS):
-                o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
+    the patches are written through flat views of them). Each part is one pass over all envs and taxis: a call
+    per taxi would pass (and reference-count) every array of the state each time, ten times the work."""
+    _observe_own(s, w, o_self, o_history)
+    _observe_passengers(s, w, o_pax, o_pax_mask)
+    _observe_others(s, w, o_others, o_others_mask)
+    o_mask[:] = s.action_mask
     _patches(s, w, o_sinr, o_visit)
 
 
 @njit(cache=True)
-def _observe_own(s: FleetState, w: WorldArrays, e: int, a: int, o_self: np.ndarray, o_history: np.ndarray) -> None:
-    """Taxi a's ``self`` row and its ``history`` (positions relative to where it is now)."""
-    x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+def _observe_own(s: FleetState, w: WorldArrays, o_self: np.ndarray, o_history: np.ndarray) -> None:
+    """Each taxi's ``self`` row and its ``history`` (positions relative to where it is now)."""
     side_m, seats = w.side_m, w.seats
-    o_self[e, a, SELF_X] = x / side_m
-    o_self[e, a, SELF_Y] = y / side_m
-    o_self[e, a, SELF_FREE_SEATS] = s.free_seats[e, a] / seats
-    o_self[e, a, SELF_TIME] = min(s.t[e] / w.time_limit_steps, 1.0)
-    for h in range(s.history_m.shape[2]):
-        o_history[e, a, h, HIST_DX] = (s.history_m[e, a, h, 0] - x) / side_m
-        o_history[e, a, h, HIST_DY] = (s.history_m[e, a, h, 1] - y) / side_m
-        o_history[e, a, h, HIST_FREE_SEATS] = s.history_seats[e, a, h] / seats
+    for e in range(s.history_m.shape[0]):
+        for a in range(s.history_m.shape[1]):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            o_self[e, a, SELF_X] = x / side_m
+            o_self[e, a, SELF_Y] = y / side_m
+            o_self[e, a, SELF_FREE_SEATS] = s.free_seats[e, a] / seats
+            o_self[e, a, SELF_TIME] = min(s.t[e] / w.time_limit_steps, 1.0)
+            for h in range(s.history_m.shape[2]):
+                o_history[e, a, h, HIST_DX] = (s.history_m[e, a, h, 0] - x) / side_m
+                o_history[e, a, h, HIST_DY] = (s.history_m[e, a, h, 1] - y) / side_m
+                o_history[e, a, h, HIST_FREE_SEATS] = s.history_seats[e, a, h] / seats
 
 
 @njit(cache=True)
-def _observe_passenger(
-    s: FleetState, w: WorldArrays, e: int, a: int, p: int, o_pax: np.ndarray, o_pax_mask: np.ndarray
-) -> None:
-    """Passenger p's row as taxi a sees it (zeros and mask 0 while hidden or absent)."""
-    row = o_pax[e, a, p]
-    status = s.pax_status[e, p]
-    if status == HIDDEN or not s.pax_exists[e, p]:
-        o_pax_mask[e, a, p] = 0
-        for f in range(NUM_PASSENGER_FEATURES):
-            row[f] = 0.0
-        return
-    o_pax_mask[e, a, p] = 1
-    x, y, side_m, time_limit = s.pos_m[e, a, 0], s.pos_m[e, a, 1], w.side_m, w.time_limit_steps
-    odx, ody = (s.pax_origin_m[e, p, 0] - x) / side_m, (s.pax_origin_m[e, p, 1] - y) / side_m
-    ddx, ddy = (s.pax_dest_m[e, p, 0] - x) / side_m, (s.pax_dest_m[e, p, 1] - y) / side_m
-    tdx, tdy = ddx - odx, ddy - ody
-    mine = s.pax_taxi[e, p] == a
-    row[PAX_ORIGIN_DX] = odx
-    row[PAX_ORIGIN_DY] = ody
-    row[PAX_DEST_DX] = ddx
-    row[PAX_DEST_DY] = ddy
-    row[PAX_DIST_TO_ORIGIN] = math.sqrt(odx * odx + ody * ody)
-    row[PAX_DIST_TO_DEST] = math.sqrt(ddx * ddx + ddy * ddy)
-    row[PAX_TRIP_LENGTH] = math.sqrt(tdx * tdx + tdy * tdy)
-    row[PAX_WAITING] = 1.0 if status == WAITING else 0.0
-    row[PAX_ON_BOARD_SELF] = 1.0 if status == ON_BOARD and mine else 0.0
-    row[PAX_ON_BOARD_OTHER] = 1.0 if status == ON_BOARD and not mine else 0.0
-    row[PAX_DELIVERED] = 1.0 if status == DELIVERED else 0.0
-    row[PAX_AGE] = min(max((s.t[e] - s.pax_release[e, p]) / time_limit, 0.0), 1.0)
+def _observe_passengers(s: FleetState, w: WorldArrays, o_pax: np.ndarray, o_pax_mask: np.ndarray) -> None:
+    """Each passenger row as each taxi sees it (zeros and mask 0 while hidden or absent)."""
+    side_m, time_limit = w.side_m, w.time_limit_steps
+    for e in range(s.pos_m.shape[0]):
+        t = s.t[e]
+        for a in range(s.pos_m.shape[1]):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            for p in range(s.pax_status.shape[1]):
+                row = o_pax[e, a, p]
+                status = s.pax_status[e, p]
+                if status == HIDDEN or not s.pax_exists[e, p]:
+                    o_pax_mask[e, a, p] = 0
+                    for f in range(NUM_PASSENGER_FEATURES):
+                        row[f] = 0.0
+                    continue
+                o_pax_mask[e, a, p] = 1
+                odx, ody = (s.pax_origin_m[e, p, 0] - x) / side_m, (s.pax_origin_m[e, p, 1] - y) / side_m
+                ddx, ddy = (s.pax_dest_m[e, p, 0] - x) / side_m, (s.pax_dest_m[e, p, 1] - y) / side_m
+                tdx, tdy = ddx - odx, ddy - ody
+                mine = s.pax_taxi[e, p] == a
+                row[PAX_ORIGIN_DX] = odx
+                row[PAX_ORIGIN_DY] = ody
+                row[PAX_DEST_DX] = ddx
+                row[PAX_DEST_DY] = ddy
+                row[PAX_DIST_TO_ORIGIN] = math.sqrt(odx * odx + ody * ody)
+                row[PAX_DIST_TO_DEST] = math.sqrt(ddx * ddx + ddy * ddy)
+                row[PAX_TRIP_LENGTH] = math.sqrt(tdx * tdx + tdy * tdy)
+                row[PAX_WAITING] = 1.0 if status == WAITING else 0.0
+                row[PAX_ON_BOARD_SELF] = 1.0 if status == ON_BOARD and mine else 0.0
+                row[PAX_ON_BOARD_OTHER] = 1.0 if status == ON_BOARD and not mine else 0.0
+                row[PAX_DELIVERED] = 1.0 if status == DELIVERED else 0.0
+                row[PAX_AGE] = min(max((t - s.pax_release[e, p]) / time_limit, 0.0), 1.0)
 
 
 @njit(cache=True)
-def _observe_others(
-    s: FleetState, w: WorldArrays, e: int, a: int, o_others: np.ndarray, o_others_mask: np.ndarray
-) -> None:
-    """The other taxis as taxi a sees them, in taxi order; the rows past them zero and masked."""
-    x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-    n = 0
-    for b in range(s.pos_m.shape[1]):
-        if b == a:
-            continue
-        o_others[e, a, n, OTHER_DX] = (s.pos_m[e, b, 0] - x) / w.side_m
-        o_others[e, a, n, OTHER_DY] = (s.pos_m[e, b, 1] - y) / w.side_m
-        o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / w.seats
-        o_others_mask[e, a, n] = 1
-        n += 1
-    for m in range(n, o_others.shape[2]):
-        for f in range(o_others.shape[3]):
-            o_others[e, a, m, f] = 0.0
-        o_others_mask[e, a, m] = 0
+def _observe_others(s: FleetState, w: WorldArrays, o_others: np.ndarray, o_others_mask: np.ndarray) -> None:
+    """The other taxis as each taxi sees them, in taxi order; the rows past them zero and masked."""
+    num_taxis = s.pos_m.shape[1]
+    for e in range(s.pos_m.shape[0]):
+        for a in range(num_taxis):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            n = 0
+            for b in range(num_taxis):
+                if b == a:
+                    continue
+                o_others[e, a, n, OTHER_DX] = (s.pos_m[e, b, 0] - x) / w.side_m
+                o_others[e, a, n, OTHER_DY] = (s.pos_m[e, b, 1] - y) / w.side_m
+                o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / w.seats
+                o_others_mask[e, a, n] = 1
+                n += 1
+            o_others[e, a, n:] = 0.0
+            o_others_mask[e, a, n:] = 0
 
 
 @njit(cache=True)
@@ -421,46 +421,46 @@ def stop_features(
         for a in range(num_taxis):
             if _update_rests(s, e, a, memo, pts, t) < 0:
                 return False
-            for p in range(num_pax):
-                if not _stop_row(s, w, e, a, p, memo, pts, t, o_paths, o_heading):
-                    return False
+            if not _stop_rows(s, w, e, a, memo, pts, t, o_paths, o_heading):
+                return False
     return True
 
 
 @njit(cache=True)
-def _stop_row(
-    s: FleetState, w: WorldArrays, e: int, a: int, p: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
+def _stop_rows(
+    s: FleetState, w: WorldArrays, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
     o_paths: np.ndarray, o_heading: np.ndarray,
 ) -> bool:  # fmt: skip
-    """Row p of taxi a's stop features (zeros for a passenger hidden, absent or delivered; only the ride for a
-    row that is not actionable); False when a table row it reads is not computed yet."""
-    for h in range(NUM_HEADINGS):
-        o_heading[e, a, p, h] = 0
-    o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
-    o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
-    o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
-    status = s.pax_status[e, p]
-    if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
-        return True
+    """Taxi a's stop-feature rows (zeros for a passenger hidden, absent or delivered; only the ride for a row that
+    is not actionable); False when a table row it reads is not computed yet. One call per taxi, not per row: a
+    call passes (and reference-counts) every array of the state."""
     side = w.side_m
-    trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
-    if math.isnan(trip):
-        return False
-    o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
-    point = row_stop(s, e, a, p)
-    if point < 0:
-        return True
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-    gx, gy = pts[point, 0], pts[point, 1]
-    here = table_distance(t, x, y, gx, gy)
-    if math.isnan(here):
-        return False
-    o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
-    rest = s.stop_tour_m[e, a, point]
-    o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-    best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
-    if best >= 0:
-        o_heading[e, a, p, best] = 1
+    for p in range(s.pax_status.shape[1]):
+        o_heading[e, a, p, :] = 0
+        o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
+        o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
+        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
+        status = s.pax_status[e, p]
+        if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
+            continue
+        trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
+        if math.isnan(trip):
+            return False
+        o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
+        point = row_stop(s, e, a, p)
+        if point < 0:
+            continue
+        gx, gy = pts[point, 0], pts[point, 1]
+        here = table_distance(t, x, y, gx, gy)
+        if math.isnan(here):
+            return False
+        o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
+        rest = s.stop_tour_m[e, a, point]
+        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
+        best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
+        if best >= 0:
+            o_heading[e, a, p, best] = 1
     return True
 
 
@@ -560,7 +560,7 @@ def _progress_heading(
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _least_bound_move(allowed: np.ndarray, w: WorldArrays, x: float, y: float, gx: float, gy: float) -> int:
     """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed."""
     first, first_bound = -1, math.inf
