@@ -81,16 +81,15 @@ def observe(
     """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays (C-contiguous:
     the patches are written through flat views of them). Each part is one pass over all envs and taxis: a call
     per taxi would pass (and reference-count) every array of the state each time, ten times the work."""
-    _observe_own(s, w, o_self, o_history)
+    _observe_own(s, w, o_self, o_history, o_mask)
     _observe_passengers(s, w, o_pax, o_pax_mask)
     _observe_others(s, w, o_others, o_others_mask)
-    o_mask[:] = s.action_mask
     _patches(s, w, o_sinr, o_visit)
 
 
 @njit(cache=True)
-def _observe_own(s: FleetState, w: WorldArrays, o_self: np.ndarray, o_history: np.ndarray) -> None:
-    """Each taxi's ``self`` row and its ``history`` (positions relative to where it is now)."""
+def _observe_own(s: FleetState, w: WorldArrays, o_self: np.ndarray, o_history: np.ndarray, o_mask: np.ndarray) -> None:
+    """Each taxi's ``self`` row, its ``history`` (positions relative to where it is now) and allowed headings."""
     side_m, seats = w.side_m, w.seats
     for e in range(s.history_m.shape[0]):
         for a in range(s.history_m.shape[1]):
@@ -103,6 +102,8 @@ def _observe_own(s: FleetState, w: WorldArrays, o_self: np.ndarray, o_history: n
                 o_history[e, a, h, HIST_DX] = (s.history_m[e, a, h, 0] - x) / side_m
                 o_history[e, a, h, HIST_DY] = (s.history_m[e, a, h, 1] - y) / side_m
                 o_history[e, a, h, HIST_FREE_SEATS] = s.history_seats[e, a, h] / seats
+            for h in range(NUM_HEADINGS):
+                o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
 
 
 @njit(cache=True)
@@ -156,8 +157,10 @@ def _observe_others(s: FleetState, w: WorldArrays, o_others: np.ndarray, o_other
                 o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / w.seats
                 o_others_mask[e, a, n] = 1
                 n += 1
-            o_others[e, a, n:] = 0.0
-            o_others_mask[e, a, n:] = 0
+            for m in range(n, o_others.shape[2]):
+                for f in range(o_others.shape[3]):
+                    o_others[e, a, m, f] = 0.0
+                o_others_mask[e, a, m] = 0
 
 
 @njit(cache=True)
