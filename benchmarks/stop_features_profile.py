@@ -30,7 +30,7 @@ from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import WorldArrays
 from uamfleet.paths import table_for
-from uamfleet.paths.distance_table import table_distance
+from uamfleet.paths.distance_table import TableArrays, table_distance
 from uamfleet.types import DELIVERED, HIDDEN, FleetState
 
 
@@ -99,7 +99,7 @@ def snapshots(env: uamfleet.VectorEnv, count: int, every: int) -> list[FleetStat
 
 
 @njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
-def tour_rests_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
+def tour_rests_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
     """Every taxi's tour rests as :func:`kernels.stop_features` brings them up to date (``_update_rests``: the
     exact DP, or beyond ``MAX_EXACT_STOPS`` stops the nearest-stop order's, when its stops or seats changed);
     returns how many taxis' rests were computed (not kept from an earlier step)."""
@@ -112,13 +112,13 @@ def tour_rests_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, 
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(s.free_seats.shape[1]):
             kept = s.stop_tour_key[e, a]
-            _update_rests(s, e, a, s.stop_pair_m[e], pts, table, w.block_m, nbx, nby)
+            _update_rests(s, e, a, s.stop_pair_m[e], pts, t)
             computed += s.stop_tour_key[e, a] != kept
     return computed
 
 
 @njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
-def lookups_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby: int) -> int:
+def lookups_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
     """Each taxi's table look-ups towards its actionable stops: to the stop, and after each allowed move
     (:func:`kernels._progress_heading`); returns the number of rows."""
     rows = 0
@@ -134,8 +134,8 @@ def lookups_only(s: FleetState, w: WorldArrays, table: np.ndarray, nbx: int, nby
                 if point < 0:
                     continue
                 g = s.pax_origin_m[e, p] if point % 2 == 0 else s.pax_dest_m[e, p]
-                total += table_distance(table, w.block_m, nbx, nby, x, y, g[0], g[1])
-                total += _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, g[0], g[1])
+                total += table_distance(t, x, y, g[0], g[1])
+                total += _progress_heading(s.action_mask[e, a], w, t, x, y, g[0], g[1])
                 rows += 1
     return rows if not math.isnan(total) else -rows
 
@@ -156,22 +156,21 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     env = make_env(scenario, num_envs, num_taxis, True)
     states = snapshots(env, args.snapshots, args.every)
     table = table_for(env.world)
-    nbx, nby = table.shape
     w = env.world.arrays
     agent_steps = len(states) * num_envs * num_taxis
     layout = env.observer.layout
     fields = ("stop_paths", "stop_heading_mask")
     paths = [np.empty((num_envs, num_taxis, *layout[k].shape), layout[k].dtype) for k in fields]
     rows: list[tuple[str, float]] = [
-        ("stop_features (whole)", _time(kernels.stop_features, states, w, table.distance_m, nbx, nby, *paths)),
-        ("  tour rests (_update_rests)", _time(tour_rests_only, states, w, table.distance_m, nbx, nby)),
-        ("  look-ups: to stop + 16 moves", _time(lookups_only, states, w, table.distance_m, nbx, nby)),
+        ("stop_features (whole)", _time(kernels.stop_features, states, w, table.arrays, *paths)),
+        ("  tour rests (_update_rests)", _time(tour_rests_only, states, w, table.arrays)),
+        ("  look-ups: to stop + 16 moves", _time(lookups_only, states, w, table.arrays)),
     ]
     if "stop_rivals" in layout:
         rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)
         shape = layout["stop_claims"].shape if "stop_claims" in layout else None
         claims = np.empty((num_envs, num_taxis, *shape), np.int8) if shape else np.zeros((0, 0, 0, 0), np.int8)
-        rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.distance_m, nbx, nby,
+        rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.arrays,
                                                      rivals, claims)))  # fmt: skip
     exact = 0
     for s in states:

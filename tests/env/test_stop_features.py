@@ -384,7 +384,6 @@ def _costing_every_move(world: World, table, allowed: np.ndarray, x: float, y: f
     """The progress heading as first written: every allowed move costed in order, the first least one kept (the
     same float operations as the kernel, in Python)."""
     w = world.arrays
-    nbx, nby = table.shape
     best, best_cost = -1, np.inf
     for h in range(NUM_HEADINGS):
         if not allowed[h]:
@@ -393,7 +392,7 @@ def _costing_every_move(world: World, table, allowed: np.ndarray, x: float, y: f
         if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
             cost = w.step_m
         else:
-            cost = w.step_m + table_distance(table.distance_m, w.block_m, nbx, nby, qx, qy, gx, gy)
+            cost = w.step_m + table_distance(table.arrays, qx, qy, gx, gy)
         if cost < best_cost:
             best, best_cost = h, cost
     return best
@@ -402,7 +401,6 @@ def _costing_every_move(world: World, table, allowed: np.ndarray, x: float, y: f
 def test_progress_heading_equals_costing_every_move_in_order() -> None:
     env = VectorEnv(make_config("berlin_random", num_taxis=1, stop_features=True, sinr_min_db=-5.0), num_envs=1)
     world, table = env.world, table_for(env.world).fill()
-    nbx, nby = table.shape
     rng = np.random.default_rng(5)
     side, radius = world.side_m, world.cfg.radius_m
     cases = [(rng.uniform(0, side, 2), rng.uniform(0, side, 2)) for _ in range(400)]
@@ -416,7 +414,7 @@ def test_progress_heading_equals_costing_every_move_in_order() -> None:
         kernels.action_mask(pos[None], world.arrays, mask)
         for allowed in (mask[0], mask[0] & (rng.random(NUM_HEADINGS) < 0.5)):
             expected = _costing_every_move(world, table, allowed, pos[0], pos[1], goal[0], goal[1])
-            got = kernels._progress_heading(allowed, world.arrays, table.distance_m, nbx, nby, *pos, *goal)
+            got = kernels._progress_heading(allowed, world.arrays, table.arrays, *pos, *goal)
             assert got == expected, (pos, goal, allowed)
         ends = pos + world.moves_m[mask[0]]
         ties += int((np.linalg.norm(ends - goal, axis=-1) <= radius).sum() > 1)
@@ -430,7 +428,6 @@ def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) 
     progress key). Every step's stop features equal those computed from a copy whose kept rests are cleared."""
     env = VectorEnv(make_config("berlin_fleet", num_taxis=num_taxis, separation="none"), num_envs=2)
     table = table_for(env.world).fill()
-    nbx, nby = table.shape
     obs, _ = env.reset(seed=6)
     rng = np.random.default_rng(6)
     kept_steps = 0
@@ -443,7 +440,7 @@ def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) 
         fresh.stop_tour_key[:] = -1
         fresh.stop_tour_m[:] = np.nan
         paths, heading = np.empty_like(obs["stop_paths"]), np.empty_like(obs["stop_heading_mask"])
-        assert kernels.stop_features(fresh, env.world.arrays, table.distance_m, nbx, nby, paths, heading)
+        assert kernels.stop_features(fresh, env.world.arrays, table.arrays, paths, heading)
         np.testing.assert_array_equal(obs["stop_paths"], paths)
         np.testing.assert_array_equal(obs["stop_heading_mask"], heading)
     many = [kernels._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0

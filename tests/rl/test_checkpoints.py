@@ -15,6 +15,7 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import Request
+from uamfleet.env.layout import layout_to_dict, observation_layout
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.trainer import Checkpoint, TrainArgs, load_policy, read_progress, train, upgrade_checkpoint
 
@@ -113,6 +114,18 @@ def test_resume_with_another_architecture_or_layout_names_what_differs(tmp_path)
         train(args(tmp_path, **more), env_config=bigger)
     with pytest.raises(ValueError, match=r"observation field 'sinr_patch'"):
         load_policy(tmp_path / "run" / "last.pt", env_config=bigger)
+
+
+def test_a_checkpoint_stores_its_spec_and_resume_names_a_field_that_means_something_else(tmp_path):
+    train(args(tmp_path, iterations=1), env_config=ONE_PASSENGER)
+    path = tmp_path / "run" / "last.pt"
+    ckpt = Checkpoint.load(path)
+    assert ckpt.obs_layout == layout_to_dict(observation_layout(ONE_PASSENGER))
+    # same shapes, another meaning (as if the bounds of 'self' had changed since): resume refuses and names it
+    ckpt.obs_layout = {**ckpt.obs_layout, "self": {**ckpt.obs_layout["self"], "high": 9.0}}
+    ckpt.save(path)
+    with pytest.raises(ValueError, match=r"observation field 'self': high 9.0 vs 1.0 \(checkpoint vs this env\)"):
+        train(args(tmp_path, iterations=2, resume=True), env_config=ONE_PASSENGER)
 
 
 def test_an_existing_run_is_not_overwritten_without_overwrite(tmp_path):

@@ -11,7 +11,7 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.networks import MSHAActorCritic, NetConfig
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 
 
@@ -40,7 +40,14 @@ def _untrained_fleet_policy(taxis: int, variant: str = "de_msfea") -> GreedyPoli
     torch.manual_seed(0)
     head = "stops" if variant != "le" else "headings"
     net = MSHAActorCritic(
-        venv.single_observation_space, NetConfig(variant=variant, d_model=16, action_head=head, stop_prior="nearest")
+        venv.single_observation_space,
+        NetConfig(
+            variant=variant,
+            d_model=16,
+            action_head=head,
+            stop_prior="nearest",
+            **observed_inputs(venv.single_observation_space.spaces, variant, head),
+        ),
     ).eval()
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     return GreedyPolicy(net, None, torch.device("cpu"), shapes, taxis, cfg.num_passengers, cfg)

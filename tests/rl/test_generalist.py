@@ -15,7 +15,15 @@ from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_instance
 from uamfleet.metrics import episode_metrics
-from uamfleet.rl.networks import CLAIM_INIT, HOVER_LEAD, MSHAActorCritic, NetConfig, StopHead, obs_to_torch
+from uamfleet.rl.networks import (
+    CLAIM_INIT,
+    HOVER_LEAD,
+    MSHAActorCritic,
+    NetConfig,
+    StopHead,
+    obs_to_torch,
+    observed_inputs,
+)
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.types import NUM_HEADINGS
 
@@ -105,7 +113,13 @@ def _policy_net(**cfg_kwargs: object) -> tuple[MSHAActorCritic, dict[str, np.nda
     venv = VectorEnv(make_config("berlin_instances", sinr_min_db=-5.0), num_envs=4)
     obs, _ = venv.reset(seed=3)
     torch.manual_seed(0)
-    net = MSHAActorCritic(venv.single_observation_space, NetConfig(variant="de_msfea", d_model=32, **cfg_kwargs))
+    inputs = observed_inputs(
+        venv.single_observation_space.spaces, "de_msfea", str(cfg_kwargs.get("action_head", "headings"))
+    )
+    net = MSHAActorCritic(
+        venv.single_observation_space,
+        NetConfig(variant="de_msfea", d_model=32, **inputs, **cfg_kwargs),  # type: ignore[arg-type]
+    )
     return net, {k: v.reshape(4, *v.shape[2:]) for k, v in obs.items()}
 
 

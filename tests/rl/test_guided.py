@@ -13,7 +13,7 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.guided import GuidedSearchPolicy
-from uamfleet.rl.networks import MSHAActorCritic, NetConfig
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 
 WALLED_7 = "\n".join(["......."] * 3 + ["..###.."] + ["......."] * 3)
@@ -25,7 +25,14 @@ def _policy(cfg, seed: int) -> GreedyPolicy:
     torch.manual_seed(seed)
     net = MSHAActorCritic(
         venv.single_observation_space,
-        NetConfig(variant="de", d_model=16, num_heads=2, action_head="stops", heading_residual=True),
+        NetConfig(
+            variant="de",
+            d_model=16,
+            num_heads=2,
+            action_head="stops",
+            heading_residual=True,
+            **observed_inputs(venv.single_observation_space.spaces, "de", "stops"),
+        ),
     )
     with torch.no_grad():  # a residual that is not zero: the greedy flight is not simply the prior's
         for p in (net.stop_head.residual_free.weight, net.stop_head.residual_per_stop.weight):

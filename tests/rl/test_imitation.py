@@ -14,7 +14,7 @@ from uamfleet.config import Request, heading_vectors, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.imitation import NO_LABEL, Group, ImitationArgs, ReplanExpert, collect, fit, with_heading_residual
-from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 from uamfleet.types import HIDDEN, NUM_HEADINGS
 
@@ -35,7 +35,8 @@ def _berlin_batch(steps: int = 12) -> tuple[VectorEnv, dict[str, torch.Tensor]]:
 def _nets(**kw: object) -> tuple[MSHAActorCritic, MSHAActorCritic, VectorEnv, dict[str, torch.Tensor]]:
     venv, obs = _berlin_batch()
     torch.manual_seed(0)
-    cfg = NetConfig(variant="de_msfea", d_model=32, action_head="stops", **kw)  # type: ignore[arg-type]
+    inputs = observed_inputs(venv.single_observation_space.spaces, "de_msfea", "stops")
+    cfg = NetConfig(variant="de_msfea", d_model=32, action_head="stops", **inputs, **kw)  # type: ignore[arg-type]
     prior = MSHAActorCritic(venv.single_observation_space, cfg)
     residual = MSHAActorCritic(venv.single_observation_space, NetConfig(**{**cfg.__dict__, "heading_residual": True}))
     missing, unexpected = residual.load_state_dict(prior.state_dict(), strict=False)
@@ -130,7 +131,14 @@ def test_dagger_fit_moves_the_policy_toward_the_expert() -> None:
     torch.manual_seed(0)
     net = MSHAActorCritic(
         venv.single_observation_space,
-        NetConfig(variant="de_msfea", d_model=16, num_heads=2, action_head="stops", heading_residual=True),
+        NetConfig(
+            variant="de_msfea",
+            d_model=16,
+            num_heads=2,
+            action_head="stops",
+            heading_residual=True,
+            **observed_inputs(venv.single_observation_space.spaces, "de_msfea", "stops"),
+        ),
     )
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     normalizer = ObservationNormalizer(shapes)

@@ -21,7 +21,7 @@ from numba import njit
 
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
 from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
-from uamfleet.paths.distance_table import table_distance
+from uamfleet.paths.distance_table import TableArrays, table_distance
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -79,23 +79,42 @@ def observe(
     o_mask: np.ndarray,  # [E, A, NUM_HEADINGS] int8
 ) -> None:
     """The observation of every taxi (docs/rules.md "Observation"), written into the ``o_*`` arrays (C-contiguous:
-    the patches are written through flat views of them)."""
-    num_envs, num_taxis, hist_len = s.history_m.shape[0], s.history_m.shape[1], s.history_m.shape[2]
-    num_pax = s.pax_status.shape[1]
-    side_m, seats, time_limit = w.side_m, w.seats, w.time_limit_steps
-    for e in range(num_envs):
-        t = s.t[e]
-        for a in range(num_taxis):
+    the patches are written through flat views of them). Each part is one pass over all envs and taxis: a call
+    per taxi would pass (and reference-count) every array of the state each time, ten times the work."""
+    _observe_own(s, w, o_self, o_history, o_mask)
+    _observe_passengers(s, w, o_pax, o_pax_mask)
+    _observe_others(s, w, o_others, o_others_mask)
+    _patches(s, w, o_sinr, o_visit)
+
+
+@njit(cache=True)
+def _observe_own(s: FleetState, w: WorldArrays, o_self: np.ndarray, o_history: np.ndarray, o_mask: np.ndarray) -> None:
+    """Each taxi's ``self`` row, its ``history`` (positions relative to where it is now) and allowed headings."""
+    side_m, seats = w.side_m, w.seats
+    for e in range(s.history_m.shape[0]):
+        for a in range(s.history_m.shape[1]):
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
             o_self[e, a, SELF_X] = x / side_m
             o_self[e, a, SELF_Y] = y / side_m
             o_self[e, a, SELF_FREE_SEATS] = s.free_seats[e, a] / seats
-            o_self[e, a, SELF_TIME] = min(t / time_limit, 1.0)
-            for h in range(hist_len):
+            o_self[e, a, SELF_TIME] = min(s.t[e] / w.time_limit_steps, 1.0)
+            for h in range(s.history_m.shape[2]):
                 o_history[e, a, h, HIST_DX] = (s.history_m[e, a, h, 0] - x) / side_m
                 o_history[e, a, h, HIST_DY] = (s.history_m[e, a, h, 1] - y) / side_m
                 o_history[e, a, h, HIST_FREE_SEATS] = s.history_seats[e, a, h] / seats
-            for p in range(num_pax):
+            for h in range(NUM_HEADINGS):
+                o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
+
+
+@njit(cache=True)
+def _observe_passengers(s: FleetState, w: WorldArrays, o_pax: np.ndarray, o_pax_mask: np.ndarray) -> None:
+    """Each passenger row as each taxi sees it (zeros and mask 0 while hidden or absent)."""
+    side_m, time_limit = w.side_m, w.time_limit_steps
+    for e in range(s.pos_m.shape[0]):
+        t = s.t[e]
+        for a in range(s.pos_m.shape[1]):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            for p in range(s.pax_status.shape[1]):
                 row = o_pax[e, a, p]
                 status = s.pax_status[e, p]
                 if status == HIDDEN or not s.pax_exists[e, p]:
@@ -120,22 +139,28 @@ def observe(
                 row[PAX_ON_BOARD_OTHER] = 1.0 if status == ON_BOARD and not mine else 0.0
                 row[PAX_DELIVERED] = 1.0 if status == DELIVERED else 0.0
                 row[PAX_AGE] = min(max((t - s.pax_release[e, p]) / time_limit, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _observe_others(s: FleetState, w: WorldArrays, o_others: np.ndarray, o_others_mask: np.ndarray) -> None:
+    """The other taxis as each taxi sees them, in taxi order; the rows past them zero and masked."""
+    num_taxis = s.pos_m.shape[1]
+    for e in range(s.pos_m.shape[0]):
+        for a in range(num_taxis):
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
             n = 0
             for b in range(num_taxis):
                 if b == a:
                     continue
-                o_others[e, a, n, OTHER_DX] = (s.pos_m[e, b, 0] - x) / side_m
-                o_others[e, a, n, OTHER_DY] = (s.pos_m[e, b, 1] - y) / side_m
-                o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / seats
+                o_others[e, a, n, OTHER_DX] = (s.pos_m[e, b, 0] - x) / w.side_m
+                o_others[e, a, n, OTHER_DY] = (s.pos_m[e, b, 1] - y) / w.side_m
+                o_others[e, a, n, OTHER_FREE_SEATS] = s.free_seats[e, b] / w.seats
                 o_others_mask[e, a, n] = 1
                 n += 1
             for m in range(n, o_others.shape[2]):
                 for f in range(o_others.shape[3]):
                     o_others[e, a, m, f] = 0.0
                 o_others_mask[e, a, m] = 0
-            for h in range(NUM_HEADINGS):
-                o_mask[e, a, h] = 1 if s.action_mask[e, a, h] else 0
-    _patches(s, w, o_sinr, o_visit)
 
 
 @njit(cache=True)
@@ -173,12 +198,11 @@ def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndar
 
 
 @njit(cache=True)
-def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, table: np.ndarray, block_m: float,
-                   nbx: int, nby: int) -> float:  # fmt: skip
+def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, t: TableArrays) -> float:
     """Table distance from point i to point j of ``pts`` [2P, 2] (origin 2p, destination 2p + 1), memoised."""
     d = memo[i, j]
     if math.isnan(d):
-        d = table_distance(table, block_m, nbx, nby, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
+        d = table_distance(t, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
         memo[i, j] = d
     return d
 
@@ -229,8 +253,7 @@ def _progress_key(s: FleetState, e: int, a: int) -> int:
 
 @njit(cache=True)
 def _shortest_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int, out: np.ndarray,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
 ) -> int:  # fmt: skip
     """out[point] = the shortest rest of taxi a's tour after it reaches stop ``point`` first (2p: p's origin, 2p + 1:
     her destination), through every stop it knows of (its riders' destinations, the waiting passengers' origins
@@ -245,7 +268,7 @@ def _shortest_rests(
     dist = np.empty((n, n))
     for i in range(n):
         for j in range(n):
-            d = _stop_distance(memo, pts, ids[i], ids[j], table, block_m, nbx, nby) if i != j else 0.0
+            d = _stop_distance(memo, pts, ids[i], ids[j], t) if i != j else 0.0
             if math.isnan(d):
                 return 0
             dist[i, j] = d
@@ -371,9 +394,7 @@ def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray,
 def stop_features(
     s: FleetState,
     w: WorldArrays,
-    table: np.ndarray,  # DistanceTable.distance_m
-    nbx: int,
-    nby: int,
+    t: TableArrays,  # DistanceTable.arrays
     o_paths: np.ndarray,  # [E, A, P, len(STOP_PATH_FEATURES)] float32 out
     o_heading: np.ndarray,  # [E, A, P, NUM_HEADINGS] int8 out
 ) -> bool:
@@ -394,7 +415,6 @@ def stop_features(
     """
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
-    side, block_m = w.side_m, w.block_m
     pts = np.empty((2 * num_pax, 2))
     for e in range(num_envs):
         memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
@@ -402,35 +422,48 @@ def stop_features(
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            if _update_rests(s, e, a, memo, pts, table, block_m, nbx, nby) < 0:
+            if _update_rests(s, e, a, memo, pts, t) < 0:
                 return False
-            for p in range(num_pax):
-                for h in range(NUM_HEADINGS):
-                    o_heading[e, a, p, h] = 0
-                o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
-                o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
-                o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
-                status = s.pax_status[e, p]
-                if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
-                    continue
-                trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, table, block_m, nbx, nby)  # kept per episode
-                if math.isnan(trip):
-                    return False
-                o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
-                point = row_stop(s, e, a, p)
-                if point < 0:
-                    continue
-                gx, gy = pts[point, 0], pts[point, 1]
-                here = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
-                if math.isnan(here):
-                    return False
-                o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
-                rest = s.stop_tour_m[e, a, point]
-                o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-                best = _progress_heading(s.action_mask[e, a], w, table, nbx, nby, x, y, gx, gy)  # rows read above
-                if best >= 0:
-                    o_heading[e, a, p, best] = 1
+            if not _stop_rows(s, w, e, a, memo, pts, t, o_paths, o_heading):
+                return False
+    return True
+
+
+@njit(cache=True)
+def _stop_rows(
+    s: FleetState, w: WorldArrays, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
+    o_paths: np.ndarray, o_heading: np.ndarray,
+) -> bool:  # fmt: skip
+    """Taxi a's stop-feature rows (zeros for a passenger hidden, absent or delivered; only the ride for a row that
+    is not actionable); False when a table row it reads is not computed yet. One call per taxi, not per row: a
+    call passes (and reference-counts) every array of the state."""
+    side = w.side_m
+    x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+    for p in range(s.pax_status.shape[1]):
+        o_heading[e, a, p, :] = 0
+        o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
+        o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
+        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
+        status = s.pax_status[e, p]
+        if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
+            continue
+        trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
+        if math.isnan(trip):
+            return False
+        o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
+        point = row_stop(s, e, a, p)
+        if point < 0:
+            continue
+        gx, gy = pts[point, 0], pts[point, 1]
+        here = table_distance(t, x, y, gx, gy)
+        if math.isnan(here):
+            return False
+        o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
+        rest = s.stop_tour_m[e, a, point]
+        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
+        best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
+        if best >= 0:
+            o_heading[e, a, p, best] = 1
     return True
 
 
@@ -448,8 +481,7 @@ def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
 
 @njit(cache=True)
 def _update_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
 ) -> int:  # fmt: skip
     """Bring taxi a's tour rests (``s.stop_tour_m``) up to date: the exact shortest ones, or beyond
     :data:`MAX_EXACT_STOPS` pending stops the nearest-stop order's (:func:`_nearest_stop_tour`) of every stop
@@ -458,10 +490,10 @@ def _update_rests(
     key = _pending_key(s, e, a)
     if s.stop_tour_key[e, a] == key:
         return 1
-    found = _shortest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a])
+    found = _shortest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a])
     if found == 0:
         return -1
-    if found == -1 and not _nearest_rests(s, e, a, memo, pts, table, block_m, nbx, nby, s.stop_tour_m[e, a]):
+    if found == -1 and not _nearest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a]):
         s.stop_tour_key[e, a] = -1
         return -1
     s.stop_tour_key[e, a] = key
@@ -470,8 +502,7 @@ def _update_rests(
 
 @njit(cache=True)
 def _nearest_rests(
-    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, table: np.ndarray, block_m: float,
-    nbx: int, nby: int, out: np.ndarray,
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
 ) -> bool:  # fmt: skip
     """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`: its riders'
     destinations, the waiting passengers' origins while a seat is free); False when a table row is missing. The
@@ -491,7 +522,7 @@ def _nearest_rests(
     for i in range(m):
         for j in range(m):
             if i != j:
-                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], table, block_m, nbx, nby)
+                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], t)
                 if math.isnan(dist[i, j]):
                     return False
     todo = np.empty(m, np.int8)
@@ -504,9 +535,8 @@ def _nearest_rests(
 
 @njit(cache=True)
 def _progress_heading(
-    allowed: np.ndarray, w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, gx: float,
-    gy: float,
-) -> int:  # fmt: skip
+    allowed: np.ndarray, w: WorldArrays, t: TableArrays, x: float, y: float, gx: float, gy: float
+) -> int:
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
     ends within the pick-up radius), ties to the lowest heading; -1 when none is allowed or reachable. The stop's
     table rows must be computed (the caller has read them).
@@ -515,15 +545,10 @@ def _progress_heading(
     distance never undercuts the straight line), so the move with the least bound is costed first and a move
     whose bound cannot beat the best so far is never looked up: the same heading as costing all 16 in order, for
     a few look-ups instead of 16."""
-    first, first_bound = -1, math.inf
-    for h in range(NUM_HEADINGS):
-        if allowed[h]:
-            bound = _move_bound(w, x, y, h, gx, gy)
-            if bound < first_bound:
-                first, first_bound = h, bound
+    first = _least_bound_move(allowed, w, x, y, gx, gy)
     if first < 0:
         return -1
-    best, best_cost = first, _move_cost(w, table, nbx, nby, x, y, h=first, gx=gx, gy=gy)
+    best, best_cost = first, _move_cost(w, t, x, y, h=first, gx=gx, gy=gy)
     if best_cost == math.inf:
         best = -1
     for h in range(NUM_HEADINGS):
@@ -532,10 +557,22 @@ def _progress_heading(
         bound = _move_bound(w, x, y, h, gx, gy)
         if bound > best_cost or (bound == best_cost and h > best):
             continue  # its cost is >= bound: it cannot win, not even a tie
-        cost = _move_cost(w, table, nbx, nby, x, y, h, gx, gy)
+        cost = _move_cost(w, t, x, y, h, gx, gy)
         if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
+
+
+@njit(cache=True, inline="always")
+def _least_bound_move(allowed: np.ndarray, w: WorldArrays, x: float, y: float, gx: float, gy: float) -> int:
+    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed."""
+    first, first_bound = -1, math.inf
+    for h in range(NUM_HEADINGS):
+        if allowed[h]:
+            bound = _move_bound(w, x, y, h, gx, gy)
+            if bound < first_bound:
+                first, first_bound = h, bound
+    return first
 
 
 @njit(cache=True, inline="always")
@@ -549,24 +586,20 @@ def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float
 
 
 @njit(cache=True, inline="always")
-def _move_cost(
-    w: WorldArrays, table: np.ndarray, nbx: int, nby: int, x: float, y: float, h: int, gx: float, gy: float
-) -> float:
+def _move_cost(w: WorldArrays, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
     """Heading h's move plus the table distance left from its end to (gx, gy); the move alone within the
     pick-up radius."""
     qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
     if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
         return w.step_m
-    return w.step_m + table_distance(table, w.block_m, nbx, nby, qx, qy, gx, gy)
+    return w.step_m + table_distance(t, qx, qy, gx, gy)
 
 
 @njit(cache=True)
 def stop_rivals(
     s: FleetState,
     w: WorldArrays,
-    table: np.ndarray,  # DistanceTable.distance_m
-    nbx: int,
-    nby: int,
+    t: TableArrays,  # DistanceTable.arrays
     o_rivals: np.ndarray,  # [E, A, P, len(STOP_RIVAL_FEATURES)] float32 out
     o_claims: np.ndarray,  # [E, A, P, len(STOP_CLAIM_FEATURES)] int8 out, or a 0-size array: no claims
 ) -> bool:
@@ -585,7 +618,7 @@ def stop_rivals(
     """
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
-    side, block_m = w.side_m, w.block_m
+    side = w.side_m
     claims = o_claims.shape[0] > 0
     dist = np.empty((num_taxis, num_pax))  # [A, P] taxi -> waiting origin, inf for other rows
     for e in range(num_envs):
@@ -596,7 +629,7 @@ def stop_rivals(
                 if not waiting:
                     dist[b, p] = math.inf
                     continue
-                d = table_distance(table, block_m, nbx, nby, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                d = table_distance(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
                 if math.isnan(d):
                     return False
                 dist[b, p] = d

@@ -80,12 +80,12 @@ class Observer:
         has them; a stop whose table rows are not computed yet (a new instance) gets them, then all are written
         again."""
         assert self.table is not None
-        table, (nbx, nby) = self.table, self.table.shape
-        paths = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_paths"], obs["stop_heading_mask"])
+        table = self.table
+        paths = (state, self.world.arrays, table.arrays, obs["stop_paths"], obs["stop_heading_mask"])
         rivals = None
         if "stop_rivals" in obs:
             claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
-            rivals = (state, self.world.arrays, table.distance_m, nbx, nby, obs["stop_rivals"], claims)
+            rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
         if not kernels.stop_features(*paths) or (rivals is not None and not kernels.stop_rivals(*rivals)):
             exists = state.pax_exists
             table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))

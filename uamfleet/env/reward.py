@@ -18,7 +18,7 @@ from uamfleet.config import REWARD_TERMS, RewardConfig
 from uamfleet.env.kernels import row_stop
 from uamfleet.env.pretyped import PreTyped
 from uamfleet.paths import DistanceFields, DistanceTable, table_for
-from uamfleet.paths.distance_table import table_distance
+from uamfleet.paths.distance_table import TableArrays, table_distance
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
 
 if TYPE_CHECKING:
@@ -154,24 +154,21 @@ class Potential:
         out = np.empty(state.free_seats.shape)
         table = self._table
         if table is None:
-            self._phi(state, _NO_TABLE, 1.0, 1, 1, False, self.step_m, out)
-        elif not self._phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out):
+            self._phi(state, _NO_TABLE, False, self.step_m, out)
+        elif not self._phi(state, table.arrays, True, self.step_m, out):
             # a stop whose table rows are not computed yet (a new instance): compute them, then again
             table.ensure(np.concatenate([state.pax_origin_m[state.pax_exists], state.pax_dest_m[state.pax_exists]]))
-            self._phi(state, table.distance_m, table.block_m, *table.shape, True, self.step_m, out)
+            self._phi(state, table.arrays, True, self.step_m, out)
         return out
 
 
-_NO_TABLE = np.zeros((1, 1), dtype=np.float32)
+_NO_TABLE = TableArrays(np.zeros((1, 1), dtype=np.float32), 1.0, 1, 1)
 
 
 @njit(cache=True)
 def _phi(
     s: FleetState,
-    table: np.ndarray,  # DistanceTable.distance_m, or a dummy when not use_table
-    block_m: float,
-    nbx: int,
-    nby: int,
+    t: TableArrays,  # DistanceTable.arrays, or a dummy when not use_table
     use_table: bool,
     step_m: float,
     out: np.ndarray,  # [E, A]
@@ -191,7 +188,7 @@ def _phi(
                 stops = s.pax_dest_m if point % 2 else s.pax_origin_m
                 gx, gy = stops[e, p, 0], stops[e, p, 1]
                 if use_table:
-                    d = table_distance(table, block_m, nbx, nby, x, y, gx, gy)
+                    d = table_distance(t, x, y, gx, gy)
                     if math.isnan(d):
                         return False
                 else:

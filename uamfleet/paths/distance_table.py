@@ -51,6 +51,7 @@ import warnings
 import weakref
 import zipfile
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -73,6 +74,16 @@ def cache_dir() -> Path | None:
     if value is not None:
         return None if value.strip().lower() in ("", "off", "0", "none") else Path(value)
     return Path.home() / ".cache" / "uamfleet"
+
+
+class TableArrays(NamedTuple):
+    """What the compiled lookups read of a :class:`DistanceTable`, passed to them whole (as
+    :class:`~uamfleet.env.arrays.WorldArrays` carries the world's arrays)."""
+
+    distance_m: np.ndarray  # [nbx * nby, nbx * nby] float32, row j = distances to block centre j; NaN: not computed
+    block_m: float
+    nbx: int
+    nby: int
 
 
 class DistanceTable:
@@ -102,6 +113,8 @@ class DistanceTable:
         # NaN marks rows not computed yet; the lookup refuses to read one.
         self.distance_m = np.full((len(centres), len(centres)), np.nan, dtype=np.float32)
         self.filled = np.zeros(len(centres), dtype=bool)
+        # one object for the table's life (rows are written in place): the kernels' pre-typed entries know it
+        self.arrays = TableArrays(self.distance_m, self.block_m, nbx, nby)
         self._lattice: Lattice | None = None  # the graph as moves, made on the first rows computed
         self._load_cached()
 
@@ -185,7 +198,7 @@ class DistanceTable:
         """Compute the rows that lookups towards ``stops`` ([..., 2] metres) read, if not done yet."""
         pts = np.ascontiguousarray(np.asarray(stops, dtype=np.float64).reshape(-1, 2))
         rows = np.empty((pts.shape[0], 4), dtype=np.int64)
-        corner_rows(pts, self.block_m, self.shape[0], self.shape[1], rows)
+        corner_rows(pts, self.arrays, rows)
         rows = np.unique(rows[rows >= 0])
         self._compute(rows[~self.filled[rows]])
 
@@ -227,11 +240,8 @@ class DistanceTable:
         self.ensure(b)
         flat_a, flat_b = np.ascontiguousarray(a.reshape(-1, 2)), np.ascontiguousarray(b.reshape(-1, 2))
         out = np.empty(flat_a.shape[0])
-        nbx, nby = self.shape
         for i in range(out.size):
-            out[i] = table_distance(
-                self.distance_m, self.block_m, nbx, nby, flat_a[i, 0], flat_a[i, 1], flat_b[i, 0], flat_b[i, 1]
-            )
+            out[i] = table_distance(self.arrays, flat_a[i, 0], flat_a[i, 1], flat_b[i, 0], flat_b[i, 1])
         return out.reshape(a.shape[:-1])
 
 
@@ -303,8 +313,9 @@ def _axis(v: float, block_m: float, nb: int) -> tuple[int, float]:
 
 
 @njit(cache=True)
-def corner_rows(points: np.ndarray, block_m: float, nbx: int, nby: int, out: np.ndarray) -> None:
+def corner_rows(points: np.ndarray, t: TableArrays, out: np.ndarray) -> None:
     """out[k] = the 4 table rows (block centres) a lookup towards points[k] reads; -1 for a zero weight."""
+    block_m, nbx, nby = t.block_m, t.nbx, t.nby
     for k in range(points.shape[0]):
         ix, tx = _axis(points[k, 0], block_m, nbx)
         iy, ty = _axis(points[k, 1], block_m, nby)
@@ -314,13 +325,11 @@ def corner_rows(points: np.ndarray, block_m: float, nbx: int, nby: int, out: np.
 
 
 @njit(cache=True)
-def table_distance(
-    table: np.ndarray, block_m: float, nbx: int, nby: int, ax: float, ay: float, bx: float, by: float
-) -> float:
-    """Distance (metres) from point a to stop b in a :class:`DistanceTable`'s ``distance_m`` of ``nbx`` x ``nby``
-    blocks: bilinear in both points over the corner pairs that are joined (weights renormalised), at least
-    ``|a - b|``; ``inf`` when no pair is joined; NaN when a row of b's corners is not computed yet
-    (:meth:`DistanceTable.ensure`)."""
+def table_distance(t: TableArrays, ax: float, ay: float, bx: float, by: float) -> float:
+    """Distance (metres) from point a to stop b in a :class:`DistanceTable` (its :class:`TableArrays`): bilinear
+    in both points over the corner pairs that are joined (weights renormalised), at least ``|a - b|``; ``inf``
+    when no pair is joined; NaN when a row of b's corners is not computed yet (:meth:`DistanceTable.ensure`)."""
+    table, block_m, nbx, nby = t.distance_m, t.block_m, t.nbx, t.nby
     iax, tax = _axis(ax, block_m, nbx)
     iay, tay = _axis(ay, block_m, nby)
     ibx, tbx = _axis(bx, block_m, nbx)

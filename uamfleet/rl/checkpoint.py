@@ -32,9 +32,9 @@ import torch
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, make_config
-from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.layout import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
 from uamfleet.io import write_bytes_atomic
-from uamfleet.rl.networks import MSHAActorCritic, NetConfig
+from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs
 
 CHECKPOINT_FORMAT = 2
@@ -93,6 +93,7 @@ class Checkpoint:
     numpy_rng: dict[str, Any]
     cuda_rng: torch.Tensor | None = None
     format: int = CHECKPOINT_FORMAT
+    obs_layout: dict[str, Any] | None = None  # layout_to_dict of the training env's spec; None: an older file
 
     def to_bytes(self) -> bytes:
         data = io.BytesIO()
@@ -126,8 +127,19 @@ class Checkpoint:
                 f"{source} is not a uamfleet training checkpoint (expected keys {required}, got {got})."
             )
         ckpt = cls(**{k: v for k, v in payload.items() if k in names})
+        ckpt._check_parts(source)
+        ckpt.net_config = with_input_flags(ckpt.net_config, ckpt.obs_shapes)
         ckpt.validate(source)
         return ckpt
+
+    def layout(self, source: str) -> Layout | None:
+        """The training env's observation spec (None for a file written before checkpoints stored it)."""
+        if self.obs_layout is None:
+            return None
+        try:
+            return layout_from_dict(self.obs_layout)
+        except (ValueError, TypeError, AttributeError) as err:
+            raise CheckpointError(f"{source}: its observation layout is not a spec: {err}") from None
 
     def validate(self, source: str) -> NetConfig:
         """Raise CheckpointError unless the parts are of the right types, the network config is known and
@@ -159,6 +171,25 @@ class Checkpoint:
         for key, shape in self.obs_shapes.items():
             if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
                 raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
+        self._check_layout(source)
+
+    def _check_layout(self, source: str) -> None:
+        """A stored spec is plain dicts, lists, strings and numbers, and agrees with ``obs_shapes``."""
+        if self.obs_layout is None:
+            return
+        if not isinstance(self.obs_layout, dict) or not _is_plain(self.obs_layout):
+            raise CheckpointError(
+                f"{source}: its obs_layout holds something other than dicts, lists, strings and numbers: the file "
+                "was not written by uamfleet or was altered."
+            )
+        layout = self.layout(source)
+        assert layout is not None
+        shapes = {k: list(spec.shape) for k, spec in layout.items()}
+        if shapes != {k: list(v) for k, v in self.obs_shapes.items()}:
+            raise CheckpointError(
+                f"{source}: its obs_layout (shapes {shapes}) disagrees with its obs_shapes {self.obs_shapes}: the "
+                "file was altered."
+            )
 
     def statistics(self, source: str) -> Iterator[tuple[str, torch.Tensor]]:
         """(name, tensor) of every weight and normalisation statistic a policy flies with."""
@@ -176,9 +207,11 @@ class Checkpoint:
                 yield f"normaliser {field_name!r} {key}", value
 
     def check_matches(
-        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False
-    ) -> None:
-        """Raise ValueError naming every architecture, scenario or observation-layout field that differs;
+        self, args: TrainArgs | None, obs_shapes: dict[str, tuple[int, ...]], extra_ok: bool = False,
+        layout: Layout | None = None,
+    ) -> None:  # fmt: skip
+        """Raise ValueError naming every architecture, scenario or observation-layout field that differs (with
+        ``layout``, the env's spec, also what a field of the same shape means: bounds, columns, kind, dtype);
         ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
         diffs = []
         if args is not None:
@@ -191,15 +224,49 @@ class Checkpoint:
                 continue
             if saved is None or now is None or tuple(saved) != tuple(now):
                 diffs.append(f"observation field {key!r}: checkpoint shape {saved}, this env {now}")
+        diffs += self._spec_differences(layout) if layout is not None else []
         if diffs:
             raise ValueError(
                 "the checkpoint was trained with another setup: " + "; ".join(diffs) + ". Use the same options "
                 "(or a new --run-name for a new run)."
             )
 
+    def _spec_differences(self, layout: Layout) -> list[str]:
+        """The fields of the same shape whose stored spec differs from ``layout``'s (none for an older file)."""
+        trained = self.layout("the checkpoint")
+        if trained is None:
+            return []
+        same = [k for k in trained if k in layout and layout[k].shape == trained[k].shape]
+        lines = layout_differences({k: trained[k] for k in same}, {k: layout[k] for k in same})
+        return [f"observation field {line} (checkpoint vs this env)" for line in lines]
+
 
 def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_plain(value: object, depth: int = 0) -> bool:
+    """Dicts of string keys, lists, strings, numbers, booleans and None only, at most a few levels deep."""
+    if value is None or isinstance(value, str | int | float | bool):
+        return True
+    if depth > 4:
+        return False
+    if isinstance(value, list):
+        return all(_is_plain(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _is_plain(v, depth + 1) for k, v in value.items())
+    return False
+
+
+def with_input_flags(net_config: dict[str, Any], obs_shapes: Mapping[str, Any]) -> dict[str, Any]:
+    """``net_config`` with the input flags of :class:`NetConfig` that a file written before them lacks, derived
+    once, here, from the fields it was trained on (``obs_shapes``): the network it builds reads what it read then.
+    A file that names the flags keeps them."""
+    if not isinstance(net_config, dict) or all(name in net_config for name in INPUT_FIELDS):
+        return net_config
+    variant, head = net_config.get("variant", "full"), net_config.get("action_head", "headings")
+    derived = observed_inputs(obs_shapes, str(variant), str(head))
+    return {**net_config, **{k: v for k, v in derived.items() if k not in net_config}}
 
 
 def check_net_config(net_config: Mapping[str, Any], source: str) -> NetConfig:
@@ -331,10 +398,12 @@ def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *,
     if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
         raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
     _to_plain_values(old)
-    venv = VectorEnv(_evaluation_config(old["args"], env_config), num_envs=1)
-    old["obs_shapes"] = {k: list(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    layout = observation_layout(_evaluation_config(old["args"], env_config))  # the spec: no env is built
+    old["obs_shapes"] = {k: list(spec.shape) for k, spec in layout.items()}
+    old["obs_layout"] = layout_to_dict(layout)
     names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
     upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
+    upgraded.net_config = with_input_flags(upgraded.net_config, upgraded.obs_shapes)
     upgraded.validate(str(path))
     upgraded.save(path)
     return path
@@ -420,4 +489,5 @@ __all__ = [
     "numpy_rng_state",
     "set_numpy_rng_state",
     "upgrade_checkpoint",
+    "with_input_flags",
 ]

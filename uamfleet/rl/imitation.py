@@ -326,42 +326,22 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     source_args = checkpoint_args(ckpt)
     prior, _ = load_policy(init)
     policy = with_heading_residual(prior)
-    base = make_env_config(source_args.scenario, source_args, training=True)
     family = family_of(source_args.scenario)
     eval_like = make_env_config(source_args.scenario, source_args, training=False)
-    groups = []
-    for i, threshold in enumerate(args.thresholds):
-        cfg = base.replace(sinr_min_db=threshold)
-        venv = VectorEnv(cfg, num_envs=args.envs_per_threshold)
-        table_for(venv.world).fill()
-        obs, _ = venv.reset(seed=args.seed + 1000 * i)
-        groups.append(Group(venv, ReplanExpert(cfg, venv.num_envs, args.expert_beam), obs, _released_count(venv)))
+    groups = _groups(args, make_env_config(source_args.scenario, source_args, training=True))
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
     folder.mkdir(parents=True, exist_ok=True)
-    rows: list[dict[str, float]] = []
-    best: dict[str, float] = {}
     first = validation_metrics(policy, family, args.eval_instances, eval_like)
-    rows.append({"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)})
+    rows: list[dict[str, float]] = [{"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)}]
     best = dict(rows[-1])
     _save(folder / "best.pt", ckpt, policy, args, best)
     data = Dataset()
     for r in range(args.rounds):
         if args.max_wall_s is not None and time.time() - start > args.max_wall_s:
             break
-        solves_before = sum(g.expert.solves for g in groups)
-        corrections_before = sum(g.expert.corrections for g in groups)
-        new = collect(groups, policy, args.beta(r), args.steps_per_round, rng)
-        for o, lab, cor in zip(new.obs, new.labels, new.corrected, strict=True):
-            data.add(o, lab, cor)
-        data.trim(args.max_samples)
-        stats = fit(policy.net, data, args, optimizer, rng)
+        counts, stats = _round(r, groups, policy, data, args, optimizer, rng)
         val = validation_metrics(policy, family, args.eval_instances, eval_like)
-        row = {
-            "round": r, "beta": args.beta(r), "samples": len(data), "new_samples": len(new),
-            "solves": sum(g.expert.solves for g in groups) - solves_before,
-            "corrections": sum(g.expert.corrections for g in groups) - corrections_before,
-            "solve_s": sum(g.expert.solve_s for g in groups), "wall_s": time.time() - start, **stats, **_val(val),
-        }  # fmt: skip
+        row = {**counts, "wall_s": time.time() - start, **stats, **_val(val)}  # progress.csv's column order
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
         write_text_atomic(folder / "progress.csv", _csv(rows))
@@ -371,6 +351,40 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
             _save(folder / "best.pt", ckpt, policy, args, best)
     write_text_atomic(folder / "progress.csv", _csv(rows))
     return best
+
+
+def _groups(args: ImitationArgs, base: EnvConfig) -> list[Group]:
+    """One group of ``envs_per_threshold`` envs (tables filled) and its expert per training threshold."""
+    groups = []
+    for i, threshold in enumerate(args.thresholds):
+        cfg = base.replace(sinr_min_db=threshold)
+        venv = VectorEnv(cfg, num_envs=args.envs_per_threshold)
+        table_for(venv.world).fill()
+        obs, _ = venv.reset(seed=args.seed + 1000 * i)
+        groups.append(Group(venv, ReplanExpert(cfg, venv.num_envs, args.expert_beam), obs, _released_count(venv)))
+    return groups
+
+
+def _round(
+    r: int, groups: list[Group], policy: GreedyPolicy, data: Dataset, args: ImitationArgs,
+    optimizer: torch.optim.Optimizer, rng: np.random.Generator,
+) -> tuple[dict[str, float], dict[str, float]]:  # fmt: skip
+    """DAgger round r: collect under the mixture, add to ``data`` (trimmed), fit; the round's counts (samples,
+    expert solves) and the fit's statistics."""
+    solves_before = sum(g.expert.solves for g in groups)
+    corrections_before = sum(g.expert.corrections for g in groups)
+    new = collect(groups, policy, args.beta(r), args.steps_per_round, rng)
+    for o, lab, cor in zip(new.obs, new.labels, new.corrected, strict=True):
+        data.add(o, lab, cor)
+    data.trim(args.max_samples)
+    stats = fit(policy.net, data, args, optimizer, rng)
+    counts = {
+        "round": r, "beta": args.beta(r), "samples": len(data), "new_samples": len(new),
+        "solves": sum(g.expert.solves for g in groups) - solves_before,
+        "corrections": sum(g.expert.corrections for g in groups) - corrections_before,
+        "solve_s": sum(g.expert.solve_s for g in groups),
+    }  # fmt: skip
+    return counts, stats
 
 
 def _val(m: dict[str, float]) -> dict[str, float]:

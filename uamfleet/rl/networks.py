@@ -32,6 +32,7 @@ width and the global heads' k² × k² scores, not the parameter count, set the 
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,9 +93,16 @@ class NetConfig:
     stop_free_move: bool = False  # "stops": also a free move beside the stops (else only when no stop is actionable)
     stop_prior: str = "tour"  # "stops": the prior prefers the shortest tour via a stop, or "nearest" stop
     heading_residual: bool = False  # "stops": learned per-heading logits on top of the stop mixture (zero at first)
+    # What the network reads beyond the fields every observation has (chosen here, never by which fields exist;
+    # :func:`observed_inputs` derives them from a layout): each needs its observation field(s), see INPUT_FIELDS.
+    stop_inputs: bool = False  # passenger rows also read their stop paths and an "actionable" flag
+    rival_inputs: bool = False  # ... and what the other taxis offer for each stop (needs stop_inputs)
+    claim_inputs: bool = False  # ... and the nearest-first matching's claims (needs rival_inputs)
+    stop_hover: bool = False  # "stops": a hover component beside the free move (needs claim_inputs)
 
     def __post_init__(self) -> None:
         self._check_head()
+        self._check_inputs()
         self._check_attention()
         if self.readout not in READOUTS:
             raise ValueError(f"readout={self.readout!r} is unknown; use one of {READOUTS}.")
@@ -124,6 +132,25 @@ class NetConfig:
         if self.variant not in VARIANTS:
             raise ValueError(f"variant={self.variant!r} is unknown; use one of {VARIANTS}.")
 
+    def _check_inputs(self) -> None:
+        """Each optional input needs the one before it (the observation has them only together)."""
+        if self.variant == "le" and self.stop_inputs:
+            raise ValueError(
+                "stop_inputs=True adds columns to the passenger tokens, which the linear encoder ('le') does not "
+                "make; use a designed variant ('de', 'de_msfea' or 'full') or stop_inputs=False."
+            )
+        if self.action_head == "stops" and not self.stop_inputs:
+            raise ValueError(
+                "action_head='stops' needs the stop features as inputs: NetConfig(stop_inputs=True) and an env "
+                "built with EnvConfig(stop_features=True) (e.g. the 'berlin_instances' scenario)."
+            )
+        for name, needs in (("rival_inputs", "stop_inputs"), ("claim_inputs", "rival_inputs"),
+                            ("stop_hover", "claim_inputs")):  # fmt: skip
+            if getattr(self, name) and not getattr(self, needs):
+                raise ValueError(f"{name}=True needs {needs}=True (the observation has them only together).")
+        if self.stop_hover and self.action_head != "stops":
+            raise ValueError("stop_hover=True is a component of the stop head: it needs action_head='stops'.")
+
     def _check_attention(self) -> None:
         """Heads, width and local windows of the hybrid attention."""
         if self.num_heads < 2:
@@ -141,6 +168,56 @@ class NetConfig:
                 f"local_window={self.local_window} makes 1 x 1 windows, where local attention is an identity; "
                 "use a window side >= 2 that divides the patch size (e.g. 2 or 5 for a 10 x 10 patch)."
             )
+
+
+INPUT_FIELDS: dict[str, tuple[str, ...]] = {
+    "stop_inputs": ("stop_paths", "stop_heading_mask"),
+    "rival_inputs": ("stop_rivals",),
+    "claim_inputs": ("stop_claims",),
+    "stop_hover": ("hover_heading_mask",),
+}
+"""The observation fields each optional input of :class:`NetConfig` reads."""
+
+
+def observed_inputs(fields: Collection[str], variant: str = "full", action_head: str = "headings") -> dict[str, bool]:
+    """The :class:`NetConfig` input flags that read every optional field among ``fields`` (a layout, a space's
+    keys or a checkpoint's ``obs_shapes``) that a network of ``variant`` and ``action_head`` can read: for the
+    trainer (from the training env's spec) and, once in the loader, for a checkpoint that predates the flags."""
+    stops = variant != "le" and all(f in fields for f in INPUT_FIELDS["stop_inputs"])
+    rivals = stops and "stop_rivals" in fields
+    claims = rivals and "stop_claims" in fields
+    hover = claims and action_head == "stops" and "hover_heading_mask" in fields
+    return {"stop_inputs": stops, "rival_inputs": rivals, "claim_inputs": claims, "stop_hover": hover}
+
+
+def missing_inputs(cfg: NetConfig, fields: Collection[str]) -> list[str]:
+    """The observation fields ``cfg`` reads that ``fields`` lacks (empty: the observation fits)."""
+    return [f for name, needed in INPUT_FIELDS.items() if getattr(cfg, name) for f in needed if f not in fields]
+
+
+def check_observation_fits(shapes: Mapping[str, tuple[int, ...]], cfg: NetConfig) -> None:
+    """ValueError naming what a network of ``cfg`` reads that an observation of ``shapes`` lacks or sizes
+    otherwise, and the fix."""
+    required = ("self", "history", "passengers", "sinr_patch", "visit_patch", "others", *MASK_FIELDS)
+    missing = [key for key in required if key not in shapes]
+    if missing:
+        raise ValueError(f"observation_space lacks field(s) {missing}; build it with uamfleet's env.")
+    missing = missing_inputs(cfg, shapes)
+    if missing:
+        asked = [name for name, fields in INPUT_FIELDS.items() if getattr(cfg, name) and set(fields) & set(missing)]
+        raise ValueError(
+            f"NetConfig({', '.join(f'{n}=True' for n in asked)}) reads observation field(s) {missing}, which this "
+            "observation lacks: build the env with EnvConfig(stop_features=True) (stop_rivals / stop_claims for "
+            "rivals, claims and hover), or turn those inputs off (observed_inputs(fields) gives what fits)."
+        )
+    k = shapes["sinr_patch"][0]
+    if cfg.variant == "full" and k % cfg.local_window != 0:
+        raise ValueError(
+            f"local_window={cfg.local_window} does not divide the patch size k={k}; "
+            f"use a divisor of {k} that is >= 2 (NetConfig(local_window=...))."
+        )
+    if shapes["action_mask"] != (NUM_ACTIONS,):
+        raise ValueError(f"action_mask has shape {shapes['action_mask']}, expected ({NUM_ACTIONS},).")
 
 
 class LinearTorso(nn.Module):
@@ -185,13 +262,11 @@ class DesignedTorso(nn.Module):
         Dg = D // 2  # fused grid width: k² tokens per sample make this the costly part
         k = shapes["sinr_patch"][0]
         self.taxi = TaxiEncoder(shapes["history"][1], shapes["self"][0], D)
-        # with stop features, each passenger row also gets its path distances and an "actionable" flag
-        self.stop_inputs = "stop_paths" in shapes and "stop_heading_mask" in shapes
+        # with stop inputs, each passenger row also gets its path distances and an "actionable" flag
+        self.stop_inputs, self.rival_inputs, self.claim_inputs = cfg.stop_inputs, cfg.rival_inputs, cfg.claim_inputs
         extra = shapes["stop_paths"][1] + 1 if self.stop_inputs else 0
-        self.rival_inputs = self.stop_inputs and "stop_rivals" in shapes  # a fleet: what the other taxis offer
-        extra += shapes["stop_rivals"][1] if self.rival_inputs else 0
-        self.claim_inputs = self.rival_inputs and "stop_claims" in shapes  # the nearest-first matching's claims
-        extra += shapes["stop_claims"][1] if self.claim_inputs else 0
+        extra += shapes["stop_rivals"][1] if self.rival_inputs else 0  # a fleet: what the other taxis offer
+        extra += shapes["stop_claims"][1] if self.claim_inputs else 0  # the nearest-first matching's claims
         self.passengers = PassengerEncoder(shapes["passengers"][1] + extra, D, cfg.num_heads)
         self.sinr_cnn = MapEncoder(C)
         self.visit_cnn = MapEncoder(C)  # a separate CNN: SINR and visit ratio are different physical fields
@@ -372,18 +447,7 @@ class MSHAActorCritic(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.shapes = {key: tuple(sub.shape or ()) for key, sub in observation_space.spaces.items()}
-        required = ("self", "history", "passengers", "sinr_patch", "visit_patch", "others", *MASK_FIELDS)
-        missing = [key for key in required if key not in self.shapes]
-        if missing:
-            raise ValueError(f"observation_space lacks field(s) {missing}; build it with uamfleet's env.")
-        k = self.shapes["sinr_patch"][0]
-        if cfg.variant == "full" and k % cfg.local_window != 0:
-            raise ValueError(
-                f"local_window={cfg.local_window} does not divide the patch size k={k}; "
-                f"use a divisor of {k} that is >= 2 (NetConfig(local_window=...))."
-            )
-        if self.shapes["action_mask"] != (NUM_ACTIONS,):
-            raise ValueError(f"action_mask has shape {self.shapes['action_mask']}, expected ({NUM_ACTIONS},).")
+        check_observation_fits(self.shapes, cfg)
         self.torso: LinearTorso | DesignedTorso = (
             LinearTorso(self.shapes, cfg.d_model) if cfg.variant == "le" else DesignedTorso(self.shapes, cfg)
         )
@@ -391,16 +455,10 @@ class MSHAActorCritic(nn.Module):
         self.actor = mlp3(features, cfg.hidden, NUM_ACTIONS, out_std=0.01)
         self.critic = mlp3(cfg.critic_state_dim or features, cfg.hidden, 1, out_std=1.0)
         self.stop_head: StopHead | None = None
-        if cfg.action_head == "stops":
-            if not (isinstance(self.torso, DesignedTorso) and self.torso.stop_inputs):
-                raise ValueError(
-                    "action_head='stops' needs the stop features in the observation ('stop_paths', "
-                    "'stop_heading_mask'): build the env with EnvConfig(stop_features=True), e.g. the "
-                    "'berlin_instances' scenario."
-                )
+        if cfg.action_head == "stops":  # NetConfig guarantees a designed torso with stop inputs
             self.stop_head = StopHead(
-                features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=self.torso.claim_inputs,
-                hover=self.torso.claim_inputs and "hover_heading_mask" in self.shapes, residual=cfg.heading_residual,
+                features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
+                hover=cfg.stop_hover, residual=cfg.heading_residual,
             )  # fmt: skip
 
     def _actor(self, obs: dict[str, torch.Tensor], with_residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -505,6 +563,7 @@ __all__ = [
     "CLAIMED_BY_OTHER",
     "CLAIM_INIT",
     "HOVER_LEAD",
+    "INPUT_FIELDS",
     "MASK_FIELDS",
     "NEARNESS_INIT",
     "NOT_THIS",
@@ -529,13 +588,16 @@ __all__ = [
     "StopHead",
     "TaxiEncoder",
     "as_bool",
+    "check_observation_fits",
     "global_attention",
     "layer_init",
     "local_attention",
     "mask_logits",
     "masked_mean",
+    "missing_inputs",
     "mlp3",
     "multi_source_features",
     "obs_to_torch",
+    "observed_inputs",
     "window_order",
 ]

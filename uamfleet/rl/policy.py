@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
-from uamfleet.env.layout import layout_shapes, observation_layout, observation_space
+from uamfleet.env.layout import Layout, layout_differences, layout_shapes, observation_layout, observation_space
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
@@ -169,15 +169,7 @@ def load_policy(
     args = checkpoint_args(ckpt)
     cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
     layout = observation_layout(cfg)  # the spec: no env is built
-    try:
-        ckpt.check_matches(None, layout_shapes(layout), extra_ok=True)
-    except ValueError as err:
-        raise ValueError(
-            f"{path}: {err} The policy flies any config of its observation layout (any threshold, instance or "
-            f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
-            f"{ckpt.obs_shapes.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in ckpt.obs_shapes}, "
-            f"stop_rivals={'stop_rivals' in ckpt.obs_shapes}, stop_claims={'stop_claims' in ckpt.obs_shapes}."
-        ) from None
+    _check_layout(ckpt, layout, str(path), args)
     read = {k: spec for k, spec in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
     space, shapes = observation_space(read), layout_shapes(read)
     net = MSHAActorCritic(space, check_network(ckpt, space, str(path))).to(device)
@@ -193,3 +185,32 @@ def load_policy(
     return GreedyPolicy(
         net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
     ), args
+
+
+def _check_layout(ckpt: Checkpoint, layout: Layout, source: str, args: TrainArgs) -> None:
+    """ValueError naming every field of the checkpoint's training spec that ``layout`` (the env's) lacks or
+    describes otherwise (shape, dtype, bounds, columns, kind); fields only the env has are not read. A file written
+    before checkpoints stored the spec is compared by shapes."""
+    trained = ckpt.layout(source)
+    if trained is None:
+        try:
+            ckpt.check_matches(None, layout_shapes(layout), extra_ok=True)
+            return
+        except ValueError as err:
+            why = str(err)
+    else:
+        diffs = layout_differences(trained, {k: spec for k, spec in layout.items() if k in trained})
+        if not diffs:
+            return
+        lines = [line.replace("only in the first layout", "not observed by this env") for line in diffs]
+        why = "its observation spec differs from this env's (checkpoint vs env): " + "; ".join(
+            f"observation field {line}" for line in lines
+        )
+        why += "."
+    fields = ckpt.obs_shapes
+    raise ValueError(
+        f"{source}: {why} The policy flies any config of its observation layout (any threshold, instance or "
+        f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
+        f"{fields.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in fields}, "
+        f"stop_rivals={'stop_rivals' in fields}, stop_claims={'stop_claims' in fields}."
+    ) from None

@@ -29,6 +29,7 @@ import torch
 from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
+from uamfleet.env.layout import Layout, layout_shapes, layout_to_dict, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
@@ -48,7 +49,7 @@ from uamfleet.rl.checkpoint import (
     upgrade_checkpoint,
 )
 from uamfleet.rl.distributed import Ranks, sample_actions
-from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch
+from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
@@ -105,6 +106,7 @@ class Run:
     eval_cfg: EnvConfig
     venv: VectorEnv | MixtureVectorEnv
     obs_shapes: dict[str, tuple[int, ...]]
+    layout: Layout  # the spec of one taxi's observation (stored in checkpoints)
     buffer: RolloutBuffer
     env_offset: int
     num_agents: int  # this rank's agents per step
@@ -139,6 +141,25 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     env_offset, local_envs = ranks.shard(args.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
     cfg = make_env_config(base, args, training=True)
+    venv = _training_envs(args, cfg, local_envs)
+    taxis = cfg.num_taxis
+    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    layout = observation_layout(cfg)
+    assert layout_shapes(layout) == shapes, "the env's observation is built from its spec"
+    state_dim = int(venv.state_space.shape[0]) + taxis if args.centralised_critic else 0
+    batch = args.num_steps * args.num_envs * taxis
+    _check_batch(args, batch, taxis)
+    return Run(
+        args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
+        eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes, layout=layout,
+        buffer=RolloutBuffer(args.num_steps, local_envs * taxis, shapes, state_dim), env_offset=env_offset,
+        num_agents=local_envs * taxis, agent_offset=env_offset * taxis, total_agents=args.num_envs * taxis,
+        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim,
+    )  # fmt: skip
+
+
+def _training_envs(args: TrainArgs, cfg: EnvConfig, local_envs: int) -> VectorEnv | MixtureVectorEnv:
+    """This rank's training envs: one config, or a mixture over ``--thresholds``; tables filled if asked."""
     venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
     if args.thresholds:
         venv = MixtureVectorEnv([cfg.replace(sinr_min_db=t) for t in args.thresholds], num_envs=local_envs)
@@ -147,10 +168,11 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
         # from the disk cache), instead of a few Dijkstras in every new episode's reset.
         for env in venv.envs if isinstance(venv, MixtureVectorEnv) else [venv]:
             table_for(env.world).fill()
-    taxis = cfg.num_taxis
-    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    state_dim = int(venv.state_space.shape[0]) + taxis if args.centralised_critic else 0
-    batch = args.num_steps * args.num_envs * taxis
+    return venv
+
+
+def _check_batch(args: TrainArgs, batch: int, taxis: int) -> None:
+    """ConfigError unless an iteration's ``batch`` of agent-steps fits the run and splits into the minibatches."""
     if args.total_timesteps < batch or args.num_minibatches > batch:
         raise ConfigError(
             f"--total-timesteps={args.total_timesteps} and --num-minibatches={args.num_minibatches} need at least "
@@ -164,13 +186,6 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
             f"--num-minibatches={args.num_minibatches} does not divide the batch of {batch} agent-steps (--num-steps "
             f"x --num-envs x taxis); choose a divisor of {batch}, e.g. {divisor}."
         )
-    return Run(
-        args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
-        eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes,
-        buffer=RolloutBuffer(args.num_steps, local_envs * taxis, shapes, state_dim), env_offset=env_offset,
-        num_agents=local_envs * taxis, agent_offset=env_offset * taxis, total_agents=args.num_envs * taxis,
-        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim,
-    )  # fmt: skip
 
 
 def make_learner(run: Run) -> Learner:
@@ -181,6 +196,7 @@ def make_learner(run: Run) -> Learner:
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
         readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
         stop_free_move=args.stop_free_move, stop_prior=args.stop_prior,
+        **observed_inputs(run.layout, args.variant, args.action_head),  # from the env's spec
     )  # fmt: skip
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     return Learner(
@@ -196,7 +212,8 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
     return Checkpoint(
         model=copy.deepcopy(learner.net.state_dict()), optimizer=copy.deepcopy(learner.optimizer.state_dict()),
         net_config=dataclasses.asdict(learner.net_cfg), args=plain_args(run.args),
-        obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, iteration=counters.iteration,
+        obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, obs_layout=layout_to_dict(run.layout),
+        iteration=counters.iteration,
         global_step=counters.global_step, wall_s=counters.wall_offset + time.time() - run.start_time,
         obs_normalizer=learner.normalizer.state_dict() if learner.normalizer is not None else None,
         reward_scaler=learner.scaler.rms.state_dict() if learner.scaler is not None else None,
@@ -206,7 +223,7 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
 
 
 def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
-    ckpt.check_matches(run.args, run.obs_shapes)
+    ckpt.check_matches(run.args, run.obs_shapes, layout=run.layout)
     shapes = {k: tuple(v.shape) for k, v in learner.net.state_dict().items()}
     check_state_dict(ckpt.model, shapes, str(run.folder / "last.pt"), run.args.variant)
     learner.net.load_state_dict(ckpt.model)
