@@ -25,7 +25,7 @@ import tyro
 from numba import njit
 
 import uamfleet
-from uamfleet.env import kernels
+from uamfleet.env import kernels, tours
 from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import WorldArrays
@@ -176,8 +176,8 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     for s in states:
         for e in range(num_envs):
             for a in range(num_taxis):
-                exact += kernels._pending_stops(s, e, a, np.empty(kernels.MAX_EXACT_STOPS, np.int64),
-                                                np.empty(kernels.MAX_EXACT_STOPS, np.int64)) >= 0  # fmt: skip
+                exact += tours._pending_stops(s, e, a, np.empty(tours.MAX_EXACT_STOPS, np.int64),
+                                                np.empty(tours.MAX_EXACT_STOPS, np.int64)) >= 0  # fmt: skip
     share = 1.0 - exact / (len(states) * num_envs * num_taxis)
     print(f"\n{scenario}, E = {num_envs}, A = {num_taxis}, P = {env.world.cfg.max_passengers}: {len(states)} "
           f"observed states; taxis with more than MAX_EXACT_STOPS pending stops: {share:.0%}")  # fmt: skip

@@ -162,8 +162,7 @@ def make_fleet_instance(
     (module docstring). ``num_vertiports`` > 0 draws that many vertiport sites per instance and puts every origin
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
-    ``max_passengers`` pads the passenger axis (a learned policy's observation size). ``separation`` is
-    ``EnvConfig.separation``: "none" (the default, as every recorded fleet table was flown) or "shield"."""
+    ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield"."""
     check_family(family)
     seed = check_integer("seed", seed, 0, MAX_SEED)
     num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
@@ -179,22 +178,10 @@ def make_fleet_instance(
     base = make_config(
         fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation
     )
-    # The episode lasts FLEET_TIME_LIMIT_WINDOWS arrival windows, and an episode's steps are bounded.
-    longest_s = MAX_TIME_LIMIT_STEPS // FLEET_TIME_LIMIT_WINDOWS * base.slot_s
-    if arrival_window_s > longest_s:
-        raise ConfigError(
-            f"arrival_window_s={arrival_window_s!r} is too long: an episode lasts {FLEET_TIME_LIMIT_WINDOWS} arrival "
-            f"windows, {MAX_TIME_LIMIT_STEPS} steps of {base.slot_s:g} s at most; use at most {longest_s:.0f} s."
-        )
+    _check_window(arrival_window_s, base.slot_s)
     world = World(base)
     flyable = flyable_sites(world)
-    # Starts and vertiports are distinct flyable sites (drawn without replacement): too few would end in NumPy.
-    for name, count, fix in (("num_taxis", num_taxis, ""), ("num_vertiports", num_vertiports, " (0: every site)")):
-        if count > len(flyable):
-            raise ConfigError(
-                f"{name}={count}: {family!r} seed {seed} (at {threshold:g} dB) has only {len(flyable)} flyable "
-                f"sites, one per {name[4:-1]}; use {name} <= {len(flyable)}{fix}."
-            )
+    _check_sites(flyable, family, seed, threshold, num_taxis=num_taxis, num_vertiports=num_vertiports)
     fields = DistanceFields(world)
     window_steps = fleet_window_steps(base.slot_s, arrival_window_s)
     for _ in range(MAX_ATTEMPTS):
@@ -219,6 +206,27 @@ def make_fleet_instance(
             scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
+def _check_window(arrival_window_s: float, slot_s: float) -> None:
+    """The episode lasts FLEET_TIME_LIMIT_WINDOWS arrival windows, and an episode's steps are bounded."""
+    longest_s = MAX_TIME_LIMIT_STEPS // FLEET_TIME_LIMIT_WINDOWS * slot_s
+    if arrival_window_s > longest_s:
+        raise ConfigError(
+            f"arrival_window_s={arrival_window_s!r} is too long: an episode lasts {FLEET_TIME_LIMIT_WINDOWS} arrival "
+            f"windows, {MAX_TIME_LIMIT_STEPS} steps of {slot_s:g} s at most; use at most {longest_s:.0f} s."
+        )
+
+
+def _check_sites(flyable: np.ndarray, family: str, seed: int, threshold: float, **counts: int) -> None:
+    """Starts and vertiports are distinct flyable sites (drawn without replacement): too few would end in NumPy."""
+    for name, count in counts.items():
+        if count > len(flyable):
+            fix = " (0: every site)" if name == "num_vertiports" else ""
+            raise ConfigError(
+                f"{name}={count}: {family!r} seed {seed} (at {threshold:g} dB) has only {len(flyable)} flyable "
+                f"sites, one per {name[4:-1]}; use {name} <= {len(flyable)}{fix}."
+            )
 
 
 def _draw_trips(rng: np.random.Generator, sites: np.ndarray, release: np.ndarray, min_trip_m: float) -> list[Request]:

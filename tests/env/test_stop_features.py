@@ -11,7 +11,7 @@ import pytest
 from tests.conftest import drawn_map, small_config
 from uamfleet.config import ConfigError, DemandConfig, Request, make_config
 from uamfleet.env.generator import sample_requests
-from uamfleet.env import kernels
+from uamfleet.env import kernels, tours
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
@@ -443,6 +443,6 @@ def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) 
         assert kernels.stop_features(fresh, env.world.arrays, table.arrays, paths, heading)
         np.testing.assert_array_equal(obs["stop_paths"], paths)
         np.testing.assert_array_equal(obs["stop_heading_mask"], heading)
-    many = [kernels._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0
+    many = [tours._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0
             for e in range(2) for a in range(num_taxis)]  # fmt: skip
     assert kept_steps > 50 and any(many)  # rests were kept, some of them nearest-stop tours

@@ -366,6 +366,19 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def check_guided(args: Args) -> None:
+    """The guided-search options make sense (with a checkpoint, within their bounds)."""
+    if args.guided and args.checkpoint is None:
+        raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
+    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
+            and 0 <= args.guided_expert_beam <= 4096):  # fmt: skip
+        raise UsageError(
+            f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
+            f"{args.guided_temperature}: need 1 <= top-k <= 16, 0 <= samples <= 1024 and a temperature > 0 "
+            "(e.g. 8, 24 and 2), and 0 <= --guided-expert-beam <= 4096."
+        )
+
+
 def check_args(args: Args) -> list[Task]:
     """The instances to fly, once every option is valid, the selection is not empty and no existing result would
     be replaced without --overwrite: all checked before anything is flown or written."""
@@ -377,15 +390,7 @@ def check_args(args: Args) -> list[Task]:
         raise ValueError(f"unknown --methods {unknown}; choose from {METHODS}.")
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
-    if args.guided and args.checkpoint is None:
-        raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
-    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
-            and 0 <= args.guided_expert_beam <= 4096):  # fmt: skip
-        raise UsageError(
-            f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
-            f"{args.guided_temperature}: need 1 <= top-k <= 16, 0 <= samples <= 1024 and a temperature > 0 "
-            "(e.g. 8, 24 and 2), and 0 <= --guided-expert-beam <= 4096."
-        )
+    check_guided(args)
     selected = tasks(args)
     if not selected:
         raise UsageError(

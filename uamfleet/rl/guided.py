@@ -104,26 +104,45 @@ class GuidedSearchPolicy:
         """Roll the candidates forward from the env's state over the released requests; the best one's actions."""
         assert self.env is not None and self.scratch is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
-        scratch, K = self.scratch, self.scratch.num_envs
+        scratch = self.scratch
         for target, source in zip(scratch.state, self.env.state, strict=True):
             target[:] = source[0:1]  # every scratch env starts as the env does
         scratch.state.pax_exists[:] &= scratch.state.pax_status != HIDDEN  # the future is unknown
         if not scratch.state.pax_exists.any():
             return []
         root = scratch.state.take(np.array([0]))  # the known requests only, as the rollouts see them
+        chosen_plan, best_key = self._rollouts(int(self.env.cfg.time_limit_steps - self.env.state.t[0]))
+        search_won = False
+        if self.search is not None:  # the search's own plan competes; the policy's flight wins ties
+            plan = self.search.solve(root, [SearchSettings(beam=self.expert_beam, rank_slack=0.5)])
+            if plan is not None and (best_key is None or (plan.moves, plan.steps) < best_key):
+                chosen_plan, best_key, search_won = list(plan.actions), (plan.moves, plan.steps), True
+        self.search_won.append(search_won)
+        wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
+        self.plans.append((int(self.env.state.t[0]), scratch.num_envs, best_key[0] if best_key else -1, wall, cpu))
+        return chosen_plan
+
+    def _headings(self, logits: torch.Tensor, depth: int) -> np.ndarray:
+        """[K] this step's heading of each candidate: its top_k first headings at depth 0 (the greedy one first),
+        then greedy; the sampled candidates draw from the policy at ``temperature`` throughout."""
+        chosen = logits.argmax(-1).numpy()  # [K] greedy
+        if depth == 0:
+            chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
+        if self.samples:
+            probs = torch.softmax(logits[self.top_k :] / self.temperature, -1).double().numpy()
+            chosen[self.top_k :] = [self.rng.choice(16, p=p / p.sum()) for p in probs]
+        return chosen
+
+    def _rollouts(self, limit: int) -> tuple[list[int], tuple[int, int] | None]:
+        """Every candidate flown in the scratch core (set to the root) for at most ``limit`` steps; the actions of
+        the one that delivers every known passenger in the fewest moves (then steps), and its (moves, steps)."""
+        assert self.scratch is not None
+        scratch, K = self.scratch, self.scratch.num_envs
         obs = scratch.observer.observe(scratch.state)
         actions: list[list[int]] = [[] for _ in range(K)]
-        moves, steps = np.zeros(K, np.int64), np.full(K, -1)
-        finished = np.zeros(K, bool)
-        limit = int(self.env.cfg.time_limit_steps - self.env.state.t[0])
+        moves, steps, finished = np.zeros(K, np.int64), np.full(K, -1), np.zeros(K, bool)
         for depth in range(limit):
-            logits = self._logits(obs)  # [K, 16]
-            chosen = logits.argmax(-1).numpy()  # [K] greedy
-            if depth == 0:  # the top_k first headings (the greedy one first)
-                chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
-            if self.samples:
-                probs = torch.softmax(logits[self.top_k :] / self.temperature, -1).double().numpy()
-                chosen[self.top_k :] = [self.rng.choice(16, p=p / p.sum()) for p in probs]
+            chosen = self._headings(self._logits(obs), depth)  # [K]
             obs, _, terminated, truncated, info = scratch.step(chosen[:, None])
             live = ~finished
             moves[live] += info["events"].moved[live, 0]
@@ -135,18 +154,10 @@ class GuidedSearchPolicy:
             if finished.all():
                 break
         done = np.flatnonzero(steps >= 0)
-        best = int(done[np.lexsort((steps[done], moves[done]))[0]]) if len(done) else 0
-        chosen_plan = actions[best] if len(done) else []
-        best_key = (int(moves[best]), int(steps[best])) if len(done) else None
-        search_won = False
-        if self.search is not None:  # the search's own plan competes; the policy's flight wins ties
-            plan = self.search.solve(root, [SearchSettings(beam=self.expert_beam, rank_slack=0.5)])
-            if plan is not None and (best_key is None or (plan.moves, plan.steps) < best_key):
-                chosen_plan, best_key, search_won = list(plan.actions), (plan.moves, plan.steps), True
-        self.search_won.append(search_won)
-        wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
-        self.plans.append((int(self.env.state.t[0]), K, best_key[0] if best_key else -1, wall, cpu))
-        return chosen_plan
+        if not len(done):
+            return [], None
+        best = int(done[np.lexsort((steps[done], moves[done]))[0]])
+        return actions[best], (int(moves[best]), int(steps[best]))
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"

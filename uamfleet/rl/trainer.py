@@ -584,26 +584,8 @@ def _tensor(x: np.ndarray | None, device: torch.device) -> torch.Tensor | None:
 
 
 __all__ = [
-    "ARCHITECTURE_FIELDS",
-    "CHECKPOINT_FORMAT",
-    "ENVIRONMENT_FIELDS",
-    "RUN_FILES",
-    "RUN_NAME",
-    "Checkpoint",
-    "CheckpointError",
-    "GreedyPolicy",
-    "Logger",
-    "TrainArgs",
-    "TrainResult",
-    "checkpoint_args",
-    "collect_rollout",
-    "compute_advantages",
-    "evaluate",
-    "load_policy",
-    "make_env_config",
-    "ppo_update",
-    "read_progress",
-    "run_folder",
-    "train",
-    "upgrade_checkpoint",
-]
+    "ARCHITECTURE_FIELDS", "CHECKPOINT_FORMAT", "ENVIRONMENT_FIELDS", "RUN_FILES", "RUN_NAME", "Checkpoint",
+    "CheckpointError", "GreedyPolicy", "Logger", "TrainArgs", "TrainResult", "checkpoint_args", "collect_rollout",
+    "compute_advantages", "evaluate", "load_policy", "make_env_config", "ppo_update", "read_progress", "run_folder",
+    "train", "upgrade_checkpoint",
+]  # fmt: skip

@@ -99,20 +99,7 @@ def plot_routes(
     box = (left_in / width_in, bottom_in / height_in, MAP_IN / width_in, MAP_IN / height_in)
     ax = fig.add_axes(box)
     side = float(radio.side_m or 0.0)
-    ox, oy = radio.origin_m
-    half = radio.resolution_m / 2
-    nx, ny = radio.shape
-    extent = (
-        ox - half,
-        ox + (nx - 1) * radio.resolution_m + half,
-        oy - half,
-        oy + (ny - 1) * radio.resolution_m + half,
-    )
-    im = ax.imshow(radio.sinr_db.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest")
-    below = np.ma.masked_where(~(np.nan_to_num(radio.sinr_db, nan=-np.inf) < threshold_db), np.ones(radio.shape))
-    ax.imshow(
-        below.T, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=1.6, alpha=0.75, interpolation="nearest"
-    )
+    im = _draw_sinr(ax, radio, threshold_db)
     cax = fig.add_axes((box[0] + box[2] + 0.2 / width_in, box[1], 0.2 / width_in, box[3]))
     fig.colorbar(im, cax=cax, label=f"SINR [dB] (grey: below γ_T = {threshold_db:g} dB)")
     handles: list[Any] = []
@@ -147,6 +134,22 @@ def plot_routes(
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def _draw_sinr(ax: Any, radio: RadioMap, threshold_db: float) -> Any:
+    """The SINR raster on ``ax`` in the map's frame, the cells below ``threshold_db`` greyed; the image (for a
+    colour bar)."""
+    ox, oy = radio.origin_m
+    half = radio.resolution_m / 2
+    nx, ny = radio.shape
+    x_max, y_max = ox + (nx - 1) * radio.resolution_m, oy + (ny - 1) * radio.resolution_m
+    extent = (ox - half, x_max + half, oy - half, y_max + half)
+    im = ax.imshow(radio.sinr_db.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest")
+    below = np.ma.masked_where(~(np.nan_to_num(radio.sinr_db, nan=-np.inf) < threshold_db), np.ones(radio.shape))
+    ax.imshow(
+        below.T, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=1.6, alpha=0.75, interpolation="nearest"
+    )
+    return im
 
 
 MAP_IN = 5.0
