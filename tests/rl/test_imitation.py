@@ -196,3 +196,23 @@ def test_a_proposal_is_kept_exactly_when_brute_force_says_it_is_as_short() -> No
         assert (label == heading) == (after is not None and 1 + after <= optimum), heading
         kept.append(label == heading)
     assert 1 <= sum(kept) < len(kept)  # some headings tie with the best, others are longer
+
+
+def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path) -> None:
+    """One small DAgger round from the shipped generalist: progress.csv has its rows, best.pt and last.pt load with
+    load_policy as heading-residual policies, and an existing run is refused without --overwrite."""
+    from uamfleet.config import ConfigError
+    from uamfleet.rl.imitation import imitate
+    from uamfleet.rl.policy import load_policy
+
+    args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=2, rounds=1, steps_per_round=8, eval_instances=2,
+                         epochs=1, minibatch=16, run_dir=tmp_path, run_name="tiny")  # fmt: skip
+    best = imitate(args)
+    assert best["val_pr_pct"] == 100.0
+    rows = (tmp_path / "tiny" / "progress.csv").read_text().splitlines()
+    assert rows[0].startswith("round,") and len(rows) == 3  # header, the untrained policy, round 0
+    for name in ("best.pt", "last.pt"):
+        policy, _ = load_policy(tmp_path / "tiny" / name)
+        assert policy.net.cfg.heading_residual
+    with pytest.raises(ConfigError, match="--overwrite"):
+        imitate(args)
