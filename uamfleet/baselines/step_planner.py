@@ -50,10 +50,10 @@ from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, FleetState
 STEP_PLANNERS: tuple[str, ...] = ("replan", "best_known")
 """Planners of this module (names accepted by :class:`StepPlannerPolicy`)."""
 
-_STATE_FIELDS = ("t", "pos_m", "free_seats", "distance_m", "action_mask", "pax_exists", "pax_release", "pax_origin_m",
-                 "pax_dest_m", "pax_status", "pax_taxi", "pax_pickup_step", "pax_dropoff_step")  # fmt: skip
+SEARCH_STATE_FIELDS = ("t", "pos_m", "free_seats", "distance_m", "action_mask", "pax_exists", "pax_release",
+                       "pax_origin_m", "pax_dest_m", "pax_status", "pax_taxi", "pax_pickup_step",
+                       "pax_dropoff_step")  # fmt: skip
 """The FleetState fields that decide the future of a one-taxi episode (history and visit counts do not)."""
-SEARCH_STATE_FIELDS = _STATE_FIELDS
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,13 @@ class StepPlan:
 
     def td_m(self, step_m: float) -> float:
         return self.moves * step_m
+
+
+def released_only(state: FleetState) -> FleetState:
+    """A copy of ``state`` in which only the released requests exist: what an online planner knows."""
+    known = state.copy()
+    known.pax_exists[:] &= known.pax_status != HIDDEN
+    return known
 
 
 # ---- the stop-order dynamic programs --------------------------------------------------------------------
@@ -240,7 +247,7 @@ class StepSearch:
 
     def _beam(self, state: FleetState, e: int, settings: SearchSettings, upper_moves: int | None) -> StepPlan | None:
         start = time.perf_counter()
-        beam = {k: getattr(state, k)[e : e + 1].copy() for k in _STATE_FIELDS}
+        beam = {k: getattr(state, k)[e : e + 1].copy() for k in SEARCH_STATE_FIELDS}
         exists = beam["pax_exists"][0]
         num_pax = int(np.flatnonzero(exists).max()) + 1 if exists.any() else 0
         if num_pax == 0 or np.all(beam["pax_status"][0, :num_pax][exists[:num_pax]] == DELIVERED):
@@ -270,7 +277,7 @@ class StepSearch:
             if chosen is None:
                 break
             layers[-1].chosen = chosen
-            beam = {k: getattr(env.state, k)[chosen].copy() for k in _STATE_FIELDS}
+            beam = {k: getattr(env.state, k)[chosen].copy() for k in SEARCH_STATE_FIELDS}
             g = g_kid[chosen]
         if best is None:
             return None
@@ -327,7 +334,7 @@ def _expand(
     n = len(g)
     kids = n * NUM_HEADINGS
     rows = np.concatenate([np.repeat(np.arange(n), NUM_HEADINGS), np.zeros(env.num_envs - kids, np.int64)])
-    for name in _STATE_FIELDS:
+    for name in SEARCH_STATE_FIELDS:
         getattr(env.state, name)[:] = beam[name][rows]
     actions = np.concatenate([np.tile(np.arange(NUM_HEADINGS), n), np.zeros(env.num_envs - kids, np.int64)])
     _, _, terminated, _, info = env.step(actions[:, None])
@@ -437,8 +444,7 @@ class StepPlannerPolicy:
     def _replan(self) -> list[int]:
         """The step-level search from the current state over the requests released so far."""
         assert self.env is not None
-        known = self.env.state.copy()
-        known.pax_exists[0] &= known.pax_status[0] != HIDDEN
+        known = released_only(self.env.state)
         plan = self.search.solve(known, self.settings)
         if plan is None:  # a wider, slack-free search before giving up
             wider = [SearchSettings(4 * s.beam, s.cell_m, 0.0) for s in self.settings]

@@ -23,10 +23,9 @@ import time
 import numpy as np
 import torch
 
-from uamfleet.baselines.step_planner import SearchSettings, StepSearch
+from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.rl.networks import obs_to_torch
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.types import HIDDEN
@@ -34,19 +33,19 @@ from uamfleet.types import HIDDEN
 
 class GuidedSearchPolicy:
     """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
-    (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock
-    seconds, thread CPU seconds) of every search. The
-    defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four settings on 25 validation
-    instances (docs/results.md, "Learning from the search")."""
+    (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock seconds, thread CPU
+    seconds) of every search. The defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four
+    settings on 25 validation instances (docs/results.md, "Learning from the search")."""
 
     def __init__(
         self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
         expert_beam: int = 0,
     ) -> None:  # fmt: skip
-        if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0):
+        if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0 and expert_beam >= 0):
             raise ValueError(
-                f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}): need top_k >= 1, "
-                "samples >= 0 and temperature > 0 (e.g. top_k=8, samples=24, temperature=2)."
+                f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}, expert_beam="
+                f"{expert_beam}): need 1 <= top_k <= 16, samples >= 0, temperature > 0 and expert_beam >= 0 (e.g. "
+                "top_k=8, samples=24, temperature=2, expert_beam=0)."
             )
         self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
         self.expert_beam = expert_beam  # > 0: replan's beam search of this width is one more candidate
@@ -90,27 +89,16 @@ class GuidedSearchPolicy:
         s = self.env.state
         return (s.pax_status[0] != HIDDEN) & s.pax_exists[0]
 
-    def _logits(self, obs: dict[str, np.ndarray]) -> torch.Tensor:
-        """Masked logits [K, 16] of the policy for the scratch envs' observations [K, 1, ...]."""
-        p = self.policy
-        known = p.obs_shapes or obs
-        flat = {k: v.reshape(v.shape[0], *v.shape[2:]) for k, v in obs.items() if k in known}
-        if p.normalizer is not None:
-            flat = p.normalizer(flat)
-        with torch.no_grad():
-            return p.net.masked_logits(obs_to_torch(flat, p.device))
-
     def _search(self) -> list[int]:
         """Roll the candidates forward from the env's state over the released requests; the best one's actions."""
         assert self.env is not None and self.scratch is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
         scratch = self.scratch
-        for target, source in zip(scratch.state, self.env.state, strict=True):
-            target[:] = source[0:1]  # every scratch env starts as the env does
-        scratch.state.pax_exists[:] &= scratch.state.pax_status != HIDDEN  # the future is unknown
-        if not scratch.state.pax_exists.any():
+        root = released_only(self.env.state)  # the future is unknown
+        if not root.pax_exists.any():
             return []
-        root = scratch.state.take(np.array([0]))  # the known requests only, as the rollouts see them
+        for target, source in zip(scratch.state, root, strict=True):
+            target[:] = source  # every scratch env starts as the env does, over the known requests
         chosen_plan, best_key = self._rollouts(int(self.env.cfg.time_limit_steps - self.env.state.t[0]))
         search_won = False
         if self.search is not None:  # the search's own plan competes; the policy's flight wins ties
@@ -142,7 +130,7 @@ class GuidedSearchPolicy:
         actions: list[list[int]] = [[] for _ in range(K)]
         moves, steps, finished = np.zeros(K, np.int64), np.full(K, -1), np.zeros(K, bool)
         for depth in range(limit):
-            chosen = self._headings(self._logits(obs), depth)  # [K]
+            chosen = self._headings(self.policy.logits_of(self.policy.network_input(obs)), depth)  # [K]
             obs, _, terminated, truncated, info = scratch.step(chosen[:, None])
             live = ~finished
             moves[live] += info["events"].moved[live, 0]

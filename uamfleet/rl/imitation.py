@@ -21,9 +21,7 @@ only waits. The result is a checkpoint that :func:`uamfleet.rl.trainer.load_poli
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,11 +32,11 @@ import torch
 import torch.nn.functional as F
 from gymnasium import spaces
 
-from uamfleet.baselines.step_planner import SEARCH_STATE_FIELDS, SearchSettings, StepSearch
+from uamfleet.baselines.step_planner import SEARCH_STATE_FIELDS, SearchSettings, StepSearch, released_only
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
-from uamfleet.io import write_text_atomic
+from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy, make_env_config
@@ -161,8 +159,7 @@ class ReplanExpert:
             challenged = self.valid & (first != NO_LABEL) & (first != proposals)
         if not (stale | challenged).any():
             return np.array([p[0] if p else NO_LABEL for p in self.plans], np.int64)
-        known = venv.state.copy()  # the search sees the released requests only, as replan does
-        known.pax_exists[:] &= known.pax_status != HIDDEN
+        known = released_only(venv.state)  # the search sees the released requests only, as replan does
         for e in np.flatnonzero(stale):
             self.plans[e] = self._solve(known, int(e))
             self.valid[e] = True
@@ -250,13 +247,11 @@ def with_heading_residual(policy: GreedyPolicy) -> GreedyPolicy:
 def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, rng: np.random.Generator) -> Dataset:
     """``steps`` steps of every group under the DAgger mixture; the labelled states of all of them."""
     data = Dataset()
-    known = policy.obs_shapes or {}
     for _ in range(steps):
         for g in groups:
             E = g.venv.num_envs
-            flat = {k: v.reshape(E, *v.shape[2:]) for k, v in g.obs.items() if k in known}
-            normalised = policy.normalizer(flat) if policy.normalizer is not None else flat
-            own = policy(g.obs)[:, 0]  # [E] the policy's greedy heading
+            normalised = policy.network_input(g.obs)  # [E, ...] one taxi per env
+            own = policy.logits_of(normalised).argmax(-1).numpy()  # [E] the policy's greedy heading
             labels = g.expert.labels(g.venv, own)  # [E]
             labelled = labels != NO_LABEL
             if labelled.any():
@@ -344,12 +339,12 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
         row = {**counts, "wall_s": time.time() - start, **stats, **_val(val)}  # progress.csv's column order
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
-        write_text_atomic(folder / "progress.csv", _csv(rows))
+        _write_progress(folder, rows)
         _save(folder / "last.pt", ckpt, policy, args, row)
         if (row["val_pr_pct"], -row["val_td_m"]) > (best["val_pr_pct"], -best["val_td_m"]):
             best = dict(row)
             _save(folder / "best.pt", ckpt, policy, args, best)
-    write_text_atomic(folder / "progress.csv", _csv(rows))
+    _write_progress(folder, rows)
     return best
 
 
@@ -412,13 +407,9 @@ def _plain(v: object) -> object:
     return v
 
 
-def _csv(rows: list[dict[str, float]]) -> str:
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    out = io.StringIO()
-    writer = csv.DictWriter(out, columns, restval="")
-    writer.writeheader()
-    writer.writerows(rows)
-    return out.getvalue()
+def _write_progress(folder: Path, rows: list[dict[str, float]]) -> None:
+    """``progress.csv``: one row per round, the columns in their first appearance's order."""
+    write_csv_atomic(folder / "progress.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
 
 
 __all__ = ["NO_LABEL", "ImitationArgs", "ReplanExpert", "collect", "fit", "imitate", "with_heading_residual"]

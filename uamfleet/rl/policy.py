@@ -144,16 +144,23 @@ class GreedyPolicy:
                 "by max_passengers), or train a policy for this one."
             )
 
-    @torch.no_grad()
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+    def network_input(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """What the network reads of a core's ``[E, A, ...]`` observation: one row per taxi (``[E * A, ...]``), the
+        fields it was trained on, normalised."""
         self.check_layout(obs)
         E, A = obs["action_mask"].shape[:2]
         known = self.obs_shapes or obs  # a field the policy was not trained on is not read
         flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
-        if self.normalizer is not None:
-            flat = self.normalizer(flat)
-        logits = self.net.masked_logits(obs_to_torch(flat, self.device))  # [E * A, 16]; needs no critic state
-        return logits.argmax(-1).cpu().numpy().reshape(E, A)
+        return self.normalizer(flat) if self.normalizer is not None else flat
+
+    @torch.no_grad()
+    def logits_of(self, inputs: dict[str, np.ndarray]) -> torch.Tensor:
+        """Masked logits [B, 16] for :meth:`network_input` rows (needs no critic state)."""
+        return self.net.masked_logits(obs_to_torch(inputs, self.device))
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        E, A = obs["action_mask"].shape[:2]
+        return self.logits_of(self.network_input(obs)).argmax(-1).cpu().numpy().reshape(E, A)
 
 
 __all__ = ["GreedyPolicy"]
