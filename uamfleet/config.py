@@ -177,6 +177,7 @@ class EnvConfig:
     stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
     stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
     stop_claims: bool = False  # with stop_features: "stop_rivals", "stop_claims" and "hover_heading_mask" (rules.md)
+    heading_lookahead: bool = False  # with stop_features: "heading_lookahead", each heading's move + tour after it
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -250,12 +251,16 @@ class EnvConfig:
             raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        for name in ("stop_features", "stop_rivals", "stop_claims"):
+        for name in ("stop_features", "stop_rivals", "stop_claims", "heading_lookahead"):
             object.__setattr__(self, name, check_flag(name, getattr(self, name)))
         if self.stop_rivals and not self.stop_features:
             raise ConfigError("stop_rivals=True needs stop_features=True (the rivals use the same path distances).")
         if self.stop_claims and not self.stop_features:
             raise ConfigError("stop_claims=True needs stop_features=True (the claims use the same path distances).")
+        if self.heading_lookahead and not self.stop_features:
+            raise ConfigError(
+                "heading_lookahead=True needs stop_features=True (the look-ahead reads the stop features' tours)."
+            )
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
         if self.separation not in SEPARATION_MODES:
@@ -305,11 +310,12 @@ class EnvConfig:
 
     def with_layout_of(self, like: EnvConfig) -> EnvConfig:
         """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
-        passenger axis, stop fields (features, rivals, claims), patch, history and time limit (the observation's time
-        feature is a fraction of the limit). How a policy trained on ``like`` flies another instance."""
+        passenger axis, stop fields (features, rivals, claims, look-ahead), patch, history and time limit (the
+        observation's time feature is a fraction of the limit). How a policy trained on ``like`` flies another
+        instance."""
         return self.replace(
             max_passengers=like.num_passengers, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
-            stop_claims=like.stop_claims,
+            stop_claims=like.stop_claims, heading_lookahead=like.heading_lookahead,
             time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
         )  # fmt: skip
 

@@ -85,6 +85,9 @@ STOP_CLAIMED_BY_OTHER = STOP_CLAIM_FEATURES.index("claimed_by_other")
 STOP_PATH_CLIP = 16.0
 """Upper bound of the ``stop_paths`` and ``stop_rivals`` distances (map sides): an unreachable stop (``inf``) reads
 as this."""
+LOOKAHEAD_CLIP = 4.0
+"""Upper bound of the ``heading_lookahead`` field (moves): a heading not allowed, or this many moves worse than the
+best one or more, reads as this."""
 STATE_TAXI_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "index")  # rows of state(), per taxi
 STATE_TAXI_INDEX = STATE_TAXI_FEATURES.index("index")
 STATE_PASSENGER_FEATURES: tuple[str, ...] = (

@@ -33,13 +33,14 @@ from uamfleet.types import PASSENGER_FEATURES, STATE_TAXI_FEATURES, STOP_PATH_CL
 
 RULES = Path(__file__).resolve().parents[2] / "docs" / "rules.md"
 OPEN_7 = "\n".join(["......."] * 7)
-STOP_FLAGS = [  # (stop_features, stop_rivals, stop_claims): every valid combination
+STOP_FLAGS = [  # (stop_features, stop_rivals, stop_claims[, heading_lookahead]): every valid combination
     (False, False, False), (True, False, False), (True, True, False), (True, False, True), (True, True, True),
+    (True, False, False, True), (True, True, True, True),
 ]  # fmt: skip
 
 
-def fleet_config(num_taxis: int, flags: tuple[bool, bool, bool], **overrides: object) -> EnvConfig:
-    stops, rivals, claims = flags
+def fleet_config(num_taxis: int, flags: tuple[bool, ...], **overrides: object) -> EnvConfig:
+    stops, rivals, claims, *lookahead = flags
     reqs = (
         Request(0, (250.0, 250.0), (550.0, 450.0)),
         Request(0, (450.0, 150.0), (150.0, 550.0)),
@@ -47,7 +48,7 @@ def fleet_config(num_taxis: int, flags: tuple[bool, bool, bool], **overrides: ob
     )
     return small_config(
         OPEN_7, starts_m=None, num_taxis=num_taxis, requests=reqs, seats=1, stop_features=stops,
-        stop_rivals=rivals, stop_claims=claims, **overrides,
+        stop_rivals=rivals, stop_claims=claims, heading_lookahead=bool(lookahead and lookahead[0]), **overrides,
     )  # fmt: skip
 
 
@@ -99,7 +100,7 @@ def test_the_layout_builds_no_world(monkeypatch: pytest.MonkeyPatch) -> None:
         raise AssertionError("observation_layout built a World")
 
     monkeypatch.setattr("uamfleet.env.world.World.__init__", refuse)
-    assert set(observation_layout(fleet_config(3, (True, True, True)))) == set(ALL_FIELDS)
+    assert set(observation_layout(fleet_config(3, (True, True, True, True)))) == set(ALL_FIELDS)
 
 
 def test_shipped_fleet_policy_resizes_without_building_an_env(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -118,7 +119,7 @@ def test_shipped_fleet_policy_resizes_without_building_an_env(monkeypatch: pytes
 
 
 def test_kinds_are_consistent_with_dtypes_and_row_masks() -> None:
-    full = observation_layout(fleet_config(3, (True, True, True)))
+    full = observation_layout(fleet_config(3, (True, True, True, True)))
     assert tuple(full) == ALL_FIELDS and FIELD_KIND == {n: s.kind for n, s in full.items()}
     for name, spec in full.items():
         if spec.kind == "mask":
@@ -224,7 +225,7 @@ def docstring_rows() -> dict[str, tuple[str, str, str]]:
 @pytest.mark.parametrize("document", ["docs/rules.md", "parallel_env docstring"])
 def test_the_documented_fields_shapes_dtypes_and_columns_are_the_specs(document: str) -> None:
     rows = rules_rows() if document == "docs/rules.md" else docstring_rows()
-    cfg = fleet_config(SIZES["A"], (True, True, True), max_passengers=SIZES["P"], history_len=SIZES["H"],
+    cfg = fleet_config(SIZES["A"], (True, True, True, True), max_passengers=SIZES["P"], history_len=SIZES["H"],
                        patch_size=SIZES["k"])  # fmt: skip
     spec = observation_layout(cfg)
     assert list(rows) == list(spec), f"{document} lists {list(rows)}; the spec has {list(spec)}"

@@ -73,7 +73,10 @@ def test_fields_the_config_does_not_ask_for_are_not_read():
 
 def test_observed_inputs_follow_the_spec_of_the_env_flags():
     fleet = observation_layout(make_config("berlin_fleet", num_taxis=3, stop_features=True, stop_claims=True))
-    assert observed_inputs(fleet, "de_msfea", "stops") == dict.fromkeys(FLAGS, True)
+    assert observed_inputs(fleet, "de_msfea", "stops") == {**dict.fromkeys(FLAGS, True), "lookahead_inputs": False}
+    looking = observation_layout(make_config("berlin_fleet", num_taxis=3, stop_claims=True, heading_lookahead=True))
+    assert observed_inputs(looking, "de_msfea", "stops")["lookahead_inputs"] is True
+    assert observed_inputs(looking, "de_msfea", "headings")["lookahead_inputs"] is False  # a stop-head correction
     assert observed_inputs(fleet, "de_msfea", "headings")["stop_hover"] is False  # hover is the stop head's
     assert not any(observed_inputs(fleet, "le", "headings").values())  # the linear encoder reads none
     plain = observation_layout(make_config("berlin_fleet", num_taxis=3, stop_features=False, stop_claims=False))

@@ -213,7 +213,7 @@ class StepSearch:
         # smallest observation parts (no stop features: the search reads states and events, never observations).
         self.scratch_cfg = self.cfg.replace(
             patch_size=1, history_len=1, time_limit_steps=2**24 - 1, max_block_visits=None, reward=RewardConfig(),
-            stop_features=False, stop_claims=False,
+            stop_features=False, stop_claims=False, heading_lookahead=False,
         )  # fmt: skip
         self.fields = DistanceFields(VectorEnv(self.scratch_cfg, 1).world)
         self.step_m = self.cfg.step_m

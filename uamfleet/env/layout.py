@@ -31,6 +31,7 @@ from uamfleet.types import (
     STOP_PATH_CLIP,
     STOP_PATH_FEATURES,
     STOP_RIVAL_FEATURES,
+    LOOKAHEAD_CLIP,
 )
 
 FieldKind = Literal["feature", "set", "mask", "raw"]
@@ -73,13 +74,16 @@ def observation_layout(cfg: EnvConfig) -> Layout:
     Always: ``self``, ``history``, ``passengers`` / ``passenger_mask``, ``sinr_patch``, ``visit_patch``,
     ``others`` / ``others_mask`` (``max(A - 1, 1)`` rows: one masked row for a lone taxi), ``action_mask``.
     ``stop_features``: ``stop_paths``, ``stop_heading_mask``; with ``stop_rivals`` or ``stop_claims`` also
-    ``stop_rivals``; ``stop_claims``: ``stop_claims``, ``hover_heading_mask``."""
+    ``stop_rivals``; ``stop_claims``: ``stop_claims``, ``hover_heading_mask``; ``heading_lookahead``: the field of
+    that name."""
     rivals = cfg.stop_features and (cfg.stop_rivals or cfg.stop_claims)
     return _layout(cfg.num_passengers, cfg.history_len, cfg.patch_size, max(cfg.num_taxis - 1, 1),
-                   cfg.stop_features, rivals, cfg.stop_claims)  # fmt: skip
+                   cfg.stop_features, rivals, cfg.stop_claims, cfg.stop_features and cfg.heading_lookahead)  # fmt: skip
 
 
-def _layout(P: int, H: int, k: int, others: int, stops: bool, rivals: bool, claims: bool) -> Layout:
+def _layout(
+    P: int, H: int, k: int, others: int, stops: bool, rivals: bool, claims: bool, lookahead: bool = False
+) -> Layout:
     """The layout of P passenger slots, H history steps, k x k patches, ``others`` rows and the stop fields."""
     layout: Layout = {
         "self": FieldSpec((len(SELF_FEATURES),), _F32, -1.0, 1.0, SELF_FEATURES, "feature"),
@@ -106,10 +110,12 @@ def _layout(P: int, H: int, k: int, others: int, stops: bool, rivals: bool, clai
     if claims:
         layout["stop_claims"] = FieldSpec((P, len(STOP_CLAIM_FEATURES)), _I8, 0, 1, STOP_CLAIM_FEATURES, "raw")
         layout["hover_heading_mask"] = FieldSpec((NUM_HEADINGS,), _I8, 0, 1, None, "mask")
+    if lookahead:
+        layout["heading_lookahead"] = FieldSpec((NUM_HEADINGS,), _F32, 0.0, LOOKAHEAD_CLIP, None, "raw")
     return layout
 
 
-_EVERY_FIELD = _layout(1, 1, 1, 1, stops=True, rivals=True, claims=True)
+_EVERY_FIELD = _layout(1, 1, 1, 1, stops=True, rivals=True, claims=True, lookahead=True)
 ALL_FIELDS: tuple[str, ...] = tuple(_EVERY_FIELD)
 """Every field any config observes, in :func:`observation_layout`'s order."""
 FIELD_KIND: dict[str, FieldKind] = {name: spec.kind for name, spec in _EVERY_FIELD.items()}

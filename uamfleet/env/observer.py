@@ -13,6 +13,7 @@ from gymnasium import spaces
 
 from uamfleet.env import kernels
 from uamfleet.env.layout import observation_layout, observation_space
+from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
 from uamfleet.paths import table_for
@@ -92,6 +93,9 @@ class Observer:
             kernels.stop_features(*paths)
             if rivals is not None:
                 kernels.stop_rivals(*rivals)
+        if "heading_lookahead" in obs and not heading_lookahead(state, self.world.arrays, table.arrays,
+                                                                obs["heading_lookahead"]):  # fmt: skip
+            raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
 
     def state(self, state: FleetState) -> np.ndarray:
         """[E, S] float32 global state for centralised critics: taxis (x, y, seats, time in episode) and the

@@ -116,6 +116,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
                                                               claimed_by_other
     ``hover_heading_mask``  (16,)             int8     --     stop_claims: one-hot, the allowed heading back toward
                                                               where the taxi was a step ago
+    ``heading_lookahead``   (16,)             float32  moves  heading_lookahead: per heading, its move plus the
+                                                              shortest tour after it, above the best heading's
     ======================  ================  =======  =====  ========================================================
 
     ``state()``: float32 [4 A + 9 P + 1], in this order:

@@ -40,7 +40,8 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy, make_env_config
-from uamfleet.types import HIDDEN, FleetState
+from uamfleet.env.layout import layout_to_dict, observation_layout
+from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
 from uamfleet.zoo import PRETRAINED, pretrained_path
 
 NO_LABEL = -1
@@ -67,9 +68,12 @@ class ImitationArgs:
     epochs: int = 3
     minibatch: int = 512
     learning_rate: float = 3e-4
-    train: Literal["residual", "all"] = "residual"
+    train: Literal["residual", "lookahead", "all"] = "residual"
     """parameters fitted: the heading residual alone (the prior and the encoders frozen: the order of the stops
-    stays the prior's) or the whole network"""
+    stays the prior's), only its look-ahead correction (with --lookahead), or the whole network"""
+    lookahead: bool = False
+    """also observe each heading's one-step look-ahead on the exact tour (``EnvConfig.heading_lookahead``) and fit
+    a learned correction of the flight from it (``NetConfig.lookahead_inputs``, zero at first)"""
     correction_weight: float = 1.0
     """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
@@ -99,6 +103,8 @@ class ImitationArgs:
         if not self.thresholds or len(set(self.thresholds)) != len(self.thresholds):
             raise ConfigError(f"--thresholds={list(self.thresholds)} must name one or more distinct dB values.")
         self.run_dir = Path(self.run_dir)
+        if self.train == "lookahead" and not self.lookahead:
+            raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
 
     def beta(self, round_index: int) -> float:
         """Probability that a step of round ``round_index`` flies the expert's heading."""
@@ -229,18 +235,25 @@ def _released_count(venv: VectorEnv) -> np.ndarray:
     return ((s.pax_status != HIDDEN) & s.pax_exists).sum(-1)  # [E]
 
 
-def with_heading_residual(policy: GreedyPolicy) -> GreedyPolicy:
-    """The policy with a zero heading residual added to its stop head (it still flies exactly as before)."""
+def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False) -> GreedyPolicy:
+    """The policy with a zero heading residual added to its stop head (it still flies exactly as before); with
+    ``lookahead``, also a zero correction from the ``heading_lookahead`` field, which it then observes."""
     net = policy.net
-    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
-    new = MSHAActorCritic(space, dataclasses.replace(net.cfg, heading_residual=True))
+    shapes = dict(net.shapes)
+    if lookahead:
+        shapes["heading_lookahead"] = (NUM_HEADINGS,)
+    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in shapes.items()})
+    new = MSHAActorCritic(space, dataclasses.replace(net.cfg, heading_residual=True, lookahead_inputs=lookahead))
     missing, unexpected = new.load_state_dict(net.state_dict(), strict=False)
     if unexpected or any(not k.startswith("stop_head.residual_") for k in missing):
         raise ValueError(f"the initial network does not carry over: missing {missing}, unexpected {unexpected}.")
     new.eval()
+    trained_on = policy.trained_on
+    if lookahead and trained_on is not None:
+        trained_on = trained_on.replace(heading_lookahead=True)
     return GreedyPolicy(
-        new, policy.normalizer, policy.device, policy.obs_shapes, policy.num_taxis, policy.passenger_slots,
-        policy.trained_on,
+        new, policy.normalizer, policy.device, {**(policy.obs_shapes or {}), **shapes}, policy.num_taxis,
+        policy.passenger_slots, trained_on,
     )  # fmt: skip
 
 
@@ -270,12 +283,13 @@ def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, 
 
 
 def fitted_parameters(net: MSHAActorCritic, which: str) -> list[torch.nn.Parameter]:
-    """The parameters DAgger fits: the stop head's heading residual, or all of them."""
+    """The parameters DAgger fits: the stop head's heading residual, its look-ahead correction, or all of them."""
     if which == "all":
         return list(net.parameters())
-    if which != "residual":
-        raise ValueError(f"train={which!r} is unknown; use 'residual' or 'all'.")
-    return [p for name, p in net.named_parameters() if name.startswith("stop_head.residual_")]
+    prefix = {"residual": "stop_head.residual_", "lookahead": "stop_head.residual_lookahead."}.get(which)
+    if prefix is None:
+        raise ValueError(f"train={which!r} is unknown; use 'residual', 'lookahead' or 'all'.")
+    return [p for name, p in net.named_parameters() if name.startswith(prefix)]
 
 
 def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: torch.optim.Optimizer,
@@ -319,8 +333,10 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     init = pretrained_path(args.init) if args.init in PRETRAINED else Path(args.init)
     ckpt = Checkpoint.load(init)
     source_args = checkpoint_args(ckpt)
+    if args.lookahead:
+        source_args = dataclasses.replace(source_args, heading_lookahead=True)
     prior, _ = load_policy(init)
-    policy = with_heading_residual(prior)
+    policy = with_heading_residual(prior, lookahead=args.lookahead)
     family = family_of(source_args.scenario)
     eval_like = make_env_config(source_args.scenario, source_args, training=False)
     groups = _groups(args, make_env_config(source_args.scenario, source_args, training=True))
@@ -329,7 +345,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     first = validation_metrics(policy, family, args.eval_instances, eval_like)
     rows: list[dict[str, float]] = [{"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)}]
     best = dict(rows[-1])
-    _save(folder / "best.pt", ckpt, policy, args, best)
+    _save(folder / "best.pt", ckpt, policy, args, best, eval_like)
     data = Dataset()
     for r in range(args.rounds):
         if args.max_wall_s is not None and time.time() - start > args.max_wall_s:
@@ -340,10 +356,10 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
         _write_progress(folder, rows)
-        _save(folder / "last.pt", ckpt, policy, args, row)
+        _save(folder / "last.pt", ckpt, policy, args, row, eval_like)
         if (row["val_pr_pct"], -row["val_td_m"]) > (best["val_pr_pct"], -best["val_td_m"]):
             best = dict(row)
-            _save(folder / "best.pt", ckpt, policy, args, best)
+            _save(folder / "best.pt", ckpt, policy, args, best, eval_like)
     _write_progress(folder, rows)
     return best
 
@@ -386,13 +402,21 @@ def _val(m: dict[str, float]) -> dict[str, float]:
     return {"val_pr_pct": m["pr_pct"], "val_solved_pct": m["solved_pct"], "val_td_m": m["td_m"]}
 
 
-def _save(path: Path, source: Checkpoint, policy: GreedyPolicy, args: ImitationArgs, row: dict[str, float]) -> None:
-    """The source checkpoint with this policy's network: loads with load_policy like any trained checkpoint."""
+def _save(
+    path: Path, source: Checkpoint, policy: GreedyPolicy, args: ImitationArgs, row: dict[str, float], like: EnvConfig
+) -> None:
+    """The source checkpoint with this policy's network and observation (``like``, the config it is evaluated
+    on): loads with load_policy like any trained checkpoint."""
+    layout = observation_layout(like)
+    read = {k: spec for k, spec in layout.items() if k in policy.net.shapes}
+    extra = {"heading_lookahead": True} if args.lookahead else {}
     out = dataclasses.replace(
         source,
         model={k: v.detach().clone() for k, v in policy.net.state_dict().items()},
         net_config=dataclasses.asdict(policy.net.cfg),
-        args={**source.args, "imitation": {k: _plain(v) for k, v in dataclasses.asdict(args).items()}},
+        obs_shapes={k: list(spec.shape) for k, spec in read.items()},
+        obs_layout=layout_to_dict(read),
+        args={**source.args, **extra, "imitation": {k: _plain(v) for k, v in dataclasses.asdict(args).items()}},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
     )  # fmt: skip

@@ -99,6 +99,7 @@ class NetConfig:
     rival_inputs: bool = False  # ... and what the other taxis offer for each stop (needs stop_inputs)
     claim_inputs: bool = False  # ... and the nearest-first matching's claims (needs rival_inputs)
     stop_hover: bool = False  # "stops": a hover component beside the free move (needs claim_inputs)
+    lookahead_inputs: bool = False  # "stops": a learned correction from each heading's look-ahead (zero at first)
 
     def __post_init__(self) -> None:
         self._check_head()
@@ -150,6 +151,11 @@ class NetConfig:
                 raise ValueError(f"{name}=True needs {needs}=True (the observation has them only together).")
         if self.stop_hover and self.action_head != "stops":
             raise ValueError("stop_hover=True is a component of the stop head: it needs action_head='stops'.")
+        if self.lookahead_inputs and self.action_head != "stops":
+            raise ValueError(
+                "lookahead_inputs=True corrects the stop head's flight: it needs action_head='stops' (the 'headings' "
+                "head reads no look-ahead)."
+            )
 
     def _check_attention(self) -> None:
         """Heads, width and local windows of the hybrid attention."""
@@ -175,6 +181,7 @@ INPUT_FIELDS: dict[str, tuple[str, ...]] = {
     "rival_inputs": ("stop_rivals",),
     "claim_inputs": ("stop_claims",),
     "stop_hover": ("hover_heading_mask",),
+    "lookahead_inputs": ("heading_lookahead",),
 }
 """The observation fields each optional input of :class:`NetConfig` reads."""
 
@@ -187,7 +194,9 @@ def observed_inputs(fields: Collection[str], variant: str = "full", action_head:
     rivals = stops and "stop_rivals" in fields
     claims = rivals and "stop_claims" in fields
     hover = claims and action_head == "stops" and "hover_heading_mask" in fields
-    return {"stop_inputs": stops, "rival_inputs": rivals, "claim_inputs": claims, "stop_hover": hover}
+    lookahead = stops and action_head == "stops" and "heading_lookahead" in fields
+    return {"stop_inputs": stops, "rival_inputs": rivals, "claim_inputs": claims, "stop_hover": hover,
+            "lookahead_inputs": lookahead}  # fmt: skip
 
 
 def missing_inputs(cfg: NetConfig, fields: Collection[str]) -> list[str]:
@@ -325,6 +334,12 @@ PRIOR_FLOOR = -12.0
 """With ``heading_residual``, the stop mixture's log-probabilities are floored here before the learned residual
 is added: a heading the prior rules out (log-probability -1e4) stays within reach of a residual of a dozen logits,
 and with zero residuals the policy keeps the prior's greedy choice and all but e^-12 of its probabilities."""
+LOOKAHEAD_HIDDEN = 16
+"""Width of the stop head's look-ahead correction (one input, the heading's look-ahead in moves)."""
+LOOKAHEAD_GAIN = -PRIOR_FLOOR
+"""Logits per unit of the look-ahead correction's output: a correction of about 1 outweighs the prior's lead over
+the floor, so a few hundred gradient steps can teach a heading the prior rules out (at a unit gain the output layer
+had to grow a dozen-fold, and DAgger's rounds stopped far short of it)."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -365,16 +380,26 @@ class StopHead(nn.Module):
     are added to the mixture's log-probabilities floored at :data:`PRIOR_FLOOR`. They start at zero, so the
     untrained head flies as the prior; the order of the known stops still comes from the exact tour prior.
 
+    ``lookahead=True`` (``NetConfig.lookahead_inputs``) adds a learned function of each heading's look-ahead
+    (``heading_lookahead``: its move plus the shortest tour after it, in moves above the best heading's) to the
+    floored log-probabilities: one small network shared by the 16 headings, zero at first. It can learn to enter a
+    stop's pick-up radius on the side of the next stop, which the prior leaves to heading order.
+
     Why each part is there (the runs without it): ``docs/results.md``, "What fell short, what was tried" (the
     prior, the free move) and "A learned fleet" (claims, hover).
     """
 
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
-        claims: bool = False, hover: bool = False, residual: bool = False,
+        claims: bool = False, hover: bool = False, residual: bool = False, lookahead: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
         self.free_move, self.claims, self.hovers, self.residual = free_move, claims, hover, residual
+        self.lookahead = lookahead
+        if lookahead:  # g(look-ahead of heading h) added to heading h's logit; zero at first
+            self.residual_lookahead = nn.Sequential(
+                nn.Linear(1, LOOKAHEAD_HIDDEN), nn.Tanh(), layer_init(nn.Linear(LOOKAHEAD_HIDDEN, 1), std=0.0)
+            )
         if residual:  # the flight beyond the prior: per-heading logits, zero at first (the prior unchanged)
             self.residual_per_stop = layer_init(nn.Linear(hidden, NUM_HEADINGS), std=0.0)
             self.residual_free = layer_init(nn.Linear(features, NUM_HEADINGS), std=0.0)
@@ -391,12 +416,13 @@ class StopHead(nn.Module):
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
         path_to_stop: torch.Tensor | None = None, claimed_by_other: torch.Tensor | None = None,
-        hover_mask: torch.Tensor | None = None, with_residual: bool = True,
+        hover_mask: torch.Tensor | None = None, with_residual: bool = True, lookahead: torch.Tensor | None = None,
     ) -> torch.Tensor:  # fmt: skip
         """features [B, F], tokens [B, P, D], heading_mask [B, P, 16], free_logits [B, 16] (masked), path_to_stop
         [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``), hover_mask [B, 16]
-        one-hot (with ``hover``) → log pi [B, 16]; with ``residual`` (and ``with_residual``) unnormalised logits:
-        the mixture's log-probabilities floored at :data:`PRIOR_FLOOR` plus the learned per-heading residual."""
+        one-hot (with ``hover``), lookahead [B, 16] (with ``lookahead``) → log pi [B, 16]; with ``residual`` or
+        ``lookahead`` (and ``with_residual``) unnormalised logits: the mixture's log-probabilities floored at
+        :data:`PRIOR_FLOOR` plus the learned per-heading corrections."""
         onehot = as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
         hidden = torch.tanh(self.from_features(features).unsqueeze(1) + self.from_token(tokens))  # [B, P, H]
@@ -430,11 +456,20 @@ class StopHead(nn.Module):
         if self.hovers:
             parts.append(weights[:, P + 1 :, None] + torch.where(hover_at, 0.0, NOT_THIS).unsqueeze(1))  # [B, 1, 16]
         logp = torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
-        if not (self.residual and with_residual):
+        if not ((self.residual or self.lookahead) and with_residual):
             return logp
-        # each stop's own flight correction (from its hidden row), weighted by how likely that stop is chosen
-        per_stop = torch.einsum("bp,bph->bh", weights[:, :P].exp(), self.residual_per_stop(hidden))  # [B, 16]
-        return logp.clamp(min=PRIOR_FLOOR) + per_stop + self.residual_free(features)  # [B, 16]
+        logits = logp.clamp(min=PRIOR_FLOOR)  # [B, 16]
+        if self.residual:  # each stop's own flight correction (from its hidden row), weighted by its mixture weight
+            per_stop = torch.einsum("bp,bph->bh", weights[:, :P].exp(), self.residual_per_stop(hidden))  # [B, 16]
+            logits = logits + per_stop + self.residual_free(features)
+        if self.lookahead:
+            if lookahead is None:
+                raise ValueError(
+                    "this stop head reads the look-ahead: pass lookahead [B, 16] (obs 'heading_lookahead')."
+                )
+            correction = self.residual_lookahead(lookahead.unsqueeze(-1)).squeeze(-1)  # [B, 16]
+            logits = logits + LOOKAHEAD_GAIN * correction
+        return logits
 
 
 # ---------------------------------------------------------------------------------------------- the policy
@@ -458,7 +493,7 @@ class MSHAActorCritic(nn.Module):
         if cfg.action_head == "stops":  # NetConfig guarantees a designed torso with stop inputs
             self.stop_head = StopHead(
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
-                hover=cfg.stop_hover, residual=cfg.heading_residual,
+                hover=cfg.stop_hover, residual=cfg.heading_residual, lookahead=cfg.lookahead_inputs,
             )  # fmt: skip
 
     def _actor(self, obs: dict[str, torch.Tensor], with_residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -473,8 +508,9 @@ class MSHAActorCritic(nn.Module):
         prior = obs["stop_paths"][..., measure]  # [B, P] map sides: the prior's measure of each stop
         claimed = as_bool(obs["stop_claims"][..., CLAIMED_BY_OTHER]) if self.stop_head.claims else None  # [B, P]
         hover = obs["hover_heading_mask"] if self.stop_head.hovers else None  # [B, 16]
+        look = obs["heading_lookahead"] if self.stop_head.lookahead else None  # [B, 16]
         logp = self.stop_head(
-            features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual
+            features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual, look
         )  # [B, 16]
         return mask_logits(logp, obs["action_mask"]), features
 

@@ -52,6 +52,9 @@ class TrainArgs:
     """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
     time_limit_steps: int = 200
     """episode time limit while training (steps)"""
+    heading_lookahead: bool = False
+    """observe each heading's move plus the shortest tour after it (EnvConfig.heading_lookahead; needs a scenario
+    with stop features); a stop-head network then reads it as a learned correction of its flight"""
     shaping: float = 50.0
     """weight of the potential-based shaping term (0 = the authors' reward only). Strong on purpose: one step of
     progress along the feasible path is then worth 50, a quarter of a pick-up, so the heading that makes progress
@@ -243,6 +246,8 @@ class TrainArgs:
             overrides["num_taxis"] = self.num_taxis
         limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
         overrides["time_limit_steps"] = limit
+        if self.heading_lookahead:
+            overrides["heading_lookahead"] = True
         return overrides
 
 
