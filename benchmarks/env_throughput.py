@@ -47,6 +47,8 @@ class Args:
     stop_features: bool = False
     """also time the step with path shaping AND the stop features (EnvConfig.stop_features: per stop the
     feasible-path distance and progress heading), at every (E, A) above"""
+    lookahead: bool = False
+    """with --stop-features: also time it with the heading look-ahead (EnvConfig.heading_lookahead), side by side"""
     pettingzoo: bool = True
     """also time the PettingZoo face"""
     cpu_time: bool = False
@@ -61,15 +63,16 @@ def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def bench_core(
     scenario: str, num_envs: int, num_taxis: int, seconds: float, cpu_time: bool = False, shaping: str = "none",
-    stop_features: bool = False,
+    stop_features: bool = False, lookahead: bool = False,
 ) -> float:  # fmt: skip
     clock = time.thread_time if cpu_time else time.perf_counter
     reward = uamfleet.RewardConfig(shaping=0.0 if shaping == "none" else 50.0)
     if shaping != "none":
         reward = dataclasses.replace(reward, shaping_metric=shaping)
     env = uamfleet.vector_env(
-        scenario, num_envs=num_envs, num_taxis=num_taxis, reward=reward, stop_features=stop_features
-    )
+        scenario, num_envs=num_envs, num_taxis=num_taxis, reward=reward, stop_features=stop_features,
+        heading_lookahead=lookahead,
+    )  # fmt: skip
     if shaping == "path" or stop_features:
         start = time.perf_counter()
         table = table_for(env.world).fill()
@@ -123,11 +126,16 @@ def main(args: Args) -> None:
                 print(f"{num_envs:>5} {num_taxis:>4} {metric:>15} {rate:>15,.0f}")
     if args.stop_features:
         print(f"\ncore with path shaping (weight 50) and the stop features, {args.scenario} ({clock})")
-        print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15}")
+        print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15}" + (f" {'with look-ahead':>16}" if args.lookahead else ""))
         for num_envs in args.num_envs:
             for num_taxis in args.num_taxis:
                 rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True)
-                print(f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f}")
+                line = f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f}"
+                if args.lookahead:
+                    look = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True,
+                                      lookahead=True)  # fmt: skip
+                    line += f" {look:>16,.0f}"
+                print(line)
     if not args.pettingzoo:
         return
     print(f"\nPettingZoo face: {args.pettingzoo_scenario} (E = 1)")

@@ -165,7 +165,7 @@ def test_dagger_fit_moves_the_policy_toward_the_expert() -> None:
 def test_with_heading_residual_keeps_the_policy() -> None:
     import uamfleet
 
-    policy = uamfleet.pretrained("berlin")
+    policy = uamfleet.pretrained("berlin_stops")
     flying = with_heading_residual(policy)
     assert flying.net.cfg.heading_residual
     _, obs = _berlin_batch(steps=3)
@@ -198,15 +198,18 @@ def test_a_proposal_is_kept_exactly_when_brute_force_says_it_is_as_short() -> No
     assert 1 <= sum(kept) < len(kept)  # some headings tie with the best, others are longer
 
 
-def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path) -> None:
-    """One small DAgger round from the shipped generalist: progress.csv has its rows, best.pt and last.pt load with
-    load_policy as heading-residual policies, and an existing run is refused without --overwrite."""
+@pytest.mark.parametrize("lookahead", [False, True])
+def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: bool) -> None:
+    """One small DAgger round from the shipped stop-head generalist: progress.csv has its rows, best.pt and last.pt
+    load with load_policy as heading-residual policies (with ``--lookahead``: observing and reading the look-ahead),
+    and an existing run is refused without --overwrite."""
     from uamfleet.config import ConfigError
     from uamfleet.rl.imitation import imitate
     from uamfleet.rl.policy import load_policy
 
     args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=2, rounds=1, steps_per_round=8, eval_instances=2,
-                         epochs=1, minibatch=16, run_dir=tmp_path, run_name="tiny")  # fmt: skip
+                         epochs=1, minibatch=16, run_dir=tmp_path, run_name="tiny", lookahead=lookahead,
+                         train="lookahead" if lookahead else "residual")  # fmt: skip
     best = imitate(args)
     assert best["val_pr_pct"] == 100.0
     rows = (tmp_path / "tiny" / "progress.csv").read_text().splitlines()
@@ -214,5 +217,9 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path) -> None:
     for name in ("best.pt", "last.pt"):
         policy, _ = load_policy(tmp_path / "tiny" / name)
         assert policy.net.cfg.heading_residual
+        assert policy.net.cfg.lookahead_inputs == lookahead
+        assert policy.trained_on is not None and policy.trained_on.heading_lookahead == lookahead
     with pytest.raises(ConfigError, match="--overwrite"):
         imitate(args)
+    with pytest.raises(ConfigError, match="pass --lookahead"):
+        ImitationArgs(train="lookahead")

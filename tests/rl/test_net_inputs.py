@@ -85,7 +85,7 @@ def test_observed_inputs_follow_the_spec_of_the_env_flags():
 
 def test_the_shipped_checkpoints_predate_the_flags_and_get_them_from_their_shapes():
     expected = {
-        "berlin": (True, False, False, False),  # one taxi: stop paths only
+        "berlin_stops": (True, False, False, False),  # one taxi: stop paths only
         "berlin_fleet": (True, True, True, True),  # rivals, claims and the hover component
         "berlin_fleet4": (True, True, False, False),  # rivals, no claims
     }

@@ -51,7 +51,7 @@ NO_LABEL = -1
 class ImitationArgs:
     """DAgger from the online step-level search (every option is a flag of ``train/imitate.py``)."""
 
-    init: str = "berlin"
+    init: str = "berlin_stops"
     """checkpoint to start from: a shipped policy's name (uamfleet.zoo.PRETRAINED) or a file; its network,
     normaliser and training scenario are kept and a heading residual is added"""
     thresholds: tuple[float, ...] = (-7.0, -6.0, -5.0, -4.0, -3.0)
