@@ -164,19 +164,56 @@ def test_frame_a_transmitter_appears_in_its_cell(free_space_map: RadioMap) -> No
     assert radio.base_stations == (FREE_SPACE_GBS,)
 
 
-def test_free_space_matches_friis_within_half_a_db(free_space_map: RadioMap) -> None:
-    # One GBS, no interferer: SINR = P G / N, so the path gain is SINR + N - P, compared cell by cell with Friis
-    # at the distance from the GBS (20 m) to the cell centre at 100 m.
-    params = raytrace.RayTracingParams()
-    radio = free_space_map
-    gain_db = radio.sinr_db + params.noise_dbm - FREE_SPACE_GBS.power_dbm
+def path_gain_error_db(radio: RadioMap, image_height_m: float | None) -> np.ndarray:
+    """Ray-traced path gain minus the formula's at every cell: Friis from the GBS (20 m) to the cell centre at
+    100 m, plus, with ``image_height_m``, the ray reflected by a perfect conductor, whose path is as long as
+    the line from the GBS's image (-20 m) to the cell. The radio map adds path powers, not fields, so the
+    two-ray gain is the sum of both rays' Friis gains (|R| = 1), without interference fringes.
+    One GBS, no interferer: SINR = P G / N, so the path gain is SINR + N - P."""
+    gain_db = radio.sinr_db + raytrace.RayTracingParams().noise_dbm - FREE_SPACE_GBS.power_dbm
     x = np.arange(radio.shape[0])[:, None] * 10.0
     y = np.arange(radio.shape[1])[None, :] * 10.0
-    distance = np.sqrt((x - 137.0) ** 2 + (y - 262.0) ** 2 + (100.0 - 20.0) ** 2)
-    error_db = gain_db - friis_gain_db(distance, params.carrier_ghz)
+    ground_m2 = (x - FREE_SPACE_GBS.x_m) ** 2 + (y - FREE_SPACE_GBS.y_m) ** 2
+    expected_mw = 10 ** (friis_gain_db(np.sqrt(ground_m2 + (100.0 - 20.0) ** 2), 2.0) / 10)
+    if image_height_m is not None:
+        expected_mw = expected_mw + 10 ** (friis_gain_db(np.sqrt(ground_m2 + (100.0 + image_height_m) ** 2), 2.0) / 10)
+    return np.asarray(gain_db - 10 * np.log10(expected_mw))
+
+
+def test_free_space_matches_friis_within_half_a_db(free_space_map: RadioMap) -> None:
+    error_db = path_gain_error_db(free_space_map, image_height_m=None)
     assert not np.isnan(error_db).any()
     assert np.abs(error_db).max() < 0.5
     assert abs(error_db.mean()) < 0.05  # no bias: the spread is Monte-Carlo noise
+
+
+GROUND_PLANE_XML = """<scene version="2.1.0">
+  <bsdf type="itu-radio-material" id="metal">
+    <string name="type" value="metal"/>
+    <float name="thickness" value="0.1"/>
+  </bsdf>
+  <shape type="rectangle" id="ground">
+    <transform name="to_world"><scale x="2000" y="2000"/></transform>
+    <ref id="metal" name="bsdf"/>
+  </shape>
+</scene>
+"""
+
+
+def test_metal_ground_plane_matches_two_rays_within_half_a_db(tmp_path: Path) -> None:
+    require_sionna()
+    scene = tmp_path / "ground.xml"  # a 4 km x 4 km metal plane at z = 0, centred on the scene origin
+    scene.write_text(GROUND_PLANE_XML, encoding="utf-8")
+    radio = raytrace.ray_traced_radio_map(
+        scene, base_stations=[FREE_SPACE_GBS], extent=FREE_SPACE_EXTENT,
+        params=raytrace.RayTracingParams(samples_per_tx=10**7),
+    )  # fmt: skip
+    assert radio.name == "ground"
+    error_db = path_gain_error_db(radio, image_height_m=20.0)
+    assert not np.isnan(error_db).any()
+    assert np.abs(error_db).max() < 0.5
+    # The reflection is there: free space alone is 10 log10(1 + (r² + 80²) / (r² + 120²)) = 1.6 ... 3 dB lower.
+    assert path_gain_error_db(radio, image_height_m=None).min() > 1.2
 
 
 def test_provenance(free_space_map: RadioMap) -> None:
