@@ -128,6 +128,18 @@ def test_command_refuses_bad_input_in_one_line(
     assert not list(tmp_path.iterdir())
 
 
+def test_help_describes_the_command_and_prints_each_default_once(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("COLUMNS", "200")
+    assert exit_status(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "Ray-trace the SINR map of a city with Sionna RT" in out and "--gbs-spacing-m" in out
+    assert "(default: the scene's bounding box)" in out
+    for line in out.splitlines():
+        assert line.count("(default:") <= 1, line
+
+
 def test_command_refuses_to_overwrite(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "munich.npz"
     out.write_bytes(b"earlier map")

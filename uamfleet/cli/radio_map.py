@@ -17,9 +17,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
+import tyro
 
 from uamfleet.cli._common import UsageError, check_outputs, output_path, run
 from uamfleet.radio.radio_map import BaseStation, RadioMap
@@ -46,6 +47,11 @@ else:
     AntennaPattern = Literal[ANTENNA_PATTERNS]
 
 
+def default_is(what: str) -> Any:
+    """An option whose unset value (None or empty) means ``what``, said so in --help instead of "None"."""
+    return tyro.conf.arg(help_behavior_hint=f"(default: {what})")
+
+
 @dataclass
 class Args:
     scene: str = "munich"
@@ -56,10 +62,10 @@ class Args:
     """flight altitude: the height of the measurement plane [m]"""
     cell_m: float = 10.0
     """side of a raster cell [m]"""
-    extent_m: tuple[float, float, float, float] | None = None
-    """measurement area X0 Y0 X1 Y1 in scene metres (default: the scene's bounding box)"""
-    gbs_m: tuple[float, ...] = ()
-    """GBS as X Y HEIGHT triples in the map's frame [m] (default: a grid, see --gbs-spacing-m)"""
+    extent_m: Annotated[tuple[float, float, float, float] | None, default_is("the scene's bounding box")] = None
+    """measurement area X0 Y0 X1 Y1 in scene metres"""
+    gbs_m: Annotated[tuple[float, ...], default_is("a grid, see --gbs-spacing-m")] = ()
+    """GBS as X Y HEIGHT triples in the map's frame [m]"""
     gbs_spacing_m: float = DEFAULT_GBS_SPACING_M
     """spacing of the automatic GBS grid [m] (750: Berlin's GBS density)"""
     gbs_height_m: float = DEFAULT_GBS_HEIGHT_M
@@ -80,8 +86,8 @@ class Args:
     """reflections/refractions per ray"""
     seed: int = 42
     """the ray tracer's sampling seed"""
-    threads: int | None = None
-    """CPU threads of the ray tracer (default: all cores)"""
+    threads: Annotated[int | None, default_is("all cores")] = None
+    """CPU threads of the ray tracer"""
     threshold_db: float = -3.0
     """SINR below which the preview greys a cell (Berlin's threshold)"""
     overwrite: bool = False
