@@ -8,11 +8,9 @@
 # Sionna RT runs on the CPU through Dr.Jit's LLVM backend, which loads the system's libLLVM. Debian 12's default
 # LLVM 14/15 fail inside Dr.Jit ("LLVM ERROR: Cannot select: ... fminimum"); Debian's libllvm19 works, so it is
 # installed with apt-get when no libLLVM 19 is found (as root, or through sudo), and the script says so.
-# The venv lives outside the repository ($UAMFLEET_RT_VENV, default ~/.cache/uamfleet-rt/venv) so that every
-# clone on the machine, CI's fresh ones included, reuses it, as scripts/engines.sh does for the engines; it holds
-# uamfleet's dependencies and sionna-rt but not uamfleet, which the tests import from this checkout. It is rebuilt
-# when a pinned version, python or uamfleet's dependency list changes (its .stamp holds them). torch is pinned
-# first, as in scripts/setup.sh, so that no package pulls a CUDA build.
+# The venv ($UAMFLEET_RT_VENV, default ~/.cache/uamfleet-rt/venv) is cached outside the repository as the engines'
+# is (scripts/cached_venv.sh): uamfleet's dependencies, the dev and rt extras and sionna-rt, rebuilt when a pinned
+# version, python or uamfleet's dependency list changes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
@@ -41,31 +39,11 @@ ensure_llvm() {
 ensure_llvm
 [ "${1:-}" = --llvm ] && exit 0
 
-# uamfleet's own requirements (pyproject.toml's dependencies, the dev and rt extras), one a line
-requirements=$("$PYTHON" - <<'PY'
-import tomllib
-
-project = tomllib.load(open("pyproject.toml", "rb"))["project"]
-extras = project["optional-dependencies"]
-print("\n".join(project["dependencies"] + extras["dev"] + extras["rt"]))
-PY
-)
-stamp="python $("$PYTHON" -c 'import sys; print(sys.version.split()[0])') torch $TORCH_VERSION \
-sionna-rt $SIONNA_RT_VERSION requirements $(echo "$requirements" | sha256sum | cut -c1-16)"
-if [ ! -f "$VENV/.stamp" ] || [ "$(cat "$VENV/.stamp")" != "$stamp" ]; then
-    echo "rt.sh: setting up $VENV (sionna-rt==$SIONNA_RT_VERSION, torch==$TORCH_VERSION)"
-    rm -rf "$VENV"
-    mkdir -p "$(dirname "$VENV")"
-    "$PYTHON" -m venv "$VENV"
-    PIP=("$VENV/bin/python" -m pip install --quiet)
-    "${PIP[@]}" --upgrade pip
-    if ! "${PIP[@]}" "torch==${TORCH_VERSION}+cpu" 2>/dev/null; then
-        "${PIP[@]}" --index-url https://download.pytorch.org/whl/cpu "torch==${TORCH_VERSION}"
-    fi
-    mapfile -t reqs <<< "$requirements"
-    "${PIP[@]}" "torch==${TORCH_VERSION}" "sionna-rt==${SIONNA_RT_VERSION}" "${reqs[@]}"
-    echo "$stamp" > "$VENV/.stamp"
-fi
+# shellcheck source=scripts/cached_venv.sh
+source scripts/cached_venv.sh
+requirements=$(uamfleet_requirements dev rt)
+stamp=$(venv_stamp "torch $TORCH_VERSION sionna-rt $SIONNA_RT_VERSION" "$requirements")
+cached_venv rt.sh "$VENV" "$stamp" "$TORCH_VERSION" "$requirements" "sionna-rt==${SIONNA_RT_VERSION}"
 "$VENV/bin/python" -c 'import sionna.rt, mitsuba; print("rt.sh: sionna-rt", sionna.rt.__version__, "mitsuba variant", mitsuba.variant())'
 [ "${1:-}" = --setup ] && exit 0
 # Sionna is installed here, so a skipped ray-tracing test is a failure (UAMFLEET_REQUIRE_RT).

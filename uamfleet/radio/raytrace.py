@@ -48,7 +48,7 @@ import numpy as np
 
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio.channel_3gpp import DEFAULT_BANDWIDTH_MHZ, DEFAULT_NOISE_FIGURE_DB, noise_power_dbm
-from uamfleet.radio.radio_map import BaseStation, RadioMap
+from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple
 
 EMPTY_SCENE = "empty"  # free space: no object at all (the physics check against Friis)
 ANTENNA_PATTERNS: tuple[str, ...] = ("iso", "dipole", "hw_dipole", "tr38901")  # Sionna's registered patterns
@@ -309,16 +309,6 @@ def path_gains(
     return np.ascontiguousarray(gains.transpose(0, 2, 1))  # [M, ix, iy]
 
 
-def _check_stations(base_stations: Sequence[BaseStation]) -> tuple[BaseStation, ...]:
-    stations = tuple(base_stations)
-    if not stations:
-        raise ValueError("base_stations is empty; pass at least one BaseStation, or None to place them on a grid")
-    for bs in stations:
-        if not isinstance(bs, BaseStation):
-            raise ValueError(f"base_stations must hold BaseStation objects, got {type(bs).__name__}")
-    return stations
-
-
 def ray_traced_radio_map(
     scene: str | os.PathLike[str] = "munich",
     *,
@@ -342,7 +332,11 @@ def ray_traced_radio_map(
     load_s = time.perf_counter() - started
     area = scene_extent(loaded) if extent is None else extent if isinstance(extent, Extent) else Extent(*extent)
     grid = MapGrid.covering(area, float(cell_m))
-    stations = grid_base_stations(loaded, grid, params) if base_stations is None else _check_stations(base_stations)
+    stations = (
+        grid_base_stations(loaded, grid, params)
+        if base_stations is None
+        else base_station_tuple(base_stations, "pass at least one BaseStation, or None to place them on a grid")
+    )
     started = time.perf_counter()
     gains = path_gains(loaded, stations, grid, altitude_m, params)
     compute_s = time.perf_counter() - started
