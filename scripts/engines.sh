@@ -18,30 +18,12 @@ TORCH_VERSION=2.13.0
 RAY_VERSION=2.60.0
 TORCHRL_VERSION=0.14.1
 
-# uamfleet's own requirements (pyproject.toml's dependencies and the dev extra), one a line
-requirements=$("$PYTHON" - <<'PY'
-import tomllib
-
-project = tomllib.load(open("pyproject.toml", "rb"))["project"]
-print("\n".join(project["dependencies"] + project["optional-dependencies"]["dev"]))
-PY
-)
-stamp="python $("$PYTHON" -c 'import sys; print(sys.version.split()[0])') torch $TORCH_VERSION ray $RAY_VERSION \
-torchrl $TORCHRL_VERSION requirements $(echo "$requirements" | sha256sum | cut -c1-16)"
-if [ ! -f "$VENV/.stamp" ] || [ "$(cat "$VENV/.stamp")" != "$stamp" ]; then
-    echo "engines.sh: setting up $VENV (ray[rllib]==$RAY_VERSION, torchrl==$TORCHRL_VERSION, torch==$TORCH_VERSION)"
-    rm -rf "$VENV"
-    mkdir -p "$(dirname "$VENV")"
-    "$PYTHON" -m venv "$VENV"
-    PIP=("$VENV/bin/python" -m pip install --quiet)
-    "${PIP[@]}" --upgrade pip
-    if ! "${PIP[@]}" "torch==${TORCH_VERSION}+cpu" 2>/dev/null; then
-        "${PIP[@]}" --index-url https://download.pytorch.org/whl/cpu "torch==${TORCH_VERSION}"
-    fi
-    mapfile -t reqs <<< "$requirements"
-    "${PIP[@]}" "torch==${TORCH_VERSION}" "ray[rllib]==${RAY_VERSION}" "torchrl==${TORCHRL_VERSION}" "${reqs[@]}"
-    echo "$stamp" > "$VENV/.stamp"
-fi
+# shellcheck source=scripts/cached_venv.sh
+source scripts/cached_venv.sh
+requirements=$(uamfleet_requirements dev)
+stamp=$(venv_stamp "torch $TORCH_VERSION ray $RAY_VERSION torchrl $TORCHRL_VERSION" "$requirements")
+cached_venv engines.sh "$VENV" "$stamp" "$TORCH_VERSION" "$requirements" "ray[rllib]==${RAY_VERSION}" \
+    "torchrl==${TORCHRL_VERSION}"
 "$VENV/bin/python" -c 'import ray, torchrl, gymnasium; print("engines.sh: ray", ray.__version__, "torchrl", torchrl.__version__, "gymnasium", gymnasium.__version__)'
 [ "${1:-}" = --setup ] && exit 0
 # Both engines are installed here, so a skipped engine test is a failure (UAMFLEET_REQUIRE_ENGINES).

@@ -4,6 +4,7 @@
 #   bash scripts/setup.sh                  # CPU build of torch (the default; all this project needs)
 #   bash scripts/setup.sh --torch cuda     # the default index's build instead (CUDA on Linux), for a GPU
 #   UAMFLEET_TORCH=cuda bash scripts/setup.sh
+#   bash scripts/setup.sh --rt             # also the extra 'rt' (Sionna RT: ray-traced maps, uamfleet-radio-map)
 #
 # torch is installed first, pinned to $TORCH_VERSION, so that `pip install -e .` finds it satisfied: an unpinned
 # torch from the default index (PyPI) is the CUDA build on Linux, several GB of packages.
@@ -15,12 +16,14 @@ PYTHON=${PYTHON:-python3}
 TORCH_VERSION=2.13.0
 TORCH_CPU_INDEX=https://download.pytorch.org/whl/cpu
 MODE=${UAMFLEET_TORCH:-cpu}
+EXTRAS=dev
 
-usage() { echo "usage: bash scripts/setup.sh [--torch cpu|cuda]   (or UAMFLEET_TORCH=cpu|cuda; default cpu)" >&2; }
+usage() { echo "usage: bash scripts/setup.sh [--torch cpu|cuda] [--rt]   (or UAMFLEET_TORCH=cpu|cuda; default cpu)" >&2; }
 while [ $# -gt 0 ]; do
     case "$1" in
         --torch) [ $# -ge 2 ] || { usage; exit 2; }; MODE=$2; shift 2 ;;
         --torch=*) MODE=${1#--torch=}; shift ;;
+        --rt) EXTRAS=dev,rt; shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "setup.sh: unknown argument '$1'" >&2; usage; exit 2 ;;
     esac
@@ -68,4 +71,7 @@ echo "setup.sh: torch $installed build"
 if [ "$installed" != "$TORCH_VERSION $MODE" ]; then
     echo "setup.sh: warning: asked for the $MODE build of torch $TORCH_VERSION, got '$installed'" >&2
 fi
-.venv/bin/python -m pip install --quiet -e '.[dev]'
+if [ "$EXTRAS" = dev,rt ]; then
+    bash scripts/rt.sh --llvm
+fi
+.venv/bin/python -m pip install --quiet -e ".[$EXTRAS]"

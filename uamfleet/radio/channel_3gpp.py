@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from uamfleet.radio.radio_map import BaseStation, RadioMap
+from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple
 
 THERMAL_NOISE_DBM_PER_HZ = -174.0  # kT at 290 K
 DEFAULT_BANDWIDTH_MHZ = 10.0
@@ -139,12 +139,8 @@ def noise_power_dbm(
 
 
 def _check_stations(base_stations: Sequence[BaseStation], altitude_m: float) -> tuple[BaseStation, ...]:
-    stations = tuple(base_stations)
-    if not stations:
-        raise ValueError("base_stations is empty; pass at least one BaseStation")
+    stations = base_station_tuple(base_stations)
     for bs in stations:
-        if not isinstance(bs, BaseStation):
-            raise ValueError(f"base_stations must hold BaseStation objects, got {type(bs).__name__}")
         if bs.height_m >= altitude_m:
             raise ValueError(
                 f"base station {bs.name or (bs.x_m, bs.y_m)} is {bs.height_m} m tall, not below the UAV "

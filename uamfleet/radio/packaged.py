@@ -21,6 +21,7 @@ import numpy as np
 from uamfleet.checks import ConfigError
 from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
 from uamfleet.radio.radio_map import BaseStation, RadioMap
+from uamfleet.radio.raytrace import read_radio_map_npz
 from uamfleet.radio.winprop import read_winprop
 
 RADIO_MAPS: tuple[str, ...] = ("berlin", "detroit_estimate", "detroit_3gpp")
@@ -194,7 +195,8 @@ def _packaged(name: str) -> RadioMap:
 
 
 def load_radio_map(name_or_path: str | os.PathLike[str] | RadioMap) -> RadioMap:
-    """A packaged map by name (one of :data:`RADIO_MAPS`), or a WinProp ASCII file by path.
+    """A packaged map by name (one of :data:`RADIO_MAPS`), a WinProp ASCII file by path, or a ``.npz`` map by
+    path (written by ``uamfleet-radio-map``; :func:`uamfleet.radio.raytrace.read_radio_map_npz`).
 
     Packaged maps are built once per process and shared (they are immutable). A :class:`RadioMap` is
     returned as is, so callers can accept either a name, a path or a map.
@@ -210,8 +212,8 @@ def load_radio_map(name_or_path: str | os.PathLike[str] | RadioMap) -> RadioMap:
         return _packaged(name_or_path)
     path = Path(name_or_path)
     if path.is_file():
-        return read_winprop(path)
+        return read_radio_map_npz(path) if path.suffix == ".npz" else read_winprop(path)
     raise ValueError(
         f"unknown radio map {str(name_or_path)!r}: use one of {', '.join(map(repr, RADIO_MAPS))}, "
-        "or the path to an existing WinProp ASCII file"
+        "or the path to an existing WinProp ASCII file or .npz map (uamfleet-radio-map)"
     )

@@ -74,6 +74,17 @@ class BaseStation:
             raise ValueError(f"BaseStation.loading must lie in [0, 1] (a probability), got {self.loading}")
 
 
+def base_station_tuple(base_stations: Any, if_empty: str = "pass at least one BaseStation") -> tuple[BaseStation, ...]:
+    """``base_stations`` as a non-empty tuple of :class:`BaseStation`; a ValueError naming the fix otherwise."""
+    stations = tuple(base_stations)
+    if not stations:
+        raise ValueError(f"base_stations is empty; {if_empty}")
+    for bs in stations:
+        if not isinstance(bs, BaseStation):
+            raise ValueError(f"base_stations must hold BaseStation objects, got {type(bs).__name__}")
+    return stations
+
+
 @dataclass(frozen=True, eq=False)
 class BlockMap:
     """Block-mean SINR over ``[0, side_m]^2``; block ``(bx, by)`` covers ``[bx*block_m, (bx+1)*block_m)``

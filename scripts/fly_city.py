@@ -1,0 +1,93 @@
+"""Fly every planner and the shipped generalist (zero-shot) on a ray-traced city map: uamfleet-benchmark's table.
+
+    .venv/bin/python scripts/fly_city.py --map munich.npz --count 20 --jobs 2 --out-md munich_benchmark.md
+    .venv/bin/python scripts/fly_city.py --map munich.npz --fleet 4x24 --count 20 --jobs 2 --out-md munich_fleet.md
+
+The instances are drawn exactly as Berlin's test instances (:func:`uamfleet.instances.make_instance`, family
+``berlin``'s rules: thresholds -7 ... -3 dB, 2-6 passengers, trips >= 500 m, 100 m steps of 3 s) on the given
+map, registered for this process as the family ``<map name>`` (so the seeds draw other instances than Berlin's)
+and the scenario ``<map name>_random`` (``berlin_random`` with ``radio=`` the map). Each instance is flown by
+:func:`uamfleet.cli.benchmark.run_instance`, the rows summarised by :func:`uamfleet.cli.benchmark.markdown`. The
+generalist is ``uamfleet.pretrained("berlin")``'s checkpoint, never trained on this map. Workers are forked (not
+spawned as in uamfleet-benchmark) so that they inherit the registered family.
+
+``--fleet 4x24`` flies the fleet dispatchers and the shipped fleet policy (``uamfleet.pretrained("berlin_fleet")``,
+zero-shot) on fleet instances of that setting instead (:func:`uamfleet.instances.make_fleet_instance`), with
+:func:`uamfleet.cli.fleet_benchmark.run_episode_set` and its table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import multiprocessing as mp
+import sys
+import time
+from pathlib import Path
+
+from uamfleet import config, instances
+from uamfleet.cli import benchmark, fleet_benchmark
+from uamfleet.io import write_csv_atomic, write_text_atomic
+from uamfleet.radio import load_radio_map
+from uamfleet.zoo import pretrained_path
+
+
+def register_city(map_path: str) -> str:
+    """Register the map as an instance family (Berlin's rules) and a ``*_random`` scenario; the family's name."""
+    radio = load_radio_map(map_path)
+    family = radio.name
+    scenario = f"{family}_random"
+    config.PRESETS[scenario] = functools.partial(config.PRESETS["berlin_random"], radio=radio, scenario=scenario)
+    berlin = instances.FAMILIES["berlin"]
+    instances.FAMILIES[family] = instances.InstanceFamily(scenario, berlin.thresholds_db, berlin.min_trip_m)
+    return family
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--map", required=True, help="a .npz map written by uamfleet-radio-map")
+    parser.add_argument("--count", type=int, default=20, help="test instances (seeds 2000000, ...)")
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--methods", nargs="*", default=list(benchmark.METHODS))
+    parser.add_argument("--no-generalist", action="store_true", help="fly only the planners")
+    parser.add_argument("--fleet", default=None, help="a fleet setting (e.g. 4x24): the fleet table instead")
+    parser.add_argument("--out-csv", type=Path, default=None)
+    parser.add_argument("--out-md", type=Path, required=True)
+    args = parser.parse_args(argv)
+    for path in (args.out_md, args.out_csv):
+        if path is not None and path.exists():
+            print(f"fly_city.py: error: {path} exists; remove it or write elsewhere", file=sys.stderr)
+            return 2
+    family = register_city(args.map)
+    seeds = instances.split_seeds("test", args.count)
+    if args.fleet is not None:
+        policies = () if args.no_generalist else (pretrained_path("berlin_fleet"),)
+        jobs: list[tuple] = [
+            (family, args.fleet, seed, fleet_benchmark.DISPATCHERS, policies, "none") for seed in seeds
+        ]
+        flight, table, columns = fleet_benchmark.run_episode_set, fleet_benchmark.markdown, fleet_benchmark.COLUMNS
+    else:
+        checkpoint = None if args.no_generalist else pretrained_path("berlin")
+        methods = tuple(args.methods) + (() if checkpoint is None else ("learned",))
+        jobs = [
+            (("test", family, seed, None, "endpoint_block"), methods, checkpoint, (256,), 64, (8, 24, 2.0, 0))
+            for seed in seeds
+        ]
+        flight, table, columns = benchmark.run_instance, benchmark.markdown, benchmark.COLUMNS
+    start = time.perf_counter()
+    rows = []
+    with mp.get_context("fork").Pool(args.jobs) as pool:
+        for i, result in enumerate(pool.imap(flight, jobs)):
+            rows += result
+            print(f"[{i + 1}/{len(jobs)}] {len(result)} rows", flush=True)
+    wall = time.perf_counter() - start
+    command = "python scripts/fly_city.py " + " ".join(argv)
+    if args.out_csv is not None:
+        write_csv_atomic(args.out_csv, rows, columns)
+    write_text_atomic(args.out_md, table(rows, command, wall))
+    print(table(rows, command, wall))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
