@@ -42,7 +42,7 @@ def shaping_of(args: TrainArgs, potential: float, next_potential: float) -> floa
 
 def test_the_recipe_pays_nothing_for_staying_away_from_the_stops(tmp_path, capsys):
     """With the trainer's gamma (0.9) inside the shaping term, a taxi that stays 20 steps from its next stop
-    (Phi = -20) earns w (1 - 0.9) 20 = 100 per step: the hover trap that stalled seed 3 at 2 of 4 passengers
+    (Phi = -20) earns w (1 - 0.9) 20 = 100 per step: the hover trap that stalled seeds 3 and 6 of the earlier recipe
     (docs/results.md). The quickstart's recipe shapes with gamma_Phi = 1: standing still pays 0, progress pays w
     per step of progress, at any distance."""
     recipe = trainer_options(tmp_path, [])

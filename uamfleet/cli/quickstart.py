@@ -59,7 +59,7 @@ class Args:
     shaping_gamma: float | None = 1.0
     """discount inside the shaping term gamma_Phi Phi(s') - Phi(s) (TrainArgs.shaping_gamma; None: the trainer's
     gamma, 0.9). 1: a step pays only for progress toward the next stop. With 0.9 the term also pays
-    w (1 - 0.9) |Phi| per step for staying far from it: seed 3 learned to hover there at 2 of 4 passengers
+    w (1 - 0.9) |Phi| per step for staying far from it: seeds 3 and 6 learned to hover there
     (docs/results.md, "The main job over 10 seeds")"""
     eval_every: int = 1
     """greedy evaluation every this many iterations; best.pt keeps the shortest tour of any of them (one episode,
