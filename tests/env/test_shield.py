@@ -32,7 +32,7 @@ def end(p: tuple[float, float], k: int) -> np.ndarray:
     return np.asarray(p) + 100.0 * np.array([math.cos(math.pi * k / 8), math.sin(math.pi * k / 8)])
 
 
-def shield(pos, requested, free_seats=None, allowed=None):
+def shield(pos, requested, free_seats=None, allowed=None, stayed=None):
     """kernels.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
     pos = np.asarray(pos, dtype=float)
     n = len(pos)
@@ -41,6 +41,7 @@ def shield(pos, requested, free_seats=None, allowed=None):
     kernels.shield_headings(
         pos,
         np.asarray(free_seats if free_seats is not None else [2] * n, np.int64),
+        np.asarray(stayed if stayed is not None else [0] * n, np.int64),
         np.ones((n, 16), bool) if allowed is None else allowed,
         np.asarray(requested, np.int64),
         world.arrays,
@@ -73,12 +74,15 @@ def test_head_on_the_second_taxi_turns_aside_by_45_degrees():
 def test_taxis_one_step_apart_flying_at_each_other_do_not_swap_places_through_each_other():
     # 100 m apart: east and west would swap them, 100 m apart at both ends but meeting half-way. Taxi 0: east
     # ends on taxi 1, 22.5° and 337.5° end 39.0 m from it; 45° ends 76.5 m from it, closest 70.7 m at t = 0.71.
-    # Taxi 1: west ends 100 m from taxi 0's end but comes within 38.3 m of it at t = 0.5; 202.5° (heading 9) ends
-    # 125.9 m away, closest 55.5 m at t = 0.42.
+    # Taxi 1: west ends 100 m from taxi 0's end but comes within 38.3 m of it at t = 0.5, and taxi 0 was turned
+    # aside: taxi 1 yields (hovers) and leaves taxi 0 the way round it.
     pos = [(450.0, 500.0), (550.0, 500.0)]
     assert min_gap(pos, [E, W]) == pytest.approx(0.0, abs=0.2)  # what the moves asked for would do
-    assert shield(pos, [E, W]) == [NE, 9]
-    assert min_gap(pos, [NE, 9]) == pytest.approx(55.5, abs=0.1)
+    assert shield(pos, [E, W]) == [NE, -1]
+    assert min_gap(pos, [NE, -1]) == pytest.approx(70.7, abs=0.1)
+    # Had taxi 1 stayed in place a step before (say it yielded), it goes first: its west move is turned to 225°
+    # (heading 10) by the same geometry mirrored, and taxi 0, whose east move conflicts with it, yields.
+    assert shield(pos, [E, W], stayed=[0, 1]) == [-1, 10]
 
 
 def test_crossing_the_taxi_with_more_riders_keeps_its_heading():
