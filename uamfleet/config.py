@@ -84,8 +84,9 @@ class RewardConfig:
     ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
     allowed (the taxi stays where it is); ``separation`` per step that another taxi is closer than
     ``EnvConfig.min_separation_m`` after the move (0 in the authors' reward: they fly one taxi); ``shield`` per move
-    the separation shield replaced and ``hover`` per step the shield held the taxi in place (both 0 by default;
-    ``EnvConfig.separation="shield"`` only). ``shaping`` > 0
+    the separation shield replaced (``EnvConfig.separation="shield"`` only) and ``hover`` per step the taxi hovered
+    (the hover action of ``EnvConfig.hover_action``, or the shield held it; an energy price of hover, docs/rules.md
+    "Motion"); both 0 by default. ``shaping`` > 0
     adds the potential-based term ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with
     ``Phi = -(distance to the taxi's nearest actionable stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999
     keep the optimal policy unchanged), the distance measured along feasible paths (``shaping_metric="path"``:

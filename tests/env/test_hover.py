@@ -70,7 +70,7 @@ def test_the_action_space_grows_by_one_and_the_mask_does_not():
     np.testing.assert_array_equal(zoo.core.state.pos_m[0, 0], [150.0, 150.0])
     plain_zoo = UAMFleetParallelEnv(plain)
     plain_zoo.reset(seed=0)
-    with pytest.raises(InvalidActionError, match="outside 0..15"):
+    with pytest.raises(InvalidActionError, match=r"outside 0\.\.15"):
         plain_zoo.step({"uam_0": HOVER})
 
 

@@ -284,7 +284,7 @@ def test_two_taxis_that_must_pass_each_other_do_not_shadow_each_other():
     env.reset(seed=0)
     act = _toward(goals)
     first = None
-    for step in range(12):
+    for _ in range(12):
         _, _, _, _, info = env.step(act(env))
         ev = info["events"]
         assert not ev.separation_violation.any()

@@ -82,9 +82,10 @@ def fleet_action(
     elif env.cfg.hover_action:
         return HOVER_ACTION
     else:
-        goal = idle_at[taxi]
-        if goal is None:
-            goal = idle_at[taxi] = pos.copy()
+        idle = idle_at[taxi]
+        if idle is None:
+            idle = idle_at[taxi] = pos.copy()
+        goal = idle
     return fields.heading(pos, s.action_mask[0, taxi], goal)
 
 
