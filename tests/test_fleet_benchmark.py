@@ -32,8 +32,15 @@ def test_markdown_by_hand():
 
 
 def test_unknown_setting_is_named():
-    with pytest.raises(ValueError, match="unknown --settings"):
-        main(Args(settings=("3x7",)))
+    for bad in ("3by7", "0x6", "x6", "4x"):
+        with pytest.raises(ValueError, match=rf"unknown --settings '{bad}'; give <taxis>x<requests>"):
+            main(Args(settings=(bad,)))
+
+
+def test_settings_beyond_the_table_are_taxis_x_requests():
+    from uamfleet.cli.fleet_benchmark import setting_size
+
+    assert setting_size("4x24") == (4, 24) and setting_size("8x96") == (8, 96) and setting_size("3x7") == (3, 7)
 
 
 def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
@@ -46,5 +53,9 @@ def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
     assert make_fleet_instance("berlin", 2000000, 4, 24, separation="shield").separation == "shield"
     with pytest.raises(ConfigError, match="separation"):
         make_fleet_instance("berlin", 2000000, 4, 24, separation="fence")
-    shielded = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield"))
+    shielded = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield", False))
     assert shielded[0]["separation_violations"] == 0 and shielded[0]["service_pct"] == 100.0
+    assert shielded[0]["hover_actions"] == 0  # no hover action unless asked
+    hovering = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield", True))
+    assert hovering[0]["separation_violations"] == 0 and hovering[0]["service_pct"] == 100.0
+    assert hovering[0]["hover_actions"] > 0 and hovering[0]["td_m"] < shielded[0]["td_m"]  # idle taxis stay put

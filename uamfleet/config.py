@@ -84,8 +84,9 @@ class RewardConfig:
     ``explore_repeat`` * (visits - 1); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per move that was not
     allowed (the taxi stays where it is); ``separation`` per step that another taxi is closer than
     ``EnvConfig.min_separation_m`` after the move (0 in the authors' reward: they fly one taxi); ``shield`` per move
-    the separation shield replaced and ``hover`` per step the shield held the taxi in place (both 0 by default;
-    ``EnvConfig.separation="shield"`` only). ``shaping`` > 0
+    the separation shield replaced (``EnvConfig.separation="shield"`` only) and ``hover`` per step the taxi hovered
+    (the hover action of ``EnvConfig.hover_action``, or the shield held it; an energy price of hover, docs/rules.md
+    "Motion"); both 0 by default. ``shaping`` > 0
     adds the potential-based term ``shaping * (shaping_gamma * Phi(s') - Phi(s))`` with
     ``Phi = -(distance to the taxi's nearest actionable stop) / step_m`` (paper Eq. 9-10 style; Ng et al. 1999
     keep the optimal policy unchanged), the distance measured along feasible paths (``shaping_metric="path"``:
@@ -173,6 +174,7 @@ class EnvConfig:
     patch_size: int = 10
     min_separation_m: float = 50.0
     separation: str = "none"  # "shield": conflicts resolved before moves (SEPARATION_MODES; the *_fleet presets)
+    hover_action: bool = False  # action 16 (HOVER_ACTION) stays in place, always allowed (the *_fleet presets)
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
     stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
     stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
@@ -251,7 +253,7 @@ class EnvConfig:
             raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        for name in ("stop_features", "stop_rivals", "stop_claims", "heading_lookahead"):
+        for name in ("stop_features", "stop_rivals", "stop_claims", "heading_lookahead", "hover_action"):
             object.__setattr__(self, name, check_flag(name, getattr(self, name)))
         if self.stop_rivals and not self.stop_features:
             raise ConfigError("stop_rivals=True needs stop_features=True (the rivals use the same path distances).")
@@ -295,6 +297,11 @@ class EnvConfig:
     @property
     def block_size_m(self) -> float:
         return float(self.block_m if self.block_m is not None else self.step_m)
+
+    @property
+    def num_actions(self) -> int:
+        """Size of the action space: the 16 headings, and the hover (action 16) with ``hover_action``."""
+        return NUM_HEADINGS + 1 if self.hover_action else NUM_HEADINGS
 
     @property
     def num_requests_max(self) -> int:
@@ -459,7 +466,7 @@ def _fleet(
 ) -> EnvConfig:
     """A fleet with the demand of the held-out fleet instances (:func:`uamfleet.instances.make_fleet_instance`):
     6 requests per taxi, released uniformly over the first 10 minutes, on flyable block centres; the separation
-    shield on (docs/rules.md "Separation shield")."""
+    shield and the hover action on (docs/rules.md "Separation shield", "Motion")."""
     taxis = check_integer("num_taxis", overrides.get("num_taxis", 4), 1, MAX_TAXIS)
     min_trip = 2000.0 if scenario.startswith("detroit") else 500.0
     requests, window = FLEET_REQUESTS_PER_TAXI * taxis, fleet_window_steps(slot_s)
@@ -474,6 +481,7 @@ def _fleet(
         stop_claims=True,
         reward=FLEET_REWARD,
         separation="shield",
+        hover_action=True,
         scenario=scenario,
     )
     base["time_limit_steps"] = fleet_time_limit(base["time_limit_steps"], window)

@@ -156,13 +156,15 @@ def make_fleet_instance(
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S,
     max_passengers: int | None = None,
     separation: str = "none",
+    hover_action: bool = False,
 ) -> EnvConfig:
     """The fleet instance of ``seed`` in ``family`` (:data:`FAMILIES`): ``num_taxis`` fixed starts,
     ``num_requests`` fixed requests released by Poisson arrivals over ``arrival_window_s`` and a fixed threshold
     (module docstring). ``num_vertiports`` > 0 draws that many vertiport sites per instance and puts every origin
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
-    ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield"."""
+    ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield";
+    ``hover_action``: action 16 hovers (off in every table before issue 21's hover, where idle taxis zig-zag)."""
     check_family(family)
     seed = check_integer("seed", seed, 0, MAX_SEED)
     num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
@@ -176,8 +178,9 @@ def make_fleet_instance(
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
     base = make_config(
-        fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation
-    )
+        fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation,
+        hover_action=hover_action,
+    )  # fmt: skip
     _check_window(arrival_window_s, base.slot_s)
     world = World(base)
     flyable = flyable_sites(world)

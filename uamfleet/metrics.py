@@ -16,8 +16,11 @@ in seconds (steps × ``slot_s``), distances in metres.
   (mean passengers on board per taxi-step ÷ seats), separation violations (taxi-steps closer than the
   minimum), decision latency per step.
 - Separation shield (``EnvConfig.separation="shield"``, docs/rules.md "Separation shield"): interventions (taxi-steps
-  whose allowed move the shield replaced, hovers included) and hovers (taxi-steps it held in place), over the same
-  span as TD; per taxi-hour they are ``count / (taxis * completion_s / 3600)``.
+  whose allowed move the shield replaced, its hovers included), over the same span as TD; per taxi-hour
+  ``count / (taxis * completion_s / 3600)``.
+- Hovers: taxi-steps spent in place by a hover, chosen (the hover action, ``EnvConfig.hover_action``) or the
+  shield's; ``hover_actions`` counts the chosen ones, so the shield's are ``hovers - hover_actions``. Same span as
+  TD; hover seconds are ``hovers * slot_s`` (the time an energy model prices, docs/rules.md "Motion").
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import numpy as np
 
 from uamfleet.radio import RadioMap
 from uamfleet.rollout import Trajectory
+from uamfleet.types import HOVER_ACTION
 
 
 @dataclass(frozen=True)
@@ -50,8 +54,10 @@ class EpisodeMetrics:
     separation_violations: int
     decision_ms_mean: float
     steps: int
-    shield_interventions: int = 0  # taxi-steps whose move the separation shield replaced (hovers included)
-    hovers: int = 0  # taxi-steps the shield held in place: time passes, no distance flown
+    shield_interventions: int = 0  # taxi-steps whose move the separation shield replaced (its hovers included)
+    hovers: int = 0  # taxi-steps in place by a hover (chosen or the shield's): time passes, no distance flown
+    hover_actions: int = 0  # taxi-steps that chose the hover action (EnvConfig.hover_action)
+    interventions_per_taxi_h: float = 0.0  # shield_interventions / (taxis * completion_s / 3600 s)
 
     def as_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -137,6 +143,8 @@ def episode_metrics(
     detour = in_vehicle_s[delivered] / np.maximum(direct_s[delivered], 1e-9)
 
     conn_pct, min_sinr = fleet_connectivity(traj.positions_m[:, : span + 1], radio, threshold, sample_m)
+    interventions = int(traj.stacked("shield_intervened")[:span].sum())
+    taxi_hours = traj.start_pos_m.shape[0] * max(span, 1) * slot / 3600.0  # an episode lasts at least one step
     return EpisodeMetrics(
         td_m=td,
         att_s=_mean_or_nan(ride_s[delivered]),
@@ -155,6 +163,8 @@ def episode_metrics(
         separation_violations=int(traj.stacked("separation_violation")[:span].sum()),
         decision_ms_mean=1000.0 * float(np.mean(traj.decision_s)) if traj.decision_s else math.nan,
         steps=traj.num_steps,
-        shield_interventions=int(traj.stacked("shield_intervened")[:span].sum()),
+        shield_interventions=interventions,
         hovers=int(traj.stacked("hovered")[:span].sum()),
+        hover_actions=int((traj.stacked("actions")[:span] == HOVER_ACTION).sum()),
+        interventions_per_taxi_h=interventions / taxi_hours,
     )

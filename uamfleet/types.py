@@ -12,6 +12,9 @@ import numpy as np
 NUM_HEADINGS = 16
 """Flight directions, also the size of the action space: heading k points 22.5° * k counter-clockwise from east
 (paper §IV-A, k = 0..15)."""
+HOVER_ACTION = NUM_HEADINGS
+"""Action 16, only with ``EnvConfig.hover_action``: stay in place for the slot (time passes, no distance flown;
+always allowed, never in the heading mask). docs/rules.md "Motion"."""
 
 # Passenger status codes (pax_status); docs/rules.md "Release and pick-up".
 HIDDEN = 0  # request not released yet (or a padding row): invisible, cannot be picked up
@@ -170,4 +173,4 @@ class StepEvents(NamedTuple):
     t: np.ndarray  # [E] int64 step index after the transition
     heading_flown: np.ndarray  # [E, A] int64, the heading flown (the shield may change it), -1: stayed in place
     shield_intervened: np.ndarray  # [E, A] bool, the separation shield replaced the allowed move asked for
-    hovered: np.ndarray  # [E, A] bool, the shield held the taxi in place (a subset of shield_intervened)
+    hovered: np.ndarray  # [E, A] bool, the taxi hovered: it took HOVER_ACTION, or the shield held its allowed move

@@ -37,3 +37,29 @@ def test_dispatchers_deliver_everyone_without_losing_separation_under_the_shield
     shielded = metrics["shield"]
     assert shielded.separation_violations == 0 and shielded.shield_interventions > 0
     assert shielded.delivered == 4 and shielded.hovers <= shielded.shield_interventions
+
+
+@pytest.mark.parametrize("name", ["greedy", *DISPATCHERS])
+def test_dispatchers_with_the_hover_action_deliver_everyone_under_the_shield(name):
+    # The same scene with the hover action: taxis idle after their drop-off hover (action 16) where they are.
+    cfg = small_config(
+        OPEN_10, starts_m=CORNERS, requests=CENTRE_REQUESTS, separation="shield", hover_action=True,
+        time_limit_steps=200,
+    )  # fmt: skip
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_policy(name, num_taxis=4), seed=0)
+    m = episode_metrics(traj, cfg.radio)
+    assert (m.separation_violations, m.delivered) == (0, 4)
+    assert m.hovers >= m.hover_actions
+
+
+@pytest.mark.slow
+def test_the_8_taxi_episode_that_deadlocked_under_the_first_shield_delivers_everyone():
+    # batch_assignment, Berlin 8 x 48, test seed 2000005 (docs/results/fleet_shield_100.csv: 46 of 48 delivered, two
+    # taxis turned aside side by side every step from step 139 to the time limit). Under the yield rule and the
+    # stayed-longest-first order (docs/rules.md "Separation shield") everyone is delivered, without a violation.
+    from uamfleet.instances import make_fleet_instance
+    from uamfleet.rollout import fly
+
+    cfg = make_fleet_instance("berlin", 2000005, 8, 48, separation="shield")
+    m = episode_metrics(fly(cfg, make_policy("batch_assignment", num_taxis=8)), cfg.radio)
+    assert (m.delivered, m.separation_violations) == (48, 0)

@@ -32,7 +32,7 @@ def end(p: tuple[float, float], k: int) -> np.ndarray:
     return np.asarray(p) + 100.0 * np.array([math.cos(math.pi * k / 8), math.sin(math.pi * k / 8)])
 
 
-def shield(pos, requested, free_seats=None, allowed=None):
+def shield(pos, requested, free_seats=None, allowed=None, stayed=None):
     """kernels.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
     pos = np.asarray(pos, dtype=float)
     n = len(pos)
@@ -41,6 +41,7 @@ def shield(pos, requested, free_seats=None, allowed=None):
     kernels.shield_headings(
         pos,
         np.asarray(free_seats if free_seats is not None else [2] * n, np.int64),
+        np.asarray(stayed if stayed is not None else [0] * n, np.int64),
         np.ones((n, 16), bool) if allowed is None else allowed,
         np.asarray(requested, np.int64),
         world.arrays,
@@ -73,12 +74,15 @@ def test_head_on_the_second_taxi_turns_aside_by_45_degrees():
 def test_taxis_one_step_apart_flying_at_each_other_do_not_swap_places_through_each_other():
     # 100 m apart: east and west would swap them, 100 m apart at both ends but meeting half-way. Taxi 0: east
     # ends on taxi 1, 22.5° and 337.5° end 39.0 m from it; 45° ends 76.5 m from it, closest 70.7 m at t = 0.71.
-    # Taxi 1: west ends 100 m from taxi 0's end but comes within 38.3 m of it at t = 0.5; 202.5° (heading 9) ends
-    # 125.9 m away, closest 55.5 m at t = 0.42.
+    # Taxi 1: west ends 100 m from taxi 0's end but comes within 38.3 m of it at t = 0.5, and taxi 0 was turned
+    # aside: taxi 1 yields (hovers) and leaves taxi 0 the way round it.
     pos = [(450.0, 500.0), (550.0, 500.0)]
     assert min_gap(pos, [E, W]) == pytest.approx(0.0, abs=0.2)  # what the moves asked for would do
-    assert shield(pos, [E, W]) == [NE, 9]
-    assert min_gap(pos, [NE, 9]) == pytest.approx(55.5, abs=0.1)
+    assert shield(pos, [E, W]) == [NE, -1]
+    assert min_gap(pos, [NE, -1]) == pytest.approx(70.7, abs=0.1)
+    # Had taxi 1 stayed in place a step before (say it yielded), it goes first: its west move is turned to 225°
+    # (heading 10) by the same geometry mirrored, and taxi 0, whose east move conflicts with it, yields.
+    assert shield(pos, [E, W], stayed=[0, 1]) == [-1, 10]
 
 
 def test_crossing_the_taxi_with_more_riders_keeps_its_heading():
@@ -182,18 +186,19 @@ def test_fleet_presets_fly_with_the_shield_and_the_paper_scenarios_without():
 
 def _herding_actions(env: VectorEnv, rng: np.random.Generator) -> np.ndarray:
     """Every taxi heads for the map's centre 3 times in 4 (the allowed heading nearest that bearing), else a random
-    heading: crowds that lose separation often without a shield."""
+    action (a heading, or the hover where the config has it): crowds that lose separation often without a shield."""
     s = env.state
     centre = env.world.side_m / 2
     bearing = np.arctan2(centre - s.pos_m[..., 1], centre - s.pos_m[..., 0])  # [E, A]
     k = np.round(bearing / (np.pi / 8)).astype(np.int64) % 16
-    return np.where(rng.random(k.shape) < 0.75, k, rng.integers(0, 16, k.shape))
+    return np.where(rng.random(k.shape) < 0.75, k, rng.integers(0, env.cfg.num_actions, k.shape))
 
 
 @pytest.mark.parametrize("num_taxis", [2, 4, 8])
 def test_seeded_fuzz_of_fleet_episodes_never_loses_separation_under_the_shield(num_taxis):
     # berlin_fleet without the stop features (their path table is what costs time, not the shield), 4 envs x 150
-    # steps of herding actions; the same actions' kind without the shield loses separation (so the test can fail).
+    # steps of herding actions, hovers among them; the same actions' kind without the shield loses separation (so
+    # the test can fail).
     counts = {}
     for separation in ("none", "shield"):
         cfg = make_config(
@@ -208,7 +213,9 @@ def test_seeded_fuzz_of_fleet_episodes_never_loses_separation_under_the_shield(n
             ev = info["events"]
             violations += int(ev.separation_violation.sum())
             interventions += int(ev.shield_intervened.sum())
-            assert not (ev.hovered & ev.moved).any() and not (ev.hovered & ~ev.shield_intervened).any()
+            chosen = ev.actions == 16
+            assert not (ev.hovered & ev.moved).any() and not (chosen & ev.shield_intervened).any()
+            np.testing.assert_array_equal(ev.hovered & ~ev.shield_intervened, chosen)  # else the shield's hovers
         counts[separation] = (violations, interventions)
     assert counts["none"][0] > 0 and counts["none"][1] == 0
     assert counts["shield"][0] == 0 and counts["shield"][1] > 0
@@ -246,4 +253,41 @@ def test_metrics_count_interventions_and_hovers_of_an_episode():
     traj = fly(cfg, lambda obs: actions)
     m = episode_metrics(traj, cfg.radio)
     assert (m.steps, m.shield_interventions, m.hovers, m.separation_violations) == (3, 1, 1, 0)
+    assert m.hover_actions == 0  # the shield's hover, not a chosen one
+    assert m.interventions_per_taxi_h == pytest.approx(1 / (9 * 3 * 3.0 / 3600))  # 9 taxis x 3 steps of 3 s
     assert m.td_m == 26 * 100.0  # 8 ring taxis x 3 steps + taxi 0's 2 steps
+
+
+def _toward(goals: np.ndarray):
+    """A policy for drawn scenes: every taxi asks for the heading nearest the bearing to its goal, and hovers (the
+    hover action) once within 50 m of it."""
+
+    def act(env: VectorEnv) -> np.ndarray:
+        pos = env.state.pos_m[0]
+        delta = goals - pos
+        k = np.round(np.arctan2(delta[:, 1], delta[:, 0]) / (np.pi / 8)).astype(np.int64) % 16
+        return np.where(np.linalg.norm(delta, axis=-1) < 50.0, 16, k)[None]
+
+    return act
+
+
+def test_two_taxis_that_must_pass_each_other_do_not_shadow_each_other():
+    # The scene of the deadlocked 8 x 48 episodes before the yield rule (batch_assignment, Berlin test seed
+    # 2000005): two taxis 53 m apart, each bound for a point beyond the other. Taxi 0's move through taxi 1 is
+    # turned aside (south-east, heading 14: 225° and the like end too close to taxi 1); taxi 1's move then conflicts
+    # with taxi 0's turned move and yields (hovers) instead of turning beside it. Without that rule both turned the
+    # same way every step (south, then north, ...) until the time limit. Both arrive; nobody loses separation.
+    starts = ((447.0, 500.0), (500.0, 502.0))
+    goals = np.array([[900.0, 480.0], [100.0, 520.0]])
+    cfg = small_config(OPEN_10, starts_m=starts, separation="shield", hover_action=True, requests=FAR_REQUEST)
+    env = VectorEnv(cfg)
+    env.reset(seed=0)
+    act = _toward(goals)
+    first = None
+    for _ in range(12):
+        _, _, _, _, info = env.step(act(env))
+        ev = info["events"]
+        assert not ev.separation_violation.any()
+        first = ev.heading_flown[0].tolist() if first is None else first
+    assert first[1] == -1 and first[0] != -1  # one taxi turned aside, the other yielded
+    assert (np.linalg.norm(env.state.pos_m[0] - goals, axis=-1) < 50.0).all(), env.state.pos_m[0]

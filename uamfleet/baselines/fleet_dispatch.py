@@ -20,6 +20,9 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
   at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch).
 
+A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
+``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`).
+
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
 re-sequences its schedule with the new drop-off; above ``exact_limit`` passengers it drops them first). So does a
@@ -37,7 +40,7 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
-from uamfleet.types import HIDDEN, ON_BOARD, WAITING
+from uamfleet.types import HIDDEN, HOVER_ACTION, ON_BOARD, WAITING
 
 DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
@@ -64,18 +67,26 @@ def shared_fields(env: VectorEnv, warm: bool = False) -> DistanceFields:
     return fields
 
 
-def goal_or_hover(
-    idle_at: list[np.ndarray | None], taxi: int, pos: np.ndarray, target: np.ndarray | None
-) -> np.ndarray:
-    """The taxi's goal: its target, or, with nothing to do, the point where it became idle (it hovers about it;
-    ``idle_at`` keeps those points per taxi)."""
+def fleet_action(
+    env: VectorEnv, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None
+) -> int:
+    """Taxi ``taxi``'s action in env 0: the heading toward ``target`` along feasible paths; with nothing to do, the
+    hover (:data:`~uamfleet.types.HOVER_ACTION`: no distance flown) where the env has it (``hover_action``), else
+    the heading back toward the point where it became idle, so it zig-zags about that point (``idle_at`` keeps
+    those points per taxi)."""
+    s = env.state
+    pos = s.pos_m[0, taxi]
     if target is not None:
         idle_at[taxi] = None
-        return target
-    idle = idle_at[taxi]
-    if idle is None:
-        idle = idle_at[taxi] = pos.copy()
-    return idle
+        goal = target
+    elif env.cfg.hover_action:
+        return HOVER_ACTION
+    else:
+        idle = idle_at[taxi]
+        if idle is None:
+            idle = idle_at[taxi] = pos.copy()
+        goal = idle
+    return fields.heading(pos, s.action_mask[0, taxi], goal)
 
 
 class ScheduleFleetPolicy:
@@ -99,7 +110,7 @@ class ScheduleFleetPolicy:
         self.fields = shared_fields(env)
         s = env.state
         self.num_taxis = env.num_taxis
-        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis  # where a taxi with nothing to do hovers
+        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis  # where an idle taxi zig-zags (no hover action)
         self.pax = np.flatnonzero(s.pax_exists[0])
         self.release_s = s.pax_release[0].astype(float) * env.cfg.slot_s
         self.speed_mps = env.cfg.step_m / env.cfg.slot_s
@@ -257,10 +268,7 @@ class ScheduleFleetPolicy:
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
         actions = np.zeros((1, self.num_taxis), dtype=np.int64)
         for a in range(self.num_taxis):
-            pos = s.pos_m[0, a]
-            target = self.target(a)
-            goal = goal_or_hover(self._idle_at, a, pos, target)
-            actions[0, a] = self.fields.heading(pos, s.action_mask[0, a], goal)
+            actions[0, a] = fleet_action(self.env, self.fields, self._idle_at, a, self.target(a))
         return actions
 
     def target(self, taxi: int) -> np.ndarray | None:
@@ -413,4 +421,5 @@ __all__ = [
     "InsertionPolicy",
     "ScheduleFleetPolicy",
     "assign_trips",
+    "fleet_action",
 ]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uamfleet.baselines.fleet_dispatch import goal_or_hover, shared_fields
+from uamfleet.baselines.fleet_dispatch import fleet_action, shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 
@@ -15,8 +15,9 @@ class GreedyFleetPolicy:
     Each taxi heads for its nearest stop: a drop-off of a passenger it carries, or, while it has a free seat, the
     origin of a waiting passenger no nearer taxi has claimed this step (taxi-passenger pairs are claimed nearest
     first). It steers along feasible paths (:class:`~uamfleet.paths.DistanceFields`), so taxis go round no-fly
-    areas instead of getting stuck at their edges. A taxi with nothing to do hovers about the point where it became
-    idle (as the other fleet dispatchers do), instead of chasing its own position.
+    areas instead of getting stuck at their edges. A taxi with nothing to do hovers (the hover action, where the env
+    has it) or zig-zags about the point where it became idle (as the other fleet dispatchers do:
+    :func:`~uamfleet.baselines.fleet_dispatch.fleet_action`), instead of chasing its own position.
     """
 
     def reset(self, env: VectorEnv) -> None:
@@ -27,12 +28,9 @@ class GreedyFleetPolicy:
         self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        s = self.env.state
-        pos = s.pos_m[0]  # [A, 2]
-        actions = np.zeros((1, len(pos)), dtype=np.int64)
+        actions = np.zeros((1, self.env.num_taxis), dtype=np.int64)
         for a, target in enumerate(self._targets()):
-            goal = goal_or_hover(self._idle_at, a, pos[a], target)
-            actions[0, a] = self.fields.heading(pos[a], s.action_mask[0, a], goal)
+            actions[0, a] = fleet_action(self.env, self.fields, self._idle_at, a, target)
         return actions
 
     def _targets(self) -> list[np.ndarray | None]:

@@ -4,9 +4,12 @@
     .venv/bin/python -m eval.fleet_benchmark --family detroit3gpp --settings 4x24 --count 100 --jobs 2
 
 Instances come from :func:`uamfleet.instances.make_fleet_instance` (``--split test`` by default; settings
-:data:`uamfleet.instances.FLEET_SETTINGS`: taxis x requests per episode). Every dispatcher is flown through the same
-env and scored by :mod:`uamfleet.metrics`. Episodes run seed by seed across the settings, so an interrupted run
-still covers every setting. Per setting and dispatcher the table gives means with 95 % intervals (normal
+:data:`uamfleet.instances.FLEET_SETTINGS`, or any ``<taxis>x<requests>`` such as the loaded ``4x48`` and ``8x96``:
+taxis x requests per episode, released over the first 10 minutes). A learned fleet reads every request of the
+episode on its passenger axis: it is flown with as many passenger slots as the setting has requests
+(``for_fleet(taxis, passenger_slots=requests)``; the light settings' own default). Every dispatcher is flown
+through the same env and scored by :mod:`uamfleet.metrics`. Episodes run seed by seed across the settings, so an
+interrupted run still covers every setting. Per setting and dispatcher the table gives means with 95 % intervals (normal
 approximation, 1.96 standard errors over episodes) of the service rate, the episode's wait p50 and p95, the ride
 detour, TD per delivered passenger, occupancy, separation violations and connectivity, and the decision time per
 taxi per step (policy wall time of a step ÷ taxis; median and maximum over all steps; the feasible-path distance
@@ -45,7 +48,8 @@ DISPATCHERS: tuple[str, ...] = ("greedy", "insertion", "batch_assignment")
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
            "service_pct", "wait_p50_s", "wait_p95_s", "awt_s", "detour", "td_m", "td_per_delivered_m", "occupancy",
            "separation_violations", "connectivity_pct", "steps", "decision_p50_ms", "decision_max_ms",
-           "policy_s", "fields_s", "shield_interventions", "hovers", "interventions_per_taxi_h")  # fmt: skip
+           "policy_s", "fields_s", "shield_interventions", "hovers", "interventions_per_taxi_h",
+           "hover_actions")  # fmt: skip
 
 
 @dataclass
@@ -68,6 +72,8 @@ class Args:
     dispatcher flown now replace its earlier rows"""
     separation: Literal["none", "shield"] = "none"
     """EnvConfig.separation of every episode: "none" (as the recorded tables) or "shield" (docs/rules.md)"""
+    hover_action: bool = False
+    """EnvConfig.hover_action of every episode: idle dispatcher taxis hover (action 16) instead of zig-zagging"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path = Path("docs/results.md")
@@ -82,8 +88,21 @@ class Args:
     """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
-Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str]  # (family, setting, seed, dispatchers,
-# checkpoints, separation)
+Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool]  # (family, setting, seed, dispatchers,
+# checkpoints, separation, hover_action)
+
+
+def setting_size(setting: str) -> tuple[int, int]:
+    """(taxis, requests) of a setting: a name of FLEET_SETTINGS or ``<taxis>x<requests>`` (e.g. ``8x96``)."""
+    if setting in FLEET_SETTINGS:
+        return FLEET_SETTINGS[setting]
+    taxis, sep, requests = setting.partition("x")
+    if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
+        raise ValueError(
+            f"unknown --settings {setting!r}; give <taxis>x<requests> with both >= 1 (e.g. 8x96) or one of "
+            f"{tuple(FLEET_SETTINGS)}."
+        )
+    return int(taxis), int(requests)
 
 
 def learned_name(checkpoint: Path) -> str:
@@ -92,21 +111,21 @@ def learned_name(checkpoint: Path) -> str:
 
 
 @functools.lru_cache(maxsize=16)
-def _learned(checkpoint: Path, taxis: int) -> Any:
-    """The greedy policy of a checkpoint for ``taxis`` taxis: as trained, or resized zero-shot to another fleet
-    size (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
+def _learned(checkpoint: Path, taxis: int, requests: int) -> Any:
+    """The greedy policy of a checkpoint for ``taxis`` taxis and ``requests`` passenger slots: as trained, or
+    resized zero-shot (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
     policy = learned_policy(checkpoint)
     try:
-        return policy.for_fleet(taxis)
+        return policy.for_fleet(taxis, passenger_slots=requests)
     except ValueError:
         return None
 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
     """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
-    family, setting, seed, dispatchers, checkpoints, separation = job
-    taxis, requests = FLEET_SETTINGS[setting]
-    cfg = make_fleet_instance(family, seed, taxis, requests, separation=separation)
+    family, setting, seed, dispatchers, checkpoints, separation, hover_action = job
+    taxis, requests = setting_size(setting)
+    cfg = make_fleet_instance(family, seed, taxis, requests, separation=separation, hover_action=hover_action)
     start = time.perf_counter()
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
@@ -116,7 +135,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     rows = []
     flights = [(name, cfg, make_policy(name, num_taxis=taxis)) for name in dispatchers]
     for checkpoint in checkpoints:
-        policy = _learned(checkpoint, taxis)
+        policy = _learned(checkpoint, taxis, requests)
         if policy is not None:
             flights.append((learned_name(checkpoint), policy.layout(cfg), policy))
     for name, flown, policy in flights:
@@ -134,7 +153,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
             "steps": m.steps, "decision_p50_ms": float(np.median(per_taxi_ms)),
             "decision_max_ms": float(per_taxi_ms.max()), "policy_s": elapsed, "fields_s": fields_s,
             "shield_interventions": m.shield_interventions, "hovers": m.hovers,
-            "interventions_per_taxi_h": m.shield_interventions / (taxis * max(m.completion_s, flown.slot_s) / 3600.0),
+            "interventions_per_taxi_h": m.interventions_per_taxi_h, "hover_actions": m.hover_actions,
         })  # fmt: skip
     return rows
 
@@ -149,7 +168,7 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     keys = dict.fromkeys((r["family"], r["setting"], r["dispatcher"]) for r in rows)
-    for key in sorted(keys, key=lambda k: (k[0], FLEET_SETTINGS.get(k[1], (0, 0)), DISPATCHERS.index(k[2])
+    for key in sorted(keys, key=lambda k: (k[0], setting_size(k[1]), DISPATCHERS.index(k[2])
                                            if k[2] in DISPATCHERS else 99)):  # fmt: skip
         sel = [r for r in rows if (r["family"], r["setting"], r["dispatcher"]) == key]
 
@@ -189,6 +208,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
         + (f" --separation {args.separation}" if args.separation != "none" else "")
+        + (" --hover-action" if args.hover_action else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
@@ -220,7 +240,15 @@ def check_args(args: Args) -> list[Job]:
         _check_checkpoint_flies(checkpoint, args.settings)
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
-        (args.family, setting, seed, tuple(args.dispatchers), tuple(args.checkpoints), args.separation)
+        (
+            args.family,
+            setting,
+            seed,
+            tuple(args.dispatchers),
+            tuple(args.checkpoints),
+            args.separation,
+            args.hover_action,
+        )
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
@@ -228,9 +256,8 @@ def check_args(args: Args) -> list[Job]:
 
 def _check_names(args: Args) -> None:
     """Every setting and dispatcher named is known."""
-    unknown = [s for s in args.settings if s not in FLEET_SETTINGS]
-    if unknown:
-        raise ValueError(f"unknown --settings {unknown}; choose from {tuple(FLEET_SETTINGS)}.")
+    for setting in args.settings:
+        setting_size(setting)
     unknown = [d for d in args.dispatchers if d not in POLICIES]
     if unknown:
         raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
@@ -239,7 +266,7 @@ def _check_names(args: Args) -> None:
 def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str]) -> None:
     """A learned policy must fly at least one of the settings (its fleet size, or any for a designed variant);
     says which it skips."""
-    flies = [s for s in settings if _learned(checkpoint, FLEET_SETTINGS[s][0]) is not None]
+    flies = [s for s in settings if _learned(checkpoint, *setting_size(s)) is not None]
     if not flies:
         raise UsageError(
             f"--checkpoints {checkpoint} cannot fly any of the settings {list(settings)} (it reads "

@@ -12,7 +12,7 @@ from numba import njit
 
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, WorldArrays
 from uamfleet.radio._sampling import segment_min
-from uamfleet.types import DELIVERED, HIDDEN, NUM_HEADINGS, ON_BOARD, WAITING, FleetState, StepEvents
+from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING, FleetState, StepEvents
 
 
 @njit(cache=True, inline="always")
@@ -41,70 +41,101 @@ def action_mask(pos: np.ndarray, w: WorldArrays, out: np.ndarray) -> None:
             out[i, k] = ok
 
 
+CLEAR, CONFLICT, YIELD = 0, 1, 2
+"""What :func:`_conflict` finds for a move: clear of everyone; in conflict; in conflict with a taxi the shield has
+already turned aside (the move then yields: the taxi hovers, docs/rules.md "Separation shield" rule 4)."""
+
+
 @njit(cache=True)
-def _clear_of_others(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, pos: np.ndarray,
-                     min_separation_m: float) -> bool:  # fmt: skip
-    """Taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from pos[b]
-    to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from b's
-    end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
+def _conflict(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, turned: np.ndarray,
+              pos: np.ndarray, min_separation_m: float) -> int:  # fmt: skip
+    """Whether taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from
+    pos[b] to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from
+    b's end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
     when the two start at least that far apart, they stay so throughout the slot (closest approach of two
-    straight flights at constant speed; two taxis never swap places through each other)."""
+    straight flights at constant speed; two taxis never swap places through each other). Returns :data:`CLEAR`,
+    :data:`CONFLICT`, or :data:`YIELD` when one of the taxis in conflict is resolved and was turned aside."""
     ax, ay = pos[a, 0], pos[a, 1]
+    found = CLEAR
     for b in range(pos.shape[0]):
         if b == a:
             continue
         bx, by = pos[b, 0], pos[b, 1]
         ex, ey = (ends[b, 0], ends[b, 1]) if resolved[b] else (bx, by)
         dx, dy = x - ex, y - ey
-        if math.sqrt(dx * dx + dy * dy) < min_separation_m:
-            return False
+        close = math.sqrt(dx * dx + dy * dy) < min_separation_m
         sx, sy = ax - bx, ay - by  # b -> a at the start of the slot; + t * (vx, vy) at time t in [0, 1]
-        if math.sqrt(sx * sx + sy * sy) < min_separation_m:
-            continue  # already too close (e.g. a shared start): only the end must be clear
-        vx, vy = (x - ax) - (ex - bx), (y - ay) - (ey - by)
-        vv = vx * vx + vy * vy
-        t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
-        cx, cy = sx + t * vx, sy + t * vy
-        if math.sqrt(cx * cx + cy * cy) < min_separation_m:
-            return False
-    return True
+        if not close and math.sqrt(sx * sx + sy * sy) >= min_separation_m:  # else only the end must be clear
+            vx, vy = (x - ax) - (ex - bx), (y - ay) - (ey - by)
+            vv = vx * vx + vy * vy
+            t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
+            cx, cy = sx + t * vx, sy + t * vy
+            close = math.sqrt(cx * cx + cy * cy) < min_separation_m
+        if close:
+            if resolved[b] and turned[b]:
+                return YIELD
+            found = CONFLICT
+    return found
+
+
+@njit(cache=True)
+def stayed_steps(pos: np.ndarray, history: np.ndarray) -> np.ndarray:
+    """[A] int64: the steps each taxi has stayed where it is (history rows, most recent first, equal to its
+    position), at most the history's length: the shield's first priority."""
+    out = np.zeros(pos.shape[0], np.int64)
+    for a in range(pos.shape[0]):
+        for h in range(history.shape[1]):
+            if history[a, h, 0] != pos[a, 0] or history[a, h, 1] != pos[a, 1]:
+                break
+            out[a] += 1
+    return out
 
 
 @njit(cache=True)
 def shield_headings(
     pos: np.ndarray,  # [A, 2] positions before the step
     free_seats: np.ndarray,  # [A]
+    stayed: np.ndarray,  # [A] int64, steps each taxi has stayed in place (stayed_steps)
     allowed: np.ndarray,  # [A, NUM_HEADINGS] bool, the action mask
-    requested: np.ndarray,  # [A] int64, validated headings
+    requested: np.ndarray,  # [A] int64, validated actions (HOVER_ACTION: the taxi stays)
     w: WorldArrays,
     flown: np.ndarray,  # [A] int64 out: the heading flown, -1: the taxi stays where it is
 ) -> None:
     """The separation shield of one env (docs/rules.md "Separation shield"): the heading each taxi flies.
 
-    Taxis are resolved one at a time, fewest free seats (most riders) first, ties by index: a taxi's detour then
-    falls on the emptier taxi, whose delay holds up nobody on board. A requested heading that is not allowed stays
-    a blocked move (the taxi stays). An allowed one is kept when it is clear (:func:`_clear_of_others`) of the
-    moves already fixed and of the current positions of the taxis still to resolve; else the nearest allowed
-    heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...); else the taxi hovers
-    (stays). Staying is clear whenever the current positions are separated: each earlier taxi's move was checked
-    against this taxi staying where it is, and each later one is checked against what this one does.
+    Taxis are resolved one at a time: the one that has stayed in place longest first (a taxi held back goes first
+    next time), then fewest free seats (most riders; the detour falls on the emptier taxi, whose delay holds up
+    nobody on board), then by index. A requested heading that is not allowed stays a blocked move (the taxi
+    stays), a requested hover (:data:`HOVER_ACTION`) a hover. An allowed one is kept when it is clear
+    (:func:`_conflict`) of the moves already fixed and of the current positions of the taxis still to resolve.
+    Else, when it conflicts with a taxi the shield turned aside, the taxi yields: it hovers and leaves the way
+    free (two taxis turned aside side by side would shadow each other step after step). Else it flies the nearest
+    allowed heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...), else hovers.
+    Staying is clear whenever the current positions are separated: each earlier taxi's move was checked against
+    this taxi staying where it is, and each later one is checked against what this one does.
     """
     num_taxis = pos.shape[0]
     ends = pos.copy()
     resolved = np.zeros(num_taxis, np.bool_)
+    turned = np.zeros(num_taxis, np.bool_)
     half = NUM_HEADINGS // 2
-    for a in np.argsort(free_seats, kind="mergesort"):  # stable: ties in index order
+    order = np.argsort(free_seats - stayed * (np.int64(1) << 32), kind="mergesort")  # stable: ties in index order
+    for a in order:
         k = requested[a]
         flown[a] = -1
-        if allowed[a, k]:
+        if k != HOVER_ACTION and allowed[a, k]:
             for turn in range(2 * half):  # offsets 0, +1, -1, +2, -2, ..., +half
                 d = (turn + 1) // 2 if turn % 2 else -(turn // 2)
                 h = (k + d) % NUM_HEADINGS
                 if not allowed[a, h]:
                     continue
                 x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
-                if _clear_of_others(a, x, y, ends, resolved, pos, w.min_separation_m):
+                found = _conflict(a, x, y, ends, resolved, turned, pos, w.min_separation_m)
+                if found == YIELD and d == 0:
+                    break
+                if found == CLEAR:
                     flown[a] = h
+                    turned[a] = d != 0
                     ends[a, 0], ends[a, 1] = x, y
                     break
         resolved[a] = True
@@ -141,7 +172,7 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> St
         for a in range(num_taxis):
             # 1. move (or stay, when the move is not allowed or the shield holds the taxi); 2. the block visit
             moved[e, a] = flown[e, a] >= 0
-            blocked[e, a] = not s.action_mask[e, a, actions[e, a]]
+            blocked[e, a] = not _allowed(s, e, a, actions[e, a])
             count = _fly(s, w, e, a, flown[e, a])
             block_visits[e, a] = count
             first_visit[e, a] = count == 1
@@ -165,16 +196,28 @@ def _headings_flown(
     s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool, e: int, flown: np.ndarray,
     intervened: np.ndarray, hovered: np.ndarray,
 ) -> None:  # fmt: skip
-    """Env e's heading flown per taxi (-1: stays): the requested one if allowed; with the shield, the one it
-    resolves, and whether it changed (intervened) or held (hovered) an allowed move."""
+    """Env e's heading flown per taxi (-1: stays): the requested one if it is an allowed move; with the shield,
+    the one it resolves, and whether it changed (intervened) or held an allowed move. Hovered: the taxi asked to
+    hover (:data:`HOVER_ACTION`, never changed by the shield: staying is clear) or the shield held it."""
     num_taxis = flown.shape[1]
     for a in range(num_taxis):
-        flown[e, a] = actions[e, a] if s.action_mask[e, a, actions[e, a]] else -1
+        k = actions[e, a]
+        flown[e, a] = k if k != HOVER_ACTION and s.action_mask[e, a, k] else -1
+        hovered[e, a] = k == HOVER_ACTION
     if shield:
-        shield_headings(s.pos_m[e], s.free_seats[e], s.action_mask[e], actions[e], w, flown[e])
+        stayed = stayed_steps(s.pos_m[e], s.history_m[e])
+        shield_headings(s.pos_m[e], s.free_seats[e], stayed, s.action_mask[e], actions[e], w, flown[e])
         for a in range(num_taxis):
-            intervened[e, a] = flown[e, a] != actions[e, a] and s.action_mask[e, a, actions[e, a]]
-            hovered[e, a] = flown[e, a] < 0 and s.action_mask[e, a, actions[e, a]]
+            k = actions[e, a]
+            move = k != HOVER_ACTION and s.action_mask[e, a, k]  # an allowed move asked for
+            intervened[e, a] = move and flown[e, a] != k
+            hovered[e, a] = k == HOVER_ACTION or (move and flown[e, a] < 0)
+
+
+@njit(cache=True, inline="always")
+def _allowed(s: FleetState, e: int, a: int, k: int) -> bool:
+    """Action k of taxi (e, a) is allowed: a hover always, a heading when its move is in the mask."""
+    return k == HOVER_ACTION or s.action_mask[e, a, k]
 
 
 @njit(cache=True)

@@ -11,7 +11,8 @@ Action space
 ------------
 ``Discrete(16)``: heading k flies one ``step_m`` along 22.5°·k counter-clockwise from east. Moves that leave
 the map or break the SINR rule are 0 in ``observation["action_mask"]`` (np.int8); taking one anyway costs a
-step in place and the ``blocked`` penalty (never a teleport, never a clamp).
+step in place and the ``blocked`` penalty (never a teleport, never a clamp). ``Discrete(17)`` with
+``hover_action=True`` (the ``*_fleet`` presets): action 16 hovers (stays in place, always allowed, not in the mask).
 
 Observation space
 -----------------
@@ -63,7 +64,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from uamfleet.config import NUM_HEADINGS, REWARD_TERMS, EnvConfig, make_config
+from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
 from uamfleet.env.dynamics import check_action
 from uamfleet.env.vector_env import VectorEnv
 
@@ -197,7 +198,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             raise ValueError(
                 f"actions must have one entry per live agent {agents}; missing {missing}, unknown {unknown}."
             )
-        batch = np.array([[_action(actions[a], i, a) for i, a in enumerate(agents)]], dtype=np.int64)
+        n = self.cfg.num_actions
+        batch = np.array([[_action(actions[a], i, a, n) for i, a in enumerate(agents)]], dtype=np.int64)
         obs, rewards, terminated, truncated, info = self.core.step(batch)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
@@ -254,11 +256,11 @@ def env(**kwargs: Any) -> Any:
     return parallel_to_aec(parallel_env(**kwargs))
 
 
-def _action(value: Any, taxi: int, agent: str) -> int:
+def _action(value: Any, taxi: int, agent: str, num_actions: int) -> int:
     """One agent's action; a plain int in range takes the fast path, anything else the one rule (check_action)."""
-    if type(value) is int and 0 <= value < NUM_HEADINGS:
+    if type(value) is int and 0 <= value < num_actions:
         return value
-    return check_action(value, f"env 0, taxi {taxi} ({agent})")
+    return check_action(value, f"env 0, taxi {taxi} ({agent})", num_actions)
 
 
 def _agent_infos(agents: list[AgentID], info: dict[str, Any]) -> dict[AgentID, dict[str, Any]]:

@@ -43,7 +43,7 @@ def reward_terms(events: StepEvents, weights: RewardConfig, shaping: np.ndarray 
     ``step`` every step; ``explore``: ``explore`` on entering a new block, else ``explore_repeat * (visits - 1)``
     (the authors' code); ``pickup`` / ``dropoff`` per passenger; ``blocked`` per disallowed move; ``shaping`` as
     given (see :func:`shaping_term`); ``separation`` per taxi closer than the separation minimum to another after
-    the step; ``shield`` per move the separation shield replaced, ``hover`` per step it held the taxi in place.
+    the step; ``shield`` per move the separation shield replaced, ``hover`` per step the taxi hovered.
     Each term is weighted by the :class:`RewardConfig` field of its name.
     """
     terms = _terms(

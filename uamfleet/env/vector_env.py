@@ -23,7 +23,7 @@ from uamfleet.env import dynamics, generator, motion, reward
 from uamfleet.env.observer import Observer
 from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
-from uamfleet.types import DELIVERED, NUM_HEADINGS, FleetState
+from uamfleet.types import DELIVERED, FleetState
 
 
 class VectorEnv:
@@ -51,7 +51,7 @@ class VectorEnv:
         self.source = generator.InstanceSource(self.world)
         self.layout = self.observer.layout  # the observation's spec (uamfleet.env.layout): fields, shapes, kinds
         self.single_observation_space: spaces.Dict = self.observer.observation_space
-        self.single_action_space = spaces.Discrete(NUM_HEADINGS)
+        self.single_action_space = spaces.Discrete(cfg.num_actions)  # 16 headings (+ the hover, cfg.hover_action)
         self.state_space = self.observer.state_space
         self.state: FleetState = generator.allocate_state(self.world, self.num_envs)
         self.rngs: list[np.random.Generator] = []
@@ -88,7 +88,7 @@ class VectorEnv:
         ``_episode``, ``final_obs``)."""
         if self.needs_reset:
             raise RuntimeError("step() called before reset() (or after an episode ended with autoreset=False).")
-        actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis)
+        actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis, self.cfg.num_actions)
         state, weights = self.state, self.cfg.reward
         phi_before = None if self.potential is None else self.potential(state)
 
