@@ -421,6 +421,12 @@ def _detroit3gpp_random(**overrides: Any) -> EnvConfig:
     return _with_overrides(base, overrides)
 
 
+def _munich_random(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_random` (threshold -3 dB, 100 m steps of 3 s, the same demand) on the packaged ray-traced
+    Munich map (Sionna RT, 1,200 m operating square, 4 GBS): a city no shipped policy was trained on."""
+    return _berlin_random(**{"radio": load_radio_map("munich"), "scenario": "munich_random", **overrides})
+
+
 INSTANCE_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, pickup=0.0, dropoff=0.0)
 """The *_instances scenarios' reward: the distance flown is what is scored, so ``step`` per step and nothing
 else. An episode ends only when everyone is delivered, so the return is the shorter the sooner the tour ends,
@@ -451,6 +457,12 @@ def _detroit3gpp_instances(**overrides: Any) -> EnvConfig:
     base = _fields(_detroit3gpp_random(num_taxis=1, demand=demand))
     base.update(max_passengers=6, stop_features=True, reward=INSTANCE_REWARD, scenario="detroit3gpp_instances")
     return _with_overrides(base, overrides)
+
+
+def _munich_instances(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_instances` (one taxi, Berlin's instance demand, the generalist's layout) on the packaged
+    ray-traced Munich map."""
+    return _berlin_instances(**{"radio": load_radio_map("munich"), "scenario": "munich_instances", **overrides})
 
 
 FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, separation=-20.0, shield=-20.0)
@@ -524,8 +536,10 @@ PRESETS: dict[str, Callable[..., EnvConfig]] = {
     "detroit3gpp_p5": _detroit3gpp_p5,
     "berlin_random": _berlin_random,
     "detroit3gpp_random": _detroit3gpp_random,
+    "munich_random": _munich_random,
     "berlin_instances": _berlin_instances,
     "detroit3gpp_instances": _detroit3gpp_instances,
+    "munich_instances": _munich_instances,
     "berlin_fleet": _berlin_fleet,
     "detroit3gpp_fleet": _detroit3gpp_fleet,
 }

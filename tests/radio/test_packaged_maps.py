@@ -24,11 +24,11 @@ BERLIN_TXT = SHARED / "berlin" / "berlin_UAM_SNIR_100.txt"
 
 
 def test_names() -> None:
-    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp")
+    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp", "munich")
 
 
 def test_unknown_name() -> None:
-    with pytest.raises(ValueError, match=r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*WinProp"):
+    with pytest.raises(ValueError, match=r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*'munich'.*WinProp"):
         load_radio_map("paris")
 
 
