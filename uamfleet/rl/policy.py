@@ -156,7 +156,7 @@ class GreedyPolicy:
     @torch.inference_mode()
     def logits_of(self, inputs: dict[str, np.ndarray]) -> torch.Tensor:
         """Masked logits [B, 16] for :meth:`network_input` rows (needs no critic state). Under inference mode, not
-        only no_grad: about 12 % less CPU time per lone-taxi call (0.89 against 1.01 ms, thread time)."""
+        only no_grad: less overhead per call, which a lone taxi's decision is mostly (docs/benchmarks.md)."""
         return self.net.masked_logits(obs_to_torch(inputs, self.device))
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
