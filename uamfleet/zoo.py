@@ -12,31 +12,10 @@ results, are in ``docs/results.md`` ("One learned planner for every instance").
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
-from uamfleet.rl.checkpoint import Checkpoint
+from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, pretrained_path
 from uamfleet.rl.policy import GreedyPolicy, load_policy
-
-PRETRAINED: dict[str, str] = {
-    "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests;
-    # berlin_stops plus a look-ahead correction of its flight learned from replan (DAgger, issue 20)
-    "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
-    # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
-    "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
-    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi
-    "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
-}
-"""Name -> file in ``uamfleet/data/pretrained``."""
-
-
-def pretrained_path(name: str = "berlin") -> Path:
-    if name not in PRETRAINED:
-        raise ValueError(f"no pretrained policy {name!r}; the package ships {tuple(PRETRAINED)}.")
-    path = Path(str(resources.files("uamfleet") / "data" / "pretrained" / PRETRAINED[name]))
-    if not path.is_file():
-        raise FileNotFoundError(f"the pretrained policy file {path} is missing from this install; reinstall uamfleet.")
-    return path
 
 
 def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:

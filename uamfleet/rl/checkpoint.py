@@ -24,6 +24,7 @@ import re
 import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,7 @@ from uamfleet.config import EnvConfig, make_config
 from uamfleet.env.layout import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
 from uamfleet.io import write_bytes_atomic
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
-from uamfleet.rl.options import TrainArgs
+from uamfleet.rl.options import TrainArgs, make_env_config
 
 CHECKPOINT_FORMAT = 2
 """2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
@@ -462,6 +463,72 @@ def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
     return TrainArgs(**saved)
 
 
+PRETRAINED: dict[str, str] = {
+    "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests;
+    # berlin_stops plus a look-ahead correction of its flight learned from replan (DAgger, issue 20)
+    "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
+    # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
+    "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
+    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi
+    "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
+}
+"""The policies shipped in ``uamfleet/data/pretrained`` (``uamfleet.pretrained(name)``): name -> file."""
+
+
+def pretrained_path(name: str = "berlin") -> Path:
+    """The file of the shipped policy ``name`` (:data:`PRETRAINED`)."""
+    if name not in PRETRAINED:
+        raise ValueError(f"no pretrained policy {name!r}; the package ships {tuple(PRETRAINED)}.")
+    path = Path(str(resources.files("uamfleet") / "data" / "pretrained" / PRETRAINED[name]))
+    if not path.is_file():
+        raise FileNotFoundError(f"the pretrained policy file {path} is missing from this install; reinstall uamfleet.")
+    return path
+
+
+def checkpoint_source(name_or_path: str | Path) -> Path:
+    """A shipped policy's name (:data:`PRETRAINED`) or a checkpoint file, as a path (FileNotFoundError naming it
+    when neither)."""
+    if isinstance(name_or_path, str) and name_or_path in PRETRAINED:
+        return pretrained_path(name_or_path)
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{str(name_or_path)!r} is neither a shipped policy {tuple(PRETRAINED)} nor a checkpoint file; give one "
+            "of those names or the path of a best.pt / last.pt."
+        )
+    return path
+
+
+_INIT_CHAIN_MAX = 8  # a run fine-tuned from a run fine-tuned from ...: deeper than this is a loop of files
+
+
+def run_config(args: TrainArgs, scenario: str | EnvConfig | None = None, training: bool = True) -> EnvConfig:
+    """The env config a run trains (``training``) or is evaluated on: :func:`~uamfleet.rl.options.make_env_config`
+    of ``scenario`` (default ``args.scenario``), laid out as the policy it starts from (``args.init_from``) reads
+    its observation: passenger axis, stop fields, look-ahead, patch, history and time limit
+    (:meth:`EnvConfig.with_layout_of`). Training, evaluating and loading a fine-tuned run all go through here, so
+    its checkpoint loads like any other."""
+    cfg = make_env_config(args.scenario if scenario is None else scenario, args, training=training)
+    like = _init_layout(args, depth=0)
+    return cfg if like is None else cfg.with_layout_of(like)
+
+
+def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
+    """The config (layout) the policy of ``args.init_from`` was evaluated on; None without one."""
+    if args.init_from is None:
+        return None
+    if depth >= _INIT_CHAIN_MAX:
+        raise ValueError(
+            f"--init-from={args.init_from!r} starts a chain of more than {_INIT_CHAIN_MAX} runs, each fine-tuned "
+            "from the next: the files point at each other; start from a shipped policy or a run trained from scratch."
+        )
+    source = checkpoint_source(args.init_from)
+    init_args = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
+    cfg = make_env_config(init_args.scenario, init_args, training=False)
+    like = _init_layout(init_args, depth + 1)
+    return cfg if like is None else cfg.with_layout_of(like)
+
+
 def numpy_rng_state() -> dict[str, Any]:
     """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
     name, keys, pos, has_gauss, cached = np.random.get_state()
@@ -480,13 +547,17 @@ __all__ = [
     "CHECKPOINT_FORMAT",
     "ENVIRONMENT_FIELDS",
     "NET_LIMITS",
+    "PRETRAINED",
     "Checkpoint",
     "CheckpointError",
     "check_net_config",
     "check_network",
     "check_state_dict",
     "checkpoint_args",
+    "checkpoint_source",
     "numpy_rng_state",
+    "pretrained_path",
+    "run_config",
     "set_numpy_rng_state",
     "upgrade_checkpoint",
     "with_input_flags",

@@ -39,7 +39,8 @@ from uamfleet.instances import family_of, validation_metrics
 from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
-from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy, make_env_config
+from uamfleet.rl.checkpoint import run_config
+from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
 from uamfleet.env.layout import layout_to_dict, observation_layout
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
 from uamfleet.zoo import PRETRAINED, pretrained_path
@@ -338,8 +339,8 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     prior, _ = load_policy(init)
     policy = with_heading_residual(prior, lookahead=args.lookahead)
     family = family_of(source_args.scenario)
-    eval_like = make_env_config(source_args.scenario, source_args, training=False)
-    groups = _groups(args, make_env_config(source_args.scenario, source_args, training=True))
+    eval_like = run_config(source_args, training=False)
+    groups = _groups(args, run_config(source_args, training=True))
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
     folder.mkdir(parents=True, exist_ok=True)
     first = validation_metrics(policy, family, args.eval_instances, eval_like)

@@ -92,6 +92,18 @@ class TrainArgs:
     stop_prior: Literal["tour", "nearest"] = "tour"
     """with --action-head stops: the prior prefers the stop that starts the shortest tour through every known stop
     (one taxi), or the nearest stop (a fleet with claims: the greedy dispatcher's rule along feasible paths)"""
+    # fine-tuning
+    init_from: str | None = None
+    """start from this policy's weights and observation statistics: a shipped name (e.g. berlin, see
+    uamfleet.zoo.PRETRAINED) or a checkpoint file. Its network options replace --variant, --d-model and the other
+    architecture flags, and the run's env takes its observation layout (passenger slots, stop fields, look-ahead,
+    patch, history and time limit: EnvConfig.with_layout_of), so e.g. the Berlin generalist is fine-tuned on
+    Berlin P4 with --scenario berlin_p4 --init-from berlin. A greedy evaluation of the start comes first, so
+    best.pt is never worse than it on the evaluation"""
+    kl_to_init: float = 0.0
+    """weight of KL(pi || pi_init), the new policy's divergence from the --init-from policy averaged over each
+    minibatch, in the loss: PPO may leave the start where the return pays for it, not drift where it does not
+    (0: no such term)"""
     # PPO
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
@@ -191,7 +203,12 @@ class TrainArgs:
                 f"--eval-instances={self.eval_instances} flies held-out instances of a family; it needs a "
                 f"*_instances or *_fleet scenario (not {self.scenario!r}), e.g. --scenario berlin_instances."
             )
-        for name in ("scenario", "run_name"):
+        if self.kl_to_init > 0 and self.init_from is None:
+            raise ConfigError(
+                f"--kl-to-init={self.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
+                "with --init-from (a shipped name such as berlin, or a checkpoint file), or drop --kl-to-init."
+            )
+        for name in ("scenario", "run_name", "init_from"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, str):
                 raise ConfigError(f"{_flag(name)}={value!r} must be a string.")
@@ -263,7 +280,7 @@ _RANGES: dict[str, tuple[float, float | None, bool]] = {
     "shaping_anneal_frac": (0.0, 1.0, False), "learning_rate": (0.0, None, True), "gamma": (0.0, 1.0, True),
     "gae_lambda": (0.0, 1.0, False), "clip_coef": (0.0, None, True), "ent_coef": (0.0, None, False),
     "vf_coef": (0.0, None, False), "max_grad_norm": (0.0, None, True), "target_kl": (0.0, None, True),
-    "stop_at_td_m": (0.0, None, False), "max_wall_s": (0.0, None, True),
+    "stop_at_td_m": (0.0, None, False), "max_wall_s": (0.0, None, True), "kl_to_init": (0.0, None, False),
 }  # fmt: skip
 
 

@@ -18,9 +18,9 @@ import torch
 from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
 from uamfleet.env.layout import Layout, layout_differences, layout_shapes, observation_layout, observation_space
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args
+from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args, run_config
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
-from uamfleet.rl.options import TrainArgs, make_env_config
+from uamfleet.rl.options import TrainArgs
 from uamfleet.rollout import Trajectory, fly
 
 
@@ -175,7 +175,7 @@ def load_policy(
     file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = checkpoint_args(ckpt)
-    cfg = env_config if env_config is not None else make_env_config(args.scenario, args, training=False)
+    cfg = env_config if env_config is not None else run_config(args, training=False)
     layout = observation_layout(cfg)  # the spec: no env is built
     _check_layout(ckpt, layout, str(path), args)
     read = {k: spec for k, spec in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
@@ -189,7 +189,7 @@ def load_policy(
         normalizer.load_state_dict(ckpt.obs_normalizer)
     trained_on = env_config if env_config is not None else cfg
     if env_config is not None and args.scenario in PRESETS:
-        trained_on = make_env_config(args.scenario, args, training=False)
+        trained_on = run_config(args, training=False)
     return GreedyPolicy(
         net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
     ), args

@@ -1,4 +1,5 @@
-"""The PPO loss (clipped surrogate, clipped value loss, entropy bonus), CleanRL's formulation."""
+"""The PPO loss (clipped surrogate, clipped value loss, entropy bonus), CleanRL's formulation, and the KL term
+that keeps a fine-tuned policy near the one it started from (:func:`categorical_kl`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,17 @@ class PPOLossInfo:
     approx_kl: float
     old_approx_kl: float
     clipfrac: float
+    kl_to_init: float = 0.0
+
+
+def categorical_kl(logits: torch.Tensor, reference_logits: torch.Tensor) -> torch.Tensor:
+    """KL(p || q) [B] between the categorical distributions of two rows of logits [B, K] (p: ``logits``, q:
+    ``reference_logits``). Masked actions carry a large negative logit in both (the network's ``NOT_THIS``),
+    so their probabilities are 0 and they add nothing; an action p takes but q excludes would make it infinite,
+    so the log-probabilities are taken with ``log_softmax`` (finite) rather than ``log`` of probabilities."""
+    log_p = torch.log_softmax(logits, dim=-1)  # [B, K]
+    log_q = torch.log_softmax(reference_logits, dim=-1)  # [B, K]
+    return (log_p.exp() * (log_p - log_q)).sum(-1)  # [B]
 
 
 def ppo_loss(

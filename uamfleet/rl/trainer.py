@@ -44,7 +44,9 @@ from uamfleet.rl.checkpoint import (
     CheckpointError,
     check_state_dict,
     checkpoint_args,
+    checkpoint_source,
     numpy_rng_state,
+    run_config,
     set_numpy_rng_state,
     upgrade_checkpoint,
 )
@@ -52,7 +54,7 @@ from uamfleet.rl.distributed import Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
 from uamfleet.rl.policy import GreedyPolicy, load_policy
-from uamfleet.rl.ppo import PPOLossInfo, ppo_loss
+from uamfleet.rl.ppo import PPOLossInfo, categorical_kl, ppo_loss
 from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, TrainResult, read_progress, run_folder
 from uamfleet.rollout import fly
 
@@ -78,6 +80,7 @@ class Learner:
     net_cfg: NetConfig
     normalizer: ObservationNormalizer | None
     scaler: RewardScaler | None
+    reference: MSHAActorCritic | None = None  # the --init-from policy, frozen, for the --kl-to-init term
 
 
 @dataclass
@@ -140,7 +143,7 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
         raise ValueError(f"variant={args.variant!r} is unknown; use one of {VARIANTS}.")
     env_offset, local_envs = ranks.shard(args.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
-    cfg = make_env_config(base, args, training=True)
+    cfg = run_config(args, base, training=True)
     venv = _training_envs(args, cfg, local_envs)
     taxis = cfg.num_taxis
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
@@ -151,7 +154,7 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     _check_batch(args, batch, taxis)
     return Run(
         args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
-        eval_cfg=make_env_config(base, args, training=False), venv=venv, obs_shapes=shapes, layout=layout,
+        eval_cfg=run_config(args, base, training=False), venv=venv, obs_shapes=shapes, layout=layout,
         buffer=RolloutBuffer(args.num_steps, local_envs * taxis, shapes, state_dim), env_offset=env_offset,
         num_agents=local_envs * taxis, agent_offset=env_offset * taxis, total_agents=args.num_envs * taxis,
         num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim,
@@ -188,10 +191,37 @@ def _check_batch(args: TrainArgs, batch: int, taxis: int) -> None:
         )
 
 
+def with_init_architecture(args: TrainArgs) -> TrainArgs:
+    """``args`` with the architecture options of the ``--init-from`` policy (its network is what trains), so the
+    run's checkpoints state what they hold; unchanged without ``init_from``. ConfigError when the start lies in
+    the run's own folder (replacing the run would delete the file its checkpoints point at)."""
+    if args.init_from is None:
+        return args
+    source = checkpoint_source(args.init_from)
+    folder = (args.run_dir / args.name).resolve()
+    if folder in source.resolve().parents:
+        raise ConfigError(
+            f"--init-from={args.init_from!r} lies inside this run's own folder {folder}; copy it elsewhere or "
+            "choose another --run-name."
+        )
+    start = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
+    if args.centralised_critic != start.centralised_critic:
+        reads = "the global state" if start.centralised_critic else "its own features"
+        raise ConfigError(
+            f"--centralised-critic={args.centralised_critic} differs from the --init-from policy's "
+            f"({start.centralised_critic}): its critic reads {reads}; set --centralised-critic "
+            f"{start.centralised_critic}."
+        )
+    # (the env's layout, look-ahead included, follows the start through run_config, not through these flags)
+    return dataclasses.replace(args, **{name: getattr(start, name) for name in ARCHITECTURE_FIELDS})
+
+
 def make_learner(run: Run) -> Learner:
     args = run.args
     np.random.seed(args.seed)
     torch.manual_seed(args.seed)
+    if args.init_from is not None:
+        return _learner_from(run, checkpoint_source(args.init_from))
     net_cfg = NetConfig(
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
         readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
@@ -203,6 +233,32 @@ def make_learner(run: Run) -> Learner:
         net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
         normalizer=ObservationNormalizer(run.obs_shapes) if args.norm_obs else None,
         scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None,
+    )  # fmt: skip
+
+
+def _learner_from(run: Run, source: Path) -> Learner:
+    """A learner whose network and observation statistics are the policy at ``source`` (``--init-from``): the
+    reward scaler starts afresh (the new task's rewards), and with ``--kl-to-init`` a frozen copy is the
+    reference."""
+    args = run.args
+    start, _ = load_policy(source, device=str(run.device), env_config=run.eval_cfg)  # checks its spec is this env's
+    if set(start.obs_shapes or {}) != set(run.obs_shapes):
+        unread = sorted(set(run.obs_shapes) - set(start.obs_shapes or {}))
+        raise ConfigError(
+            f"--init-from={args.init_from!r} reads {sorted(start.obs_shapes or {})}, but this run's env also observes "
+            f"{unread}, which its network has no weights for; train that policy from scratch, or use a scenario "
+            "without those fields."
+        )
+    net = start.net.train()
+    for parameter in net.parameters():
+        parameter.requires_grad_(True)
+    reference = None
+    if args.kl_to_init > 0:
+        reference = copy.deepcopy(net).eval().requires_grad_(False)
+    return Learner(
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net.cfg,
+        normalizer=start.normalizer if args.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None, reference=reference,
     )  # fmt: skip
 
 
@@ -372,7 +428,9 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
             idx = order[begin : begin + minibatch_size]  # global flat indices t * N_global + n
             local, share = _local_indices(run, idx)
             mb_obs, mb_state, mb_actions, mb_logprobs = buf.minibatch(local, dev)
-            _, new_logprob, entropy, new_value = learner.net.get_action_and_value(mb_obs, mb_actions, state=mb_state)
+            logits, new_value = learner.net(mb_obs, state=mb_state)  # [B, 16], [B]
+            dist = Categorical(logits=logits)
+            new_logprob, entropy = dist.log_prob(mb_actions.long()), dist.entropy()  # [B], [B]
             stats, denominator = None, None
             if ranks.active:
                 stats, denominator = (global_adv[idx].mean(), global_adv[idx].std()), len(idx)
@@ -380,6 +438,13 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
                 new_logprob, mb_logprobs, entropy, new_value, val[local], adv[local], ret[local], args.clip_coef,
                 args.vf_coef, args.ent_coef, args.clip_vloss, args.norm_adv, stats, denominator,
             )  # fmt: skip
+            if learner.reference is not None:
+                with torch.no_grad():
+                    reference_logits = learner.reference.masked_logits(mb_obs)  # [B, 16]
+                kl = categorical_kl(logits, reference_logits)  # [B]
+                kl_mean = kl.mean() if denominator is None else kl.sum() / denominator
+                loss = loss + args.kl_to_init * kl_mean
+                info = dataclasses.replace(info, kl_to_init=float(kl_mean.detach()))
             learner.optimizer.zero_grad()
             (loss * share).backward()
             summed = ranks.all_reduce_grads(params, share * np.array(dataclasses.astuple(info)))
@@ -420,7 +485,8 @@ def progress_row(
         "charts/shaping_weight": shaping_weight,
         "charts/SPS": counters.global_step / max(elapsed, 1e-9),
     }  # fmt: skip
-    for name in ("value_loss", "policy_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac"):
+    names = ["value_loss", "policy_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac"]
+    for name in names + (["kl_to_init"] if learner.reference is not None else []):
         row[f"losses/{name}"] = float(np.mean([getattr(i, name) for i in infos]))
     row["losses/explained_variance"] = explained_var
     terms = ranks.all_sum(rollout.term_sums)
@@ -453,6 +519,16 @@ def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[st
     return True
 
 
+def evaluate_start(run: Run, learner: Learner, counters: Counters) -> dict[str, float]:
+    """Rank 0, before a run from ``--init-from`` trains: the start's greedy evaluation becomes the best so far and
+    best.pt, so fine-tuning keeps the start unless an evaluation beats it. Its row (iteration 0) goes to
+    progress.csv."""
+    row: dict[str, float] = {"iteration": 0, "global_step": 0, "wall_s": time.time() - run.start_time}
+    evaluate_greedy(run, learner, counters, row)
+    capture(run, learner, counters).save(run.folder / "best.pt")
+    return row
+
+
 # ---- the loop --------------------------------------------------------------------------------------------------
 
 
@@ -466,9 +542,11 @@ def train(
     if args.threads:
         torch.set_num_threads(args.threads)
     ranks, device = Ranks.from_env(args.device, args.backend)
-    run = make_run(args, env_config, ranks, device)
+    run = make_run(with_init_architecture(args), env_config, ranks, device)
     learner = make_learner(run)
     counters, rows = start(run, learner)
+    if args.init_from is not None and counters.iteration == 0 and ranks.is_main:
+        rows.append(evaluate_start(run, learner, counters))
     if counters.iteration >= run.num_iterations:
         _say_finished(run, counters)
         return _result(run, counters, rows, interrupted=False)
