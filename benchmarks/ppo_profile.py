@@ -40,7 +40,8 @@ from torch import nn
 from uamfleet.cli._common import run as run_cli
 from uamfleet.rl import trainer
 from uamfleet.rl.distributed import Ranks
-from uamfleet.rl.networks import MSHAActorCritic
+from uamfleet.rl import networks
+from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.trainer import TrainArgs
 
 
@@ -57,6 +58,8 @@ class Args:
     """of the 4 update epochs (the trainer's default)"""
     module_batches: int = 16
     """minibatches timed module by module (0: none)"""
+    interleaved: int = 0
+    """rounds of the interleaved network checks (the map CNNs paired or not, no_grad or inference_mode; 0: none)"""
     threads: int = 1
     """torch CPU threads"""
     baseline: Path | None = None
@@ -173,6 +176,20 @@ def module_profile(run: trainer.Run, learner: trainer.Learner, batches: int) -> 
 
         handles += [module.register_forward_pre_hook(pre), module.register_forward_hook(post)]
         handles += [module.register_full_backward_pre_hook(back_pre), module.register_full_backward_hook(back)]
+    # The two map CNNs run as one function (networks.paired_map_features), not through their modules: time its
+    # forward here; its backward has no hook and falls in "rest".
+    # (A checkout from before it has none, and its map CNNs are timed as modules.)
+    paired = getattr(networks, "paired_map_features", None)
+    if paired is not None:
+        times["map CNNs, paired (forward only)"] = [0.0, 0.0]
+
+        def timed_maps(*a: Any) -> torch.Tensor:
+            begin = time.thread_time()
+            out = paired(*a)
+            times["map CNNs, paired (forward only)"][0] += time.thread_time() - begin
+            return out
+
+        setattr(networks, "paired_map_features", timed_maps)  # noqa: B010 (mypy: another signature)
     rng = np.random.default_rng(0)
     total = 0.0
     try:
@@ -186,9 +203,57 @@ def module_profile(run: trainer.Run, learner: trainer.Learner, batches: int) -> 
             total += time.thread_time() - begin
             net.zero_grad()
     finally:
+        if paired is not None:
+            networks.paired_map_features = paired
         for handle in handles:
             handle.remove()
     return times, total
+
+
+def plain_maps(first: nn.Module, second: nn.Module, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """The map CNNs as before the paired convolution: one call each."""
+    return torch.cat([first(a), second(b)], dim=-1)
+
+
+def interleaved_network_checks(run: trainer.Run, learner: trainer.Learner, rounds: int) -> dict[str, list[float]]:
+    """Thread CPU ms per call of each variant of one computation, variants alternating call by call on the same
+    data (so drift in the machine's speed hits both alike): the update's forward + backward (minibatch of the
+    update's size) with the map CNNs paired or one by one, and the rollout's forward (one step's agents) with the
+    map CNNs paired or not, under no_grad or inference_mode."""
+    net, buf = learner.net, run.buffer
+    size = run.batch_size // run.args.num_minibatches
+    rng = np.random.default_rng(1)
+    batches = [buf.minibatch(rng.choice(run.batch_size, size, replace=False), run.device) for _ in range(4)]
+    steps = [obs_to_torch({k: v[t] for k, v in buf.obs.items()}, run.device) for t in range(8)]
+
+    def update_step(i: int) -> None:
+        obs, state, actions, _ = batches[i % len(batches)]
+        _, logprob, entropy, value = net.get_action_and_value(obs, actions, state=state)
+        (logprob.sum() + entropy.sum() + value.sum()).backward()
+        net.zero_grad()
+
+    def rollout_step(i: int, mode: Callable[[], Any]) -> None:
+        with mode():
+            net(steps[i % len(steps)])
+
+    variants: dict[str, tuple[Callable[[int], None], bool]] = {
+        "update fwd+bwd, maps one by one": (update_step, False),
+        "update fwd+bwd, maps paired": (update_step, True),
+        "rollout fwd, no_grad, maps one by one": (lambda i: rollout_step(i, torch.no_grad), False),
+        "rollout fwd, inference_mode, maps one by one": (lambda i: rollout_step(i, torch.inference_mode), False),
+        "rollout fwd, inference_mode, maps paired": (lambda i: rollout_step(i, torch.inference_mode), True),
+    }
+    paired = networks.paired_map_features
+    times: dict[str, list[float]] = {name: [] for name in variants}
+    for i in range(rounds + 2):  # two warm-up rounds
+        for name, (fn, pair) in variants.items():
+            networks.paired_map_features = paired if pair else plain_maps
+            begin = time.thread_time()
+            fn(i)
+            if i >= 2:
+                times[name].append((time.thread_time() - begin) * 1e3)
+    networks.paired_map_features = paired
+    return times
 
 
 def measure(args: Args) -> dict[str, Any]:
@@ -200,8 +265,9 @@ def measure(args: Args) -> dict[str, Any]:
         trainer.start(run, learner)
         phases = phase_profile(run, learner, args.iterations - 1)
         modules, whole = module_profile(run, learner, args.module_batches) if args.module_batches else ({}, 0.0)
+        checks = interleaved_network_checks(run, learner, args.interleaved) if args.interleaved else {}
     return {"phases": phases, "iterations": args.iterations - 1, "agent_steps": run.batch_size, "modules": modules,
-            "whole": whole}  # fmt: skip
+            "whole": whole, "interleaved": checks}  # fmt: skip
 
 
 def report(args: Args, result: dict[str, Any]) -> None:
@@ -218,11 +284,18 @@ def report(args: Args, result: dict[str, Any]) -> None:
     print(f"process CPU {phases['cpu'] / n:.3f} s, wall {phases['wall'] / n:.3f} s per iteration: "
           f"{steps * n / phases['cpu']:,.0f} agent-steps per CPU second, "
           f"{steps * n / phases['wall']:,.0f} per wall second")  # fmt: skip
+    if result["interleaved"]:
+        print(f"\ninterleaved, thread CPU ms per call: median (quartiles) of {args.interleaved}")
+        for name, ms in result["interleaved"].items():
+            q1, q2, q3 = np.percentile(ms, [25, 50, 75])
+            print(f"  {name:<46} {q2:>7.2f} ({q1:.2f}-{q3:.2f})")
     if not result["modules"]:
         return
     per = args.module_batches
     print(f"\nper minibatch of {steps // args.num_minibatches} samples (ms, mean of {per}): forward, backward")
     for name, (fwd, bwd) in sorted(result["modules"].items(), key=lambda kv: -sum(kv[1])):
+        if fwd == bwd == 0.0:  # not called as a module (the map CNNs, paired)
+            continue
         print(f"  {name:<30} {fwd / per * 1e3:>7.2f} {bwd / per * 1e3:>8.2f}")
     covered = sum(sum(v) for v in result["modules"].values())
     print(f"  {'rest':<30} {(result['whole'] - covered) / per * 1e3:>16.2f}")
