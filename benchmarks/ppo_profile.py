@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -332,7 +333,7 @@ def side_by_side(args: Args) -> list[dict[str, Any]]:
                   flush=True)  # fmt: skip
             rows.append({"pair": pair + 1, "side": side, **result})
     ratios = sorted(r0["phases"]["cpu"] / r1["phases"]["cpu"] for r0, r1 in zip(rows[::2], rows[1::2], strict=True))
-    print(f"speed-up (baseline CPU s / this), median of {len(ratios)} pair(s): {ratios[len(ratios) // 2]:.2f}x "
+    print(f"speed-up (baseline CPU s / this), median of {len(ratios)} pair(s): {statistics.median(ratios):.2f}x "
           f"(range {ratios[0]:.2f}-{ratios[-1]:.2f})")  # fmt: skip
     return rows
 
