@@ -4,6 +4,9 @@ Adam updates), per network variant and per number of data-parallel ranks, side b
     OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/train_throughput.py            # variants, 1 rank
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py --variants de_msfea --ranks 1 2
     .venv/bin/python benchmarks/train_throughput.py --device cuda --ranks 1 8 --num-envs 256   # a GPU machine
+    .venv/bin/python benchmarks/train_throughput.py --scenario berlin_instances --thresholds -7 -6 -5 -4 -3 \
+        --action-head stops --variants de_msfea --d-model 32 --num-envs 60 --num-steps 128 --num-minibatches 8 \
+        --time-limit-steps 600 --shaping 0 --ranks 1 2   # the generalist's recipe; again with --threads 2
     OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/train_throughput.py --scenario berlin_fleet \
         --taxis 1 2 4 8 --variants de_msfea --d-model 32 --action-head stops --stop-prior nearest  # cost vs taxis
 
@@ -51,6 +54,13 @@ class Args:
     action_head: str = "headings"
     stop_prior: str = "tour"
     d_model: int = 64
+    thresholds: tuple[float, ...] = ()
+    """a mixture over SINR thresholds (dB), as train/ppo.py --thresholds"""
+    num_minibatches: int = 16
+    time_limit_steps: int = 200
+    shaping: float = 50.0
+    """0 turns the shaping term, and its path look-ups in every step, off"""
+    heading_lookahead: bool = False
 
 
 def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None) -> TrainArgs:
@@ -60,6 +70,8 @@ def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None
         total_timesteps=args.iterations * args.num_envs * args.num_steps * (taxis or 1), num_envs=args.num_envs,
         num_steps=args.num_steps, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="bench",
         progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
+        thresholds=args.thresholds, num_minibatches=args.num_minibatches, time_limit_steps=args.time_limit_steps,
+        shaping=args.shaping, heading_lookahead=args.heading_lookahead,
     )  # fmt: skip
 
 
@@ -90,7 +102,7 @@ def measure(args: Args, variant: str, ranks: int, taxis: int | None = None) -> t
 def header(args: Args, batch_note: str, thread_note: str) -> str:
     defaults = TrainArgs()
     return (f"{args.scenario}, {args.num_envs} envs x {args.num_steps} steps per iteration {batch_note}, "
-            f"{defaults.update_epochs} epochs x {defaults.num_minibatches} minibatches, device {args.device}, "
+            f"{defaults.update_epochs} epochs x {args.num_minibatches} minibatches, device {args.device}, "
             f"{args.threads} thread(s) {thread_note}, {args.iterations - 1} timed iterations")  # fmt: skip
 
 

@@ -56,6 +56,7 @@ from uamfleet.rl.encoders import (
     PointerPool,
     GridReadout,
     multi_source_features,
+    paired_map_features,
     MultiSourceFusion,
     window_order,
     local_attention,
@@ -308,7 +309,7 @@ class DesignedTorso(nn.Module):
                 parts.append(obs["stop_claims"].to(rows.dtype))
             rows = torch.cat(parts, dim=-1)  # [B, P, F + 3 (+ 2 rivals + 2 claims)]
         pax = self.passengers(rows, released)  # [B, P, D]
-        maps = torch.cat([self.sinr_cnn(obs["sinr_patch"]), self.visit_cnn(obs["visit_patch"])], dim=-1)  # [B, G, 2C]
+        maps = paired_map_features(self.sinr_cnn, self.visit_cnn, obs["sinr_patch"], obs["visit_patch"])  # [B, G, 2C]
         others = self.others(obs["others"], as_bool(obs["others_mask"]))  # [B, D]
         grid = maps  # [B, G, 2C] for "de"
         if self.fusion is not None:
@@ -601,5 +602,5 @@ __all__ = [
     "MultiSourceFusion", "NetConfig", "PassengerEncoder", "PointerPool", "SetEncoder", "StopHead", "TaxiEncoder",
     "as_bool", "check_observation_fits", "global_attention", "layer_init", "local_attention", "mask_logits",
     "masked_mean", "missing_inputs", "mlp3", "multi_source_features", "obs_to_torch", "observed_inputs",
-    "window_order",
+    "paired_map_features", "window_order",
 ]  # fmt: skip

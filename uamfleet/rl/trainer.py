@@ -364,7 +364,7 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
         state = run.global_state()
         if buf.state is not None and state is not None:
             buf.state[step] = state
-        with torch.no_grad():
+        with torch.inference_mode():
             logits, value = net(obs_to_torch(norm_obs, dev), state=_tensor(state, dev))  # [N, 16], [N]
             action = sample_actions(logits, run.agent_offset, run.total_agents)  # [N]
             logprob = Categorical(logits=logits).log_prob(action)  # [N]
@@ -381,7 +381,7 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
             buf.rewards[step] = learner.scaler(buf.rewards[step], np.repeat(done, taxis))
         if truncated.any():  # bootstrap a time limit from the real final observation
             final = normalise(run, learner, run.flat(info["final_obs"]), update=False)
-            with torch.no_grad():
+            with torch.inference_mode():
                 _, final_value = net(obs_to_torch(final, dev), state=_tensor(state, dev))
             buf.final_values[step] = final_value.cpu().numpy()
         for e in np.flatnonzero(done):
@@ -395,7 +395,7 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
 def compute_advantages(run: Run, learner: Learner) -> tuple[np.ndarray, np.ndarray]:
     """GAE over this rank's rollout: (advantages [T, N], returns [T, N])."""
     buf = run.buffer
-    with torch.no_grad():
+    with torch.inference_mode():
         norm_obs = normalise(run, learner, run.obs, update=False)
         _, next_value = learner.net(obs_to_torch(norm_obs, run.device), state=_tensor(run.global_state(), run.device))
     return compute_gae(
