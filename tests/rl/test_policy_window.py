@@ -4,6 +4,8 @@ statistics pooled over rows (a row no longer stands for one request index)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -51,3 +53,14 @@ def test_bad_windows_are_refused_with_the_fix(shipped: GreedyPolicy) -> None:
         shipped.for_fleet(8, passenger_slots=48, passenger_window=24)
     with pytest.raises(ConfigError, match="passenger_window=1 must be an integer in \\[2, "):
         shipped.for_fleet(8, passenger_window=1)  # the taxis have 2 seats: a window must hold its riders
+
+
+def test_the_fleet_benchmark_flies_a_window_for_learned_fleets_only(capsys: pytest.CaptureFixture[str]) -> None:
+    from uamfleet.cli.fleet_benchmark import cli, learned_name
+
+    assert cli(["--settings", "8x200", "--count", "1", "--passenger-window", "24"]) == 2
+    assert "--passenger-window 24 applies to learned fleets: give --checkpoints" in capsys.readouterr().err
+    shipped = Path("uamfleet/data/pretrained/berlin_fleet.pt")
+    assert (
+        learned_name(shipped, 24) == "learned:berlin_fleet+window24" and learned_name(shipped) == "learned:berlin_fleet"
+    )

@@ -137,8 +137,8 @@ def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
     """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
-    family, setting, seed, dispatchers, checkpoints, separation, hover_action, *options = job
-    window, arrival_s = options or (None, FLEET_ARRIVAL_WINDOW_S)  # a 7-field job: no window, the default arrivals
+    family, setting, seed, dispatchers, checkpoints, separation, hover_action = job[:7]
+    window, arrival_s = job[7:] or (None, FLEET_ARRIVAL_WINDOW_S)  # a 7-field job: no window, the default arrivals
     taxis, requests = setting_size(setting)
     cfg = make_fleet_instance(family, seed, taxis, requests, arrival_window_s=arrival_s, separation=separation,
                               hover_action=hover_action)  # fmt: skip
