@@ -64,3 +64,11 @@ def test_the_fleet_benchmark_flies_a_window_for_learned_fleets_only(capsys: pyte
     assert (
         learned_name(shipped, 24) == "learned:berlin_fleet+window24" and learned_name(shipped) == "learned:berlin_fleet"
     )
+
+
+def test_a_windowed_policy_names_its_window_for_an_observation_of_every_request(shipped: GreedyPolicy) -> None:
+    policy = shipped.for_fleet(8, passenger_window=24)
+    every_request = {k: np.zeros((1, 8, 96, *v[1:])) if k == "passengers" else np.zeros((1, 8, *v))
+                     for k, v in (policy.obs_shapes or {}).items()}  # fmt: skip
+    with pytest.raises(ValueError, match=r"'passengers' \(96, 12\) \(trained on \(24, 12\)\).*passenger_window=24"):
+        policy(every_request)

@@ -175,11 +175,15 @@ class GreedyPolicy:
             if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
         ]
         if diffs:
+            axis = (
+                f"passenger_window={self.passenger_window}" if self.passenger_window is not None else
+                f"max_passengers={self.passenger_slots} (a smaller instance is padded by max_passengers)"
+            )  # fmt: skip
             raise ValueError(
                 f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
                 f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
-                f"num_taxis={self.num_taxis} and max_passengers={self.passenger_slots} (a smaller instance is padded "
-                "by max_passengers), or train a policy for this one."
+                f"num_taxis={self.num_taxis} and {axis} (policy.layout(cfg) fits the passenger axis), or train a "
+                "policy for this one."
             )
 
     def network_input(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
