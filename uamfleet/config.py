@@ -169,6 +169,7 @@ class EnvConfig:
     requests: tuple[Request, ...] | None = None  # None -> random demand from `demand`
     demand: DemandConfig = field(default_factory=DemandConfig)
     max_passengers: int | None = None  # size of the passenger axis; None -> number of requests / max_requests
+    passenger_window: int | None = None  # each taxi observes at most this many passenger rows (rules.md); None: all
     time_limit_steps: int = 500
     history_len: int = 3
     patch_size: int = 10
@@ -236,6 +237,10 @@ class EnvConfig:
             put("max_block_visits", check_integer("max_block_visits (or None: never)", self.max_block_visits, 1))
         if self.max_passengers is not None:
             put("max_passengers", check_integer("max_passengers (or None)", self.max_passengers, 1, MAX_PASSENGERS))
+        if self.passenger_window is not None:
+            fix = f" (or None: every request); at least seats={self.seats}, so a taxi always observes its riders"
+            put("passenger_window", check_integer("passenger_window", self.passenger_window, self.seats,
+                                                  MAX_PASSENGERS, fix=fix))  # fmt: skip
         if self.block_size_m > self.side_m:
             raise ConfigError(
                 f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are larger than the whole "
@@ -309,8 +314,13 @@ class EnvConfig:
 
     @property
     def num_passengers(self) -> int:
-        """Size of the passenger axis P of every array (rows beyond the requests are padding)."""
+        """Size of the passenger axis P of the state's arrays (rows beyond the requests are padding)."""
         return self.max_passengers if self.max_passengers is not None else self.num_requests_max
+
+    @property
+    def observed_passengers(self) -> int:
+        """Passenger rows of each taxi's observation: ``passenger_window`` when set, else :attr:`num_passengers`."""
+        return self.passenger_window if self.passenger_window is not None else self.num_passengers
 
     def replace(self, **changes: Any) -> EnvConfig:
         return dataclasses.replace(self, **changes)
@@ -319,11 +329,18 @@ class EnvConfig:
         """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
         passenger axis, stop fields (features, rivals, claims, look-ahead), patch, history and time limit (the
         observation's time feature is a fraction of the limit). How a policy trained on ``like`` flies another
-        instance."""
+        instance.
+
+        With ``like.passenger_window`` set, the observation no longer depends on the number of requests or the
+        shift's length: this config keeps its own passenger axis and time limit (any number of requests, any
+        shift; the time feature is then a fraction of this episode's limit) and takes the window."""
+        windowed = like.passenger_window is not None
         return self.replace(
-            max_passengers=like.num_passengers, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
+            max_passengers=self.max_passengers if windowed else like.num_passengers,
+            passenger_window=like.passenger_window, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
             stop_claims=like.stop_claims, heading_lookahead=like.heading_lookahead,
-            time_limit_steps=like.time_limit_steps, patch_size=like.patch_size, history_len=like.history_len,
+            time_limit_steps=self.time_limit_steps if windowed else like.time_limit_steps,
+            patch_size=like.patch_size, history_len=like.history_len,
         )  # fmt: skip
 
 

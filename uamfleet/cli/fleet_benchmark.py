@@ -5,9 +5,12 @@
 
 Instances come from :func:`uamfleet.instances.make_fleet_instance` (``--split test`` by default; settings
 :data:`uamfleet.instances.FLEET_SETTINGS`, or any ``<taxis>x<requests>`` such as the loaded ``4x48`` and ``8x96``:
-taxis x requests per episode, released over the first 10 minutes). A learned fleet reads every request of the
-episode on its passenger axis: it is flown with as many passenger slots as the setting has requests
-(``for_fleet(taxis, passenger_slots=requests)``; the light settings' own default). Every dispatcher is flown
+taxis x requests per episode, released over the first 10 minutes, or ``--arrival-window-s``). A learned fleet reads
+every request of the episode on its passenger axis: it is flown with as many passenger slots as the setting has
+requests (``for_fleet(taxis, passenger_slots=requests)``; the light settings' own default), or with
+``--passenger-window K`` each taxi reads K rows, its riders and nearest waiting requests, for any number of requests
+(``for_fleet(taxis, passenger_window=K)``, flown as ``learned:<name>+window<K>``; docs/rules.md "Passenger
+window"). Every dispatcher is flown
 through the same env and scored by :mod:`uamfleet.metrics`. Episodes run seed by seed across the settings, so an
 interrupted run still covers every setting. Per setting and dispatcher the table gives means with 95 % intervals (normal
 approximation, 1.96 standard errors over episodes) of the service rate, the episode's wait p50 and p95, the ride
@@ -37,9 +40,10 @@ import numpy as np
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
+from uamfleet.checks import check_number
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import FLEET_SETTINGS, make_fleet_instance, split_seeds
+from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
@@ -74,6 +78,11 @@ class Args:
     """EnvConfig.separation of every episode: "none" (as the recorded tables) or "shield" (docs/rules.md)"""
     hover_action: bool = False
     """EnvConfig.hover_action of every episode: idle dispatcher taxis hover (action 16) instead of zig-zagging"""
+    passenger_window: int | None = None
+    """fly the learned fleets with EnvConfig.passenger_window=K (for_fleet(taxis, passenger_window=K); the trained
+    passenger slot count is the K to choose): any number of requests; default: one slot per request"""
+    arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
+    """requests are released over the first this many seconds of each episode (the episode's time limit follows)"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path = Path("docs/results.md")
@@ -88,8 +97,8 @@ class Args:
     """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
-Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool]  # (family, setting, seed, dispatchers,
-# checkpoints, separation, hover_action)
+Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool, int | None, float]  # (family, setting,
+# seed, dispatchers, checkpoints, separation, hover_action, passenger_window, arrival_window_s)
 
 
 def setting_size(setting: str) -> tuple[int, int]:
@@ -105,17 +114,22 @@ def setting_size(setting: str) -> tuple[int, int]:
     return int(taxis), int(requests)
 
 
-def learned_name(checkpoint: Path) -> str:
-    """``learned:<run name>`` for a run's best.pt / last.pt, else ``learned:<file stem>`` (e.g. a shipped policy)."""
-    return f"learned:{checkpoint.parent.name if checkpoint.stem in ('best', 'last') else checkpoint.stem}"
+def learned_name(checkpoint: Path, passenger_window: int | None = None) -> str:
+    """``learned:<run name>`` for a run's best.pt / last.pt, else ``learned:<file stem>`` (e.g. a shipped policy);
+    ``+window<K>`` after it when flown with a passenger window."""
+    name = f"learned:{checkpoint.parent.name if checkpoint.stem in ('best', 'last') else checkpoint.stem}"
+    return name if passenger_window is None else f"{name}+window{passenger_window}"
 
 
 @functools.lru_cache(maxsize=16)
-def _learned(checkpoint: Path, taxis: int, requests: int) -> Any:
-    """The greedy policy of a checkpoint for ``taxis`` taxis and ``requests`` passenger slots: as trained, or
-    resized zero-shot (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it cannot read that fleet."""
+def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int | None = None) -> Any:
+    """The greedy policy of a checkpoint for ``taxis`` taxis and ``requests`` passenger slots (or a passenger window
+    of K rows): as trained, or resized zero-shot (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it
+    cannot read that fleet."""
     policy = learned_policy(checkpoint)
     try:
+        if passenger_window is not None:
+            return policy.for_fleet(taxis, passenger_window=passenger_window)
         return policy.for_fleet(taxis, passenger_slots=requests)
     except ValueError:
         return None
@@ -123,9 +137,11 @@ def _learned(checkpoint: Path, taxis: int, requests: int) -> Any:
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
     """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
-    family, setting, seed, dispatchers, checkpoints, separation, hover_action = job
+    family, setting, seed, dispatchers, checkpoints, separation, hover_action = job[:7]
+    window, arrival_s = job[7:] or (None, FLEET_ARRIVAL_WINDOW_S)  # a 7-field job: no window, the default arrivals
     taxis, requests = setting_size(setting)
-    cfg = make_fleet_instance(family, seed, taxis, requests, separation=separation, hover_action=hover_action)
+    cfg = make_fleet_instance(family, seed, taxis, requests, arrival_window_s=arrival_s, separation=separation,
+                              hover_action=hover_action)  # fmt: skip
     start = time.perf_counter()
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
@@ -135,9 +151,9 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     rows = []
     flights = [(name, cfg, make_policy(name, num_taxis=taxis)) for name in dispatchers]
     for checkpoint in checkpoints:
-        policy = _learned(checkpoint, taxis, requests)
+        policy = _learned(checkpoint, taxis, requests, window)
         if policy is not None:
-            flights.append((learned_name(checkpoint), policy.layout(cfg), policy))
+            flights.append((learned_name(checkpoint, window), policy.layout(cfg), policy))
     for name, flown, policy in flights:
         start = time.perf_counter()
         traj = fly(flown, policy)
@@ -209,6 +225,8 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
         + (f" --separation {args.separation}" if args.separation != "none" else "")
         + (" --hover-action" if args.hover_action else "")
+        + (f" --passenger-window {args.passenger_window}" if args.passenger_window is not None else "")
+        + (f" --arrival-window-s {args.arrival_window_s:g}" if args.arrival_window_s != FLEET_ARRIVAL_WINDOW_S else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
@@ -236,8 +254,11 @@ def check_args(args: Args) -> list[Job]:
         )
     if not args.dispatchers and not args.checkpoints:
         raise UsageError("--dispatchers is empty and no --checkpoints are given: nothing to fly.")
+    check_number("--arrival-window-s", args.arrival_window_s, positive=True)
+    if args.passenger_window is not None and not args.checkpoints:
+        raise UsageError(f"--passenger-window {args.passenger_window} applies to learned fleets: give --checkpoints.")
     for checkpoint in args.checkpoints:
-        _check_checkpoint_flies(checkpoint, args.settings)
+        _check_checkpoint_flies(checkpoint, args.settings, args.passenger_window)
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
         (
@@ -248,6 +269,8 @@ def check_args(args: Args) -> list[Job]:
             tuple(args.checkpoints),
             args.separation,
             args.hover_action,
+            args.passenger_window,
+            args.arrival_window_s,
         )
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
@@ -263,10 +286,12 @@ def _check_names(args: Args) -> None:
         raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
 
 
-def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str]) -> None:
+def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:
     """A learned policy must fly at least one of the settings (its fleet size, or any for a designed variant);
     says which it skips."""
-    flies = [s for s in settings if _learned(checkpoint, *setting_size(s)) is not None]
+    if passenger_window is not None:  # a window it cannot read (fewer rows than seats) is refused with the reason
+        learned_policy(checkpoint).for_fleet(setting_size(settings[0])[0], passenger_window=passenger_window)
+    flies = [s for s in settings if _learned(checkpoint, *setting_size(s), passenger_window) is not None]
     if not flies:
         raise UsageError(
             f"--checkpoints {checkpoint} cannot fly any of the settings {list(settings)} (it reads "
@@ -274,7 +299,8 @@ def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str]) -> None:
             "variant or settings of its fleet size."
         )
     if len(flies) < len(settings):
-        print(f"{learned_name(checkpoint)} flies only the settings {flies} (the others need another fleet size)")
+        name = learned_name(checkpoint, passenger_window)
+        print(f"{name} flies only the settings {flies} (the others need another fleet size)")
 
 
 def main(args: Args) -> list[dict[str, Any]]:

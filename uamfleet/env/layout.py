@@ -75,9 +75,24 @@ def observation_layout(cfg: EnvConfig) -> Layout:
     ``others`` / ``others_mask`` (``max(A - 1, 1)`` rows: one masked row for a lone taxi), ``action_mask``.
     ``stop_features``: ``stop_paths``, ``stop_heading_mask``; with ``stop_rivals`` or ``stop_claims`` also
     ``stop_rivals``; ``stop_claims``: ``stop_claims``, ``hover_heading_mask``; ``heading_lookahead``: the field of
-    that name."""
+    that name.
+
+    The passenger axis P (of ``passengers``, ``passenger_mask`` and the stop fields, :data:`PASSENGER_AXIS_FIELDS`)
+    is ``cfg.passenger_window`` when set (each taxi's nearest active requests, :mod:`uamfleet.env.window`), else
+    every passenger of the episode (``cfg.num_passengers``)."""
+    return _layout_of(cfg, cfg.observed_passengers)
+
+
+def computed_layout(cfg: EnvConfig) -> Layout:
+    """The layout the observer computes before the passenger window (``EnvConfig.passenger_window``) picks each
+    taxi's rows: :func:`observation_layout` with a row for every passenger of the state (``cfg.num_passengers``);
+    the same as it without a window."""
+    return _layout_of(cfg, cfg.num_passengers)
+
+
+def _layout_of(cfg: EnvConfig, P: int) -> Layout:
     rivals = cfg.stop_features and (cfg.stop_rivals or cfg.stop_claims)
-    return _layout(cfg.num_passengers, cfg.history_len, cfg.patch_size, max(cfg.num_taxis - 1, 1),
+    return _layout(P, cfg.history_len, cfg.patch_size, max(cfg.num_taxis - 1, 1),
                    cfg.stop_features, rivals, cfg.stop_claims, cfg.stop_features and cfg.heading_lookahead)  # fmt: skip
 
 
@@ -116,6 +131,10 @@ def _layout(
 
 
 _EVERY_FIELD = _layout(1, 1, 1, 1, stops=True, rivals=True, claims=True, lookahead=True)
+PASSENGER_AXIS_FIELDS: tuple[str, ...] = ("passengers", "passenger_mask", "stop_paths", "stop_heading_mask",
+                                          "stop_rivals", "stop_claims")  # fmt: skip
+"""The fields whose first axis is the passenger axis (row p: one passenger): the passenger window picks their rows
+together (``tests/env/test_window.py`` checks this is every field whose shape follows P)."""
 ALL_FIELDS: tuple[str, ...] = tuple(_EVERY_FIELD)
 """Every field any config observes, in :func:`observation_layout`'s order."""
 FIELD_KIND: dict[str, FieldKind] = {name: spec.kind for name, spec in _EVERY_FIELD.items()}
@@ -201,9 +220,11 @@ __all__ = [
     "ALL_FIELDS",
     "FIELD_KIND",
     "FIELD_KINDS",
+    "PASSENGER_AXIS_FIELDS",
     "FieldKind",
     "FieldSpec",
     "Layout",
+    "computed_layout",
     "field_kind",
     "field_row_mask",
     "layout_differences",

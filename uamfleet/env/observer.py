@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.env import kernels
-from uamfleet.env.layout import observation_layout, observation_space
+from uamfleet.env import kernels, window
+from uamfleet.env.layout import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
 from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.world import World
@@ -45,7 +45,9 @@ __all__ = [
 
 class Observer:
     """Builds the observation dict ``{name: [E, A, ...] array}`` and the global ``state`` [E, S]; its fields,
-    shapes and dtypes are :func:`uamfleet.env.layout.observation_layout`'s (``self.layout``)."""
+    shapes and dtypes are :func:`uamfleet.env.layout.observation_layout`'s (``self.layout``). With a passenger
+    window (``EnvConfig.passenger_window``) every field is computed for every passenger of the state
+    (``self.computed``), then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.env.window`)."""
 
     def __init__(self, world: World) -> None:
         cfg = world.cfg
@@ -53,6 +55,8 @@ class Observer:
         self.cfg = cfg
         self.num_taxis = cfg.num_taxis
         self.layout = observation_layout(cfg)
+        self.computed = computed_layout(cfg)  # the layout itself without a window
+        self.window = cfg.passenger_window
         self.observation_space = observation_space(self.layout)
         taxi_size, pax_size = len(STATE_TAXI_FEATURES), len(STATE_PASSENGER_FEATURES)
         self.state_size = cfg.num_taxis * taxi_size + cfg.num_passengers * pax_size + 1  # + time
@@ -65,7 +69,7 @@ class Observer:
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
         E, A = state.num_envs, state.num_taxis
-        obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.layout.items()}
+        obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.computed.items()}
         self._observe(
             state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
@@ -74,7 +78,27 @@ class Observer:
             self._hover(state, self.world.arrays, obs["hover_heading_mask"])
         if self.table is not None:
             self._stop_fields(state, obs)
-        return obs
+        if self.window is None:
+            return obs
+        rows = self.window_rows(state)
+        picked = window.take_rows(obs, rows, [name for name in PASSENGER_AXIS_FIELDS if name in obs])
+        return {name: picked.get(name, obs[name]) for name in self.layout}
+
+    def window_rows(self, state: FleetState) -> np.ndarray:
+        """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
+        (:mod:`uamfleet.env.window`; needs ``passenger_window``)."""
+        assert self.window is not None
+        E, A = state.num_envs, state.num_taxis
+        dist = np.full((E, A, self.cfg.num_passengers), np.inf)
+        if self.table is None:
+            window.straight_distances(state, dist)
+        elif not window.path_distances(state, self.table.arrays, dist):
+            self.table.ensure(state.pax_origin_m[state.pax_exists])
+            if not window.path_distances(state, self.table.arrays, dist):
+                raise RuntimeError("the passenger window read a distance-table row that ensure() did not compute.")
+        rows = np.empty((E, A, self.window), np.int64)
+        window.window_rows(state, dist, rows)
+        return rows
 
     def _stop_fields(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
         """Write ``stop_paths`` and ``stop_heading_mask``, and ``stop_rivals`` (and ``stop_claims``) where the layout

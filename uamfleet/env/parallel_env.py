@@ -89,7 +89,11 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     """PettingZoo ParallelEnv of one env of the batched core (see the module docstring for the sections).
 
     Observation of each agent (``observation_space(agent)``), P = passenger slots, k = ``patch_size``,
-    H = ``history_len``, A = ``num_taxis``; positions relative to the taxi and divided by the map side. The spec of
+    H = ``history_len``, A = ``num_taxis``; positions relative to the taxi and divided by the map side. P is every
+    request of the episode, or with ``passenger_window=K`` K rows per taxi: its riders (request order), then the
+    waiting requests nearest to it (feasible-path distance to the origin with ``stop_features``, else straight
+    line; ties by request index), then empty rows (docs/rules.md "Passenger window"); ``state()``'s P is always
+    every request. The spec of
     every field (bounds, column names, how a learner treats it): :func:`uamfleet.env.layout.observation_layout`;
     the column names in the meanings are its ``columns``. The last five fields are there with the config flags
     their meaning starts with (the ``*_instances`` scenarios: ``stop_features``; ``*_fleet``: ``stop_claims``):

@@ -469,7 +469,8 @@ PRETRAINED: dict[str, str] = {
     "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
     # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
     "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
-    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi
+    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi; any number of
+    # requests through .for_fleet(n, passenger_window=24), its 24 trained slots (docs/rules.md "Passenger window")
     "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
 }
 """The policies shipped in ``uamfleet/data/pretrained`` (``uamfleet.pretrained(name)``): name -> file."""

@@ -16,7 +16,14 @@ import numpy as np
 import torch
 
 from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
-from uamfleet.env.layout import Layout, layout_differences, layout_shapes, observation_layout, observation_space
+from uamfleet.env.layout import (
+    PASSENGER_AXIS_FIELDS,
+    Layout,
+    layout_differences,
+    layout_shapes,
+    observation_layout,
+    observation_space,
+)
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args, run_config
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
@@ -53,9 +60,11 @@ class GreedyPolicy:
     def layout(self, cfg: EnvConfig) -> EnvConfig:
         """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
         passenger axis (the instance's requests padded to it), its stop features and its time limit (the
-        observation's time feature is a fraction of the limit). The rules, threshold and instance are kept.
-        Raises ValueError when the instance has more requests than the policy has passenger slots, or another
-        fleet size. Warns (once per policy) when ``cfg``'s threshold lies outside :attr:`thresholds_db`."""
+        observation's time feature is a fraction of the limit); with a passenger window (:attr:`passenger_window`)
+        the window instead, and the instance's own requests and time limit (:meth:`EnvConfig.with_layout_of`). The
+        rules, threshold and instance are kept. Raises ValueError when the instance has more requests than the
+        policy has passenger slots (without a window), or another fleet size. Warns (once per policy) when
+        ``cfg``'s threshold lies outside :attr:`thresholds_db`."""
         low, high = self.thresholds_db or (-math.inf, math.inf)
         if not low <= cfg.sinr_min_db <= high and not self._warned_threshold:
             self._warned_threshold = True  # once: a sweep over thresholds would otherwise repeat it per episode
@@ -68,7 +77,7 @@ class GreedyPolicy:
         if self.trained_on is None:
             return cfg
         like = self.trained_on
-        if cfg.num_requests_max > like.num_passengers:
+        if like.passenger_window is None and cfg.num_requests_max > like.num_passengers:
             raise ValueError(
                 f"the instance has {cfg.num_requests_max} requests; this policy reads {like.num_passengers} "
                 "passenger slots: give it at most that many requests (or train one with a larger max_passengers)."
@@ -82,20 +91,45 @@ class GreedyPolicy:
             )
         return cfg.with_layout_of(like)
 
-    def for_fleet(self, num_taxis: int, passenger_slots: int | None = None) -> GreedyPolicy:
+    @property
+    def passenger_window(self) -> int | None:
+        """The passenger window it reads (``EnvConfig.passenger_window``): with one it flies any number of
+        requests; None: it reads every request of an episode, at most :attr:`passenger_slots`."""
+        return self.trained_on.passenger_window if self.trained_on is not None else None
+
+    def for_fleet(
+        self, num_taxis: int, passenger_slots: int | None = None, passenger_window: int | None = None
+    ) -> GreedyPolicy:
         """This policy for a fleet of ``num_taxis`` (zero-shot: the same weights). The network reads the other
         taxis and the passenger rows as sets, so only the observation layout changes: ``passenger_slots``
         (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
         their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
-        position (the linear encoder) or a policy without its training config."""
+        position (the linear encoder) or a policy without its training config.
+
+        ``passenger_window=K`` flies it with ``EnvConfig.passenger_window=K`` instead: each taxi reads its riders
+        and nearest waiting requests, K rows, so it flies any number of requests and any shift
+        (docs/rules.md "Passenger window"); a policy trained with a window keeps it (K overrides it). A policy
+        trained without one reads row p as request p; under a window the rows are ordered by nearness instead,
+        so their normaliser statistics are pooled over the rows even at the trained row count (which is the K to
+        choose: its training read that many rows)."""
         num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS, fix=" (the fleet size to fly)")
-        slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
-        if num_taxis == self.num_taxis and slots == self.passenger_slots:
+        if passenger_slots is not None and passenger_window is not None:
+            raise ValueError(
+                f"passenger_slots={passenger_slots} and passenger_window={passenger_window}: give one (the window "
+                "sets the passenger axis to K rows for any number of requests)."
+            )
+        window = passenger_window if passenger_window is not None else self.passenger_window
+        if window is not None:
+            slots = window
+        else:
+            slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
+        if num_taxis == self.num_taxis and slots == self.passenger_slots and window == self.passenger_window:
             return self
         if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
             raise ValueError(
                 "only a policy of a designed variant ('de', 'de_msfea', 'full') with its training config flies "
-                f"another fleet size; this one flies num_taxis={self.num_taxis} only."
+                f"another fleet size or passenger window; this one flies num_taxis={self.num_taxis} and "
+                f"{self.passenger_slots} passenger slots only."
             )
         # the layout's own random demand must fit its passenger axis
         demand, most = self.trained_on.demand, min(self.trained_on.demand.max_requests, slots)
@@ -104,8 +138,9 @@ class GreedyPolicy:
             num_initial=min(demand.num_initial, most),
         )  # fmt: skip
         like = self.trained_on.replace(
-            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand
-        )
+            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand,
+            passenger_window=window,
+        )  # fmt: skip
         layout = observation_layout(like)  # the spec: no env is built
         read = self.obs_shapes or layout_shapes(layout)  # the fields this policy reads
         missing = sorted(set(read) - set(layout))
@@ -117,7 +152,10 @@ class GreedyPolicy:
         shapes = {k: layout[k].shape for k in read}
         net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
         net.shapes = shapes
-        normalizer = self.normalizer.resized(shapes) if self.normalizer is not None else None
+        normalizer = self.normalizer
+        if normalizer is not None and window is not None and self.passenger_window is None:
+            normalizer = normalizer.resized(_one_row(shapes))  # rows no longer mean request indices: pool them
+        normalizer = normalizer.resized(shapes) if normalizer is not None else None
         fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db)
         fitted.trained_num_taxis = self.trained_num_taxis
         return fitted
@@ -137,11 +175,15 @@ class GreedyPolicy:
             if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
         ]
         if diffs:
+            axis = (
+                f"passenger_window={self.passenger_window}" if self.passenger_window is not None else
+                f"max_passengers={self.passenger_slots} (a smaller instance is padded by max_passengers)"
+            )  # fmt: skip
             raise ValueError(
                 f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
                 f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
-                f"num_taxis={self.num_taxis} and max_passengers={self.passenger_slots} (a smaller instance is padded "
-                "by max_passengers), or train a policy for this one."
+                f"num_taxis={self.num_taxis} and {axis} (policy.layout(cfg) fits the passenger axis), or train a "
+                "policy for this one."
             )
 
     def network_input(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -191,8 +233,14 @@ def load_policy(
     if env_config is not None and args.scenario in PRESETS:
         trained_on = run_config(args, training=False)
     return GreedyPolicy(
-        net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.num_passengers, trained_on
+        net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.observed_passengers, trained_on
     ), args
+
+
+def _one_row(shapes: dict[str, tuple[int, ...]]) -> dict[str, tuple[int, ...]]:
+    """``shapes`` with one row in each passenger-axis field: a normaliser resized to it has its passenger rows'
+    statistics pooled (:meth:`ObservationNormalizer.resized`), to be resized again to any row count."""
+    return {k: (1, *v[1:]) if k in PASSENGER_AXIS_FIELDS else v for k, v in shapes.items()}
 
 
 def _check_layout(ckpt: Checkpoint, layout: Layout, source: str, args: TrainArgs) -> None:
