@@ -73,6 +73,7 @@ from conftest import small_config  # noqa: E402
 
 from uamfleet.config import Request  # noqa: E402
 from uamfleet.rl.trainer import TrainArgs, load_policy, make_env_config, train  # noqa: E402
+from uamfleet.rollout import fly  # noqa: E402
 
 
 def tiny_args(tmp_path, **overrides) -> TrainArgs:
@@ -131,3 +132,23 @@ def test_shaping_discount_is_the_trainers_unless_given():
     default = make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping=50.0))
     assert default.reward.shaping_gamma == 0.9 and default.reward.shaping == 50.0
     assert make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping_gamma=1.0)).reward.shaping_gamma == 1.0
+
+
+def test_a_run_with_a_passenger_window_reads_k_rows_and_flies_any_number_of_requests(tmp_path):
+    """--passenger-window K: the network trains on K passenger rows, and its checkpoint flies an instance with more
+    requests than it ever saw (the window keeps each taxi's rows at K)."""
+    three = tuple(Request(0, (350.0, 150.0 + 100.0 * i), (150.0, 350.0)) for i in range(3))
+    cfg = small_config(requests=three, time_limit_steps=30)
+    options = tiny_args(tmp_path, passenger_window=2, total_timesteps=64 * 4)
+    result = train(options, env_config=cfg)
+    # the config it evaluated on: the given one with the run's options (make_env_config), the window among them
+    trained_on = make_env_config(cfg, options, training=False)
+    assert trained_on.passenger_window == 2 and trained_on.observed_passengers == 2
+    policy, args = load_policy(result.run_dir / "last.pt", env_config=trained_on)
+    assert args.passenger_window == 2 and policy.obs_shapes is not None
+    assert policy.obs_shapes["passengers"][0] == 2 and policy.passenger_window == 2
+    five = tuple(Request(2 * i, (350.0, 150.0), (150.0, 350.0 - 50.0 * i)) for i in range(5))
+    more = make_env_config(small_config(requests=five, time_limit_steps=30), options, training=False)
+    assert more.num_passengers == 5 and more.observed_passengers == 2
+    flown = fly(more, policy)  # five requests through two rows: the episode runs to its end without a shape error
+    assert flown.terminated or flown.truncated

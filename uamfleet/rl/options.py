@@ -52,6 +52,10 @@ class TrainArgs:
     """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
     time_limit_steps: int = 200
     """episode time limit while training (steps)"""
+    passenger_window: int | None = None
+    """each taxi observes at most this many passenger rows: its riders, then the nearest waiting requests
+    (EnvConfig.passenger_window, docs/rules.md "Passenger window"), so the policy flies any number of requests and
+    any shift length; None: a row per request of the episode"""
     heading_lookahead: bool = False
     """observe each heading's move plus the shortest tour after it (EnvConfig.heading_lookahead; needs a scenario
     with stop features); a stop-head network then reads it as a learned correction of its flight"""
@@ -219,7 +223,7 @@ class TrainArgs:
             check_integer(_flag(name), getattr(self, name), minimum)
         most = 4 * (os.cpu_count() or 1)
         check_integer("--threads", self.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
-        for name in ("num_taxis", "eval_time_limit_steps"):
+        for name in ("num_taxis", "eval_time_limit_steps", "passenger_window"):
             if getattr(self, name) is not None:
                 check_integer(_flag(name), getattr(self, name), 1)
         for name, (low, high, low_open) in _RANGES.items():
@@ -265,6 +269,8 @@ class TrainArgs:
         overrides["time_limit_steps"] = limit
         if self.heading_lookahead:
             overrides["heading_lookahead"] = True
+        if self.passenger_window is not None:
+            overrides["passenger_window"] = self.passenger_window
         return overrides
 
 
