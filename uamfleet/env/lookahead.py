@@ -18,6 +18,7 @@ the stop's centre. A heading with value 0 here is as good as the best one-step c
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -37,19 +38,38 @@ def heading_lookahead(s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
-    rests = np.empty(2 * num_pax)  # scratch: the tour rests after a move that serves a stop
-    undo = np.empty(num_pax, np.int64)  # scratch: what a hypothetical move served
+    scratch = _Scratch(
+        stops=np.empty(2 * num_pax, np.int64), bound=np.empty(2 * num_pax),
+        undo=np.empty(num_pax, np.int64), served_undo=np.empty((NUM_HEADINGS, num_pax), np.int64),
+        served_rests=np.empty((NUM_HEADINGS, 2 * num_pax)), served_found=np.empty(NUM_HEADINGS, np.int64),
+    )  # fmt: skip
     cost = np.empty(NUM_HEADINGS)
     for e in range(num_envs):
         for p in range(num_pax):
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            found = _heading_costs(s, w, t, e, a, pts, rests, undo, cost)
+            found = _heading_costs(s, w, t, e, a, pts, scratch, cost)
             if found < 0:
                 return False
             _write_excess(s.action_mask[e, a], cost, found == 1, w.step_m, o_look[e, a])
     return True
+
+
+class _Scratch(NamedTuple):
+    """Work arrays of :func:`_heading_costs`, allocated once per call of :func:`heading_lookahead`."""
+
+    stops: np.ndarray  # [2P] the offered stop points, least straight-line bound first (:func:`_offered_by_bound`)
+    bound: np.ndarray  # [2P] their straight-line distance from the taxi plus their kept tour rest
+    undo: np.ndarray  # [P] what a hypothetical move served (:func:`_serve_at`)
+    served_undo: np.ndarray  # [16, P] each distinct served set met at this taxi (its undo record) ...
+    served_rests: np.ndarray  # [16, 2P] ... the tour rests after it ...
+    served_found: np.ndarray  # [16] ... and what computing them returned (1, 0: a table row missing)
+
+
+SURE_M = 1e-3
+"""Slack (metres) on the triangle inequality where a bound decides to skip work: float rounding on map coordinates
+is ~1e-12 m, so a skip it allows is also allowed exactly, and what is computed is the same as without the skip."""
 
 
 @njit(cache=True)
@@ -71,28 +91,41 @@ def _write_excess(allowed: np.ndarray, cost: np.ndarray, any_stop: bool, step_m:
 
 @njit(cache=True)
 def _heading_costs(
-    s: FleetState, w: WorldArrays, t: TableArrays, e: int, a: int, pts: np.ndarray, rests: np.ndarray,
-    undo: np.ndarray, cost: np.ndarray,
+    s: FleetState, w: WorldArrays, t: TableArrays, e: int, a: int, pts: np.ndarray, scratch: _Scratch,
+    cost: np.ndarray,
 ) -> int:  # fmt: skip
     """cost[h]: heading h's move plus the shortest tour from its end (module docstring), for the allowed headings.
-    Returns 1, 0 when taxi a has no stop to fly to (cost untouched), -1 when a table row is missing."""
+    Returns 1, 0 when taxi a has no stop to fly to (cost untouched), -1 when a table row is missing.
+
+    Three shortcuts, none of which changes a number: a move that serves nothing leaves the kept rests, and the
+    tour from its end looks up only the stops whose straight-line bound can still win (:func:`_tour_from_bounded`);
+    moves are tested for serving only when some stop lies within reach of a move's end; the moves that serve the
+    same stops share one computation of the tours after them (the served state is the same)."""
     if not _has_stop(s, e, a):
         return 0
-    memo = s.stop_pair_m[e]
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+    kept = s.stop_tour_m[e, a]
+    m = _offered_by_bound(s, e, a, x, y, pts, kept, scratch.stops, scratch.bound)
+    reach = w.radius_m + 1e-9
+    may_serve = _stop_within(s, e, a, x, y, pts, reach + _longest_move(w) + SURE_M)
+    num_sets = 0  # distinct served sets met so far at this taxi
     for h in range(NUM_HEADINGS):
         cost[h] = math.inf
         if not s.action_mask[e, a, h]:
             continue
         qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
-        if _serve_at(s, e, a, qx, qy, w.radius_m + 1e-9, undo):  # the stops left after the move: tours from scratch
-            found = _shortest_rests(s, e, a, memo, pts, t, rests)
-            if found == -1:
-                found = 1 if _nearest_rests(s, e, a, memo, pts, t, rests) else 0
-            tour = _tour_from(s, e, a, qx, qy, pts, rests, t) if found == 1 else math.nan
-            _unserve(s, e, a, undo)
+        if may_serve and _serve_at(s, e, a, qx, qy, reach, scratch.undo):  # the stops left: their own tours
+            k = _matching_set(scratch.undo, scratch.served_undo, num_sets)
+            if k < 0:
+                k, num_sets = num_sets, num_sets + 1
+                scratch.served_undo[k] = scratch.undo
+                scratch.served_found[k] = _rests_after_serving(s, e, a, pts, t, scratch.served_rests[k])
+            rests = scratch.served_rests[k]
+            tour = _tour_from(s, e, a, qx, qy, pts, rests, t) if scratch.served_found[k] == 1 else math.nan
+            _unserve(s, e, a, scratch.undo)
         else:  # nothing served: the kept rests hold
-            tour = _tour_from(s, e, a, qx, qy, pts, s.stop_tour_m[e, a], t)
+            move_m = math.sqrt(w.moves_m[h, 0] ** 2 + w.moves_m[h, 1] ** 2)
+            tour = _tour_from_bounded(t, qx, qy, pts, kept, scratch.stops, scratch.bound, m, move_m)
         if math.isnan(tour):
             return -1
         cost[h] = w.step_m + tour
@@ -100,12 +133,121 @@ def _heading_costs(
 
 
 @njit(cache=True)
+def _rests_after_serving(s: FleetState, e: int, a: int, pts: np.ndarray, t: TableArrays, out: np.ndarray) -> int:
+    """Taxi a's tour rests in the (served) state into ``out``, as :func:`uamfleet.env.kernels.stop_features` keeps
+    them: exact, else the nearest-stop order's. 1, or 0 when a table row is missing."""
+    memo = s.stop_pair_m[e]
+    found = _shortest_rests(s, e, a, memo, pts, t, out)
+    if found == -1:
+        found = 1 if _nearest_rests(s, e, a, memo, pts, t, out) else 0
+    return found
+
+
+@njit(cache=True)
+def _matching_set(undo: np.ndarray, served_undo: np.ndarray, num_sets: int) -> int:
+    """The index of the served set recorded as ``undo`` among the first ``num_sets``, or -1."""
+    for k in range(num_sets):
+        same = True
+        for p in range(undo.size):
+            if served_undo[k, p] != undo[p]:
+                same = False
+                break
+        if same:
+            return k
+    return -1
+
+
+@njit(cache=True)
+def _longest_move(w: WorldArrays) -> float:
+    longest = 0.0
+    for h in range(NUM_HEADINGS):
+        longest = max(longest, math.sqrt(w.moves_m[h, 0] ** 2 + w.moves_m[h, 1] ** 2))
+    return longest
+
+
+@njit(cache=True)
+def _stop_within(s: FleetState, e: int, a: int, x: float, y: float, pts: np.ndarray, reach: float) -> bool:
+    """Whether a stop :func:`_serve_at` could serve (a's riders' destinations, the waiting origins) lies within
+    ``reach`` of (x, y)."""
+    for p in range(s.pax_status.shape[1]):
+        if not s.pax_exists[e, p]:
+            continue
+        if s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
+            point = 2 * p + 1
+        elif s.pax_status[e, p] == WAITING:
+            point = 2 * p
+        else:
+            continue
+        if math.hypot(x - pts[point, 0], y - pts[point, 1]) <= reach:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _offered_by_bound(
+    s: FleetState, e: int, a: int, x: float, y: float, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray,
+    bound: np.ndarray,
+) -> int:  # fmt: skip
+    """The stops taxi a's rows offer (:func:`uamfleet.env.kernels.row_stop`) into ``stops``, sorted by ``bound``:
+    the straight line from (x, y) plus the stop's tour rest (insertion sort: a few dozen stops at most). Their
+    number."""
+    m = 0
+    for p in range(s.pax_status.shape[1]):
+        point = _offered(s, e, a, p)
+        if point < 0:
+            continue
+        value = math.hypot(x - pts[point, 0], y - pts[point, 1]) + rests[point]
+        k = m
+        while k > 0 and bound[k - 1] > value:
+            stops[k], bound[k] = stops[k - 1], bound[k - 1]
+            k -= 1
+        stops[k], bound[k] = point, value
+        m += 1
+    return m
+
+
+@njit(cache=True)
+def _tour_from_bounded(
+    t: TableArrays, qx: float, qy: float, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray,
+    bound: np.ndarray, m: int, move_m: float,
+) -> float:  # fmt: skip
+    """:func:`_tour_from` from (qx, qy), a move of ``move_m`` from the taxi, over the offered stops
+    (:func:`_offered_by_bound`), with the same result: a stop is looked up only when its straight line from
+    (qx, qy) plus its rest is below the best so far (the table distance is at least that straight line, in the
+    same float operations, :func:`uamfleet.paths.distance_table.table_distance`), and the scan stops where the
+    taxi's bound less the move exceeds the best (triangle inequality: so does every later stop's)."""
+    if m == 0:
+        return 0.0
+    best = math.inf
+    for k in range(m):
+        if bound[k] - move_m - SURE_M > best:
+            break
+        point = stops[k]
+        gx, gy = pts[point, 0], pts[point, 1]
+        dx, dy = qx - gx, qy - gy
+        rest = rests[point]
+        if math.sqrt(dx * dx + dy * dy) + rest >= best:
+            continue
+        d = table_distance(t, qx, qy, gx, gy)
+        if math.isnan(d):
+            return math.nan
+        best = min(best, d + rest)
+    return best
+
+
+@njit(cache=True)
 def _has_stop(s: FleetState, e: int, a: int) -> bool:
     """Whether any row offers taxi a a stop (:func:`uamfleet.env.kernels.row_stop`)."""
     for p in range(s.pax_status.shape[1]):
-        if s.pax_exists[e, p] and row_stop(s, e, a, p) >= 0:
+        if _offered(s, e, a, p) >= 0:
             return True
     return False
+
+
+@njit(cache=True, inline="always")
+def _offered(s: FleetState, e: int, a: int, p: int) -> int:
+    """The stop row p offers taxi a (:func:`uamfleet.env.kernels.row_stop`), -1 for none or an absent row."""
+    return row_stop(s, e, a, p) if s.pax_exists[e, p] else -1
 
 
 @njit(cache=True)
@@ -116,9 +258,7 @@ def _tour_from(
     the tour's rest after it (``rests``); 0 when no stop is left; NaN when a table row is missing."""
     best, any_stop = math.inf, False
     for p in range(s.pax_status.shape[1]):
-        if not s.pax_exists[e, p]:
-            continue
-        point = row_stop(s, e, a, p)
+        point = _offered(s, e, a, p)
         if point < 0:
             continue
         any_stop = True
