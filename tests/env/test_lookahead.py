@@ -81,11 +81,7 @@ def _costs_both_ways(s: FleetState, w: WorldArrays, t: TableArrays, fast: np.nda
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
-    scratch = lookahead._Scratch(
-        np.empty(2 * num_pax, np.int64), np.empty(2 * num_pax), np.empty(num_pax, np.int64),
-        np.empty((NUM_HEADINGS, num_pax), np.int64), np.empty((NUM_HEADINGS, 2 * num_pax)),
-        np.empty(NUM_HEADINGS, np.int64),
-    )  # fmt: skip
+    scratch = lookahead._new_scratch(num_pax)
     rests, undo = np.empty(2 * num_pax), np.empty(num_pax, np.int64)
     counts = np.zeros(3, np.int64)
     for e in range(num_envs):

@@ -22,7 +22,13 @@ from numba import njit
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
 from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
 from uamfleet.env.tours import MAX_EXACT_STOPS, _nearest_stop_tour, _pending_key, _shortest_rests, _stop_distance
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import (
+    Corners,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+)
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -224,6 +230,7 @@ def stop_features(
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
+    taxi, stop = new_corners(NUM_HEADINGS + 1), new_corners(1)  # look-up scratch (:func:`_stop_rows`)
     for e in range(num_envs):
         memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
         for p in range(num_pax):
@@ -232,7 +239,7 @@ def stop_features(
         for a in range(num_taxis):
             if _update_rests(s, e, a, memo, pts, t) < 0:
                 return False
-            if not _stop_rows(s, w, e, a, memo, pts, t, o_paths, o_heading):
+            if not _stop_rows(s, w, e, a, memo, pts, t, o_paths, o_heading, taxi, stop):
                 return False
     return True
 
@@ -240,13 +247,16 @@ def stop_features(
 @njit(cache=True)
 def _stop_rows(
     s: FleetState, w: WorldArrays, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
-    o_paths: np.ndarray, o_heading: np.ndarray,
+    o_paths: np.ndarray, o_heading: np.ndarray, taxi: Corners, stop: Corners,
 ) -> bool:  # fmt: skip
     """Taxi a's stop-feature rows (zeros for a passenger hidden, absent or delivered; only the ride for a row that
     is not actionable); False when a table row it reads is not computed yet. One call per taxi, not per row: a
-    call passes (and reference-counts) every array of the state."""
+    call passes (and reference-counts) every array of the state. ``taxi`` and ``stop`` are scratch for the
+    look-ups (:func:`prepare_moves`): the taxi's position and move ends, and the row's stop, are each prepared
+    once."""
     side = w.side_m
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+    prepared = False
     for p in range(s.pax_status.shape[1]):
         o_heading[e, a, p, :] = 0
         o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
@@ -263,13 +273,17 @@ def _stop_rows(
         if point < 0:
             continue
         gx, gy = pts[point, 0], pts[point, 1]
-        here = table_distance(t, x, y, gx, gy)
+        if not prepared:
+            prepare_moves(w, t, x, y, taxi)
+            prepared = True
+        prepare_corners(t, gx, gy, stop, 0)
+        here = corner_distance(t, taxi, NUM_HEADINGS, stop, 0, x, y, gx, gy)
         if math.isnan(here):
             return False
         o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
         rest = s.stop_tour_m[e, a, point]
         o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-        best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
+        best = _progress_heading_prepared(s.action_mask[e, a], w, t, x, y, gx, gy, taxi, stop, 0)  # rows read above
         if best >= 0:
             o_heading[e, a, p, best] = 1
     return True
@@ -347,7 +361,30 @@ def _progress_heading(
 ) -> int:
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
     ends within the pick-up radius), ties to the lowest heading; -1 when none is allowed or reachable. The stop's
-    table rows must be computed (the caller has read them).
+    table rows must be computed (the caller has read them). Prepares its own look-ups; a kernel that has them
+    calls :func:`_progress_heading_prepared`."""
+    taxi, stop = new_corners(NUM_HEADINGS + 1), new_corners(1)
+    prepare_moves(w, t, x, y, taxi)
+    prepare_corners(t, gx, gy, stop, 0)
+    return _progress_heading_prepared(allowed, w, t, x, y, gx, gy, taxi, stop, 0)
+
+
+@njit(cache=True)
+def prepare_moves(w: WorldArrays, t: TableArrays, x: float, y: float, taxi: Corners) -> None:
+    """Prepare the look-ups from the ends of the 16 moves from (x, y) (slots 0-15, the same float operations as the
+    moves' costs) and from (x, y) itself (slot 16) in ``taxi`` (:func:`uamfleet.paths.distance_table.Corners`)."""
+    for h in range(NUM_HEADINGS):
+        prepare_corners(t, x + w.moves_m[h, 0], y + w.moves_m[h, 1], taxi, h)
+    prepare_corners(t, x, y, taxi, NUM_HEADINGS)
+
+
+@njit(cache=True)
+def _progress_heading_prepared(
+    allowed: np.ndarray, w: WorldArrays, t: TableArrays, x: float, y: float, gx: float, gy: float, taxi: Corners,
+    stop: Corners, j: int,
+) -> int:  # fmt: skip
+    """:func:`_progress_heading`, its look-ups prepared: the taxi's moves in ``taxi`` (:func:`prepare_moves`), the
+    stop (gx, gy) in slot j of ``stop``.
 
     A move costs at least ``step_m`` + its end's straight-line distance to the stop (:func:`_move_bound`; the table
     distance never undercuts the straight line), so the move with the least bound is costed first and a move
@@ -356,7 +393,7 @@ def _progress_heading(
     first = _least_bound_move(allowed, w, x, y, gx, gy)
     if first < 0:
         return -1
-    best, best_cost = first, _move_cost(w, t, x, y, h=first, gx=gx, gy=gy)
+    best, best_cost = first, _move_cost(w, t, x, y, first, gx, gy, taxi, stop, j)
     if best_cost == math.inf:
         best = -1
     for h in range(NUM_HEADINGS):
@@ -365,7 +402,7 @@ def _progress_heading(
         bound = _move_bound(w, x, y, h, gx, gy)
         if bound > best_cost or (bound == best_cost and h > best):
             continue  # its cost is >= bound: it cannot win, not even a tie
-        cost = _move_cost(w, t, x, y, h, gx, gy)
+        cost = _move_cost(w, t, x, y, h, gx, gy, taxi, stop, j)
         if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
@@ -394,13 +431,16 @@ def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float
 
 
 @njit(cache=True, inline="always")
-def _move_cost(w: WorldArrays, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
+def _move_cost(
+    w: WorldArrays, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float, taxi: Corners, stop: Corners,
+    j: int,
+) -> float:  # fmt: skip
     """Heading h's move plus the table distance left from its end to (gx, gy); the move alone within the
-    pick-up radius."""
+    pick-up radius (look-ups prepared: :func:`_progress_heading_prepared`)."""
     qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
     if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
         return w.step_m
-    return w.step_m + table_distance(t, qx, qy, gx, gy)
+    return w.step_m + corner_distance(t, taxi, h, stop, j, qx, qy, gx, gy)
 
 
 @njit(cache=True)
@@ -429,15 +469,20 @@ def stop_rivals(
     side = w.side_m
     claims = o_claims.shape[0] > 0
     dist = np.empty((num_taxis, num_pax))  # [A, P] taxi -> waiting origin, inf for other rows
+    taxis, origin = new_corners(num_taxis), new_corners(1)  # look-ups prepared once per point
     for e in range(num_envs):
+        for b in range(num_taxis):
+            prepare_corners(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], taxis, b)
         for p in range(num_pax):
             waiting = s.pax_exists[e, p] and s.pax_status[e, p] == WAITING
             ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+            if waiting:
+                prepare_corners(t, ox, oy, origin, 0)
             for b in range(num_taxis):
                 if not waiting:
                     dist[b, p] = math.inf
                     continue
-                d = table_distance(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                d = corner_distance(t, taxis, b, origin, 0, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
                 if math.isnan(d):
                     return False
                 dist[b, p] = d

@@ -24,9 +24,16 @@ import numpy as np
 from numba import njit
 
 from uamfleet.env.arrays import WorldArrays
-from uamfleet.env.kernels import _nearest_rests, row_stop
+from uamfleet.env.kernels import _nearest_rests, prepare_moves, row_stop
 from uamfleet.env.tours import _shortest_rests
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import (
+    Corners,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+    table_distance,
+)
 from uamfleet.types import DELIVERED, LOOKAHEAD_CLIP, NUM_HEADINGS, ON_BOARD, WAITING, FleetState
 
 
@@ -38,11 +45,7 @@ def heading_lookahead(s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
-    scratch = _Scratch(
-        stops=np.empty(2 * num_pax, np.int64), bound=np.empty(2 * num_pax),
-        undo=np.empty(num_pax, np.int64), served_undo=np.empty((NUM_HEADINGS, num_pax), np.int64),
-        served_rests=np.empty((NUM_HEADINGS, 2 * num_pax)), served_found=np.empty(NUM_HEADINGS, np.int64),
-    )  # fmt: skip
+    scratch = _new_scratch(num_pax)
     cost = np.empty(NUM_HEADINGS)
     for e in range(num_envs):
         for p in range(num_pax):
@@ -65,6 +68,18 @@ class _Scratch(NamedTuple):
     served_undo: np.ndarray  # [16, P] each distinct served set met at this taxi (its undo record) ...
     served_rests: np.ndarray  # [16, 2P] ... the tour rests after it ...
     served_found: np.ndarray  # [16] ... and what computing them returned (1, 0: a table row missing)
+    moves: Corners  # the look-ups from the taxi's 16 move ends, prepared (:func:`uamfleet.env.kernels.prepare_moves`)
+    stop_corners: Corners  # ... and towards the offered stops, in the order of ``stops``
+
+
+@njit(cache=True)
+def _new_scratch(num_pax: int) -> _Scratch:
+    return _Scratch(
+        stops=np.empty(2 * num_pax, np.int64), bound=np.empty(2 * num_pax),
+        undo=np.empty(num_pax, np.int64), served_undo=np.empty((NUM_HEADINGS, num_pax), np.int64),
+        served_rests=np.empty((NUM_HEADINGS, 2 * num_pax)), served_found=np.empty(NUM_HEADINGS, np.int64),
+        moves=new_corners(NUM_HEADINGS + 1), stop_corners=new_corners(2 * num_pax),
+    )  # fmt: skip
 
 
 SURE_M = 1e-3
@@ -106,6 +121,9 @@ def _heading_costs(
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
     kept = s.stop_tour_m[e, a]
     m = _offered_by_bound(s, e, a, x, y, pts, kept, scratch.stops, scratch.bound)
+    prepare_moves(w, t, x, y, scratch.moves)
+    for k in range(m):
+        prepare_corners(t, pts[scratch.stops[k], 0], pts[scratch.stops[k], 1], scratch.stop_corners, k)
     reach = w.radius_m + 1e-9
     may_serve = _stop_within(s, e, a, x, y, pts, reach + _longest_move(w) + SURE_M)
     num_sets = 0  # distinct served sets met so far at this taxi
@@ -125,7 +143,7 @@ def _heading_costs(
             _unserve(s, e, a, scratch.undo)
         else:  # nothing served: the kept rests hold
             move_m = math.sqrt(w.moves_m[h, 0] ** 2 + w.moves_m[h, 1] ** 2)
-            tour = _tour_from_bounded(t, qx, qy, pts, kept, scratch.stops, scratch.bound, m, move_m)
+            tour = _tour_from_bounded(t, qx, qy, h, pts, kept, scratch, m, move_m)
         if math.isnan(tour):
             return -1
         cost[h] = w.step_m + tour
@@ -208,17 +226,19 @@ def _offered_by_bound(
 
 @njit(cache=True)
 def _tour_from_bounded(
-    t: TableArrays, qx: float, qy: float, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray,
-    bound: np.ndarray, m: int, move_m: float,
+    t: TableArrays, qx: float, qy: float, h: int, pts: np.ndarray, rests: np.ndarray, scratch: _Scratch, m: int,
+    move_m: float,
 ) -> float:  # fmt: skip
-    """:func:`_tour_from` from (qx, qy), a move of ``move_m`` from the taxi, over the offered stops
-    (:func:`_offered_by_bound`), with the same result: a stop is looked up only when its straight line from
-    (qx, qy) plus its rest is below the best so far (the table distance is at least that straight line, in the
-    same float operations, :func:`uamfleet.paths.distance_table.table_distance`), and the scan stops where the
-    taxi's bound less the move exceeds the best (triangle inequality: so does every later stop's)."""
+    """:func:`_tour_from` from (qx, qy), the end of move h (``move_m`` long), over the offered stops
+    (:func:`_offered_by_bound`; look-ups prepared in ``scratch``), with the same result: a stop is looked up only
+    when its straight line from (qx, qy) plus its rest is below the best so far (the table distance is at least
+    that straight line, in the same float operations, :func:`uamfleet.paths.distance_table.table_distance`), and
+    the scan stops where the taxi's bound less the move exceeds the best (triangle inequality: so does every later
+    stop's)."""
     if m == 0:
         return 0.0
     best = math.inf
+    stops, bound = scratch.stops, scratch.bound
     for k in range(m):
         if bound[k] - move_m - SURE_M > best:
             break
@@ -228,7 +248,7 @@ def _tour_from_bounded(
         rest = rests[point]
         if math.sqrt(dx * dx + dy * dy) + rest >= best:
             continue
-        d = table_distance(t, qx, qy, gx, gy)
+        d = corner_distance(t, scratch.moves, h, scratch.stop_corners, k, qx, qy, gx, gy)
         if math.isnan(d):
             return math.nan
         best = min(best, d + rest)
