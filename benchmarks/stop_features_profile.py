@@ -9,9 +9,15 @@ kernels' per-episode caches as they were at that moment) and times, on a fresh c
 (``stop_features``, ``stop_rivals``) and their parts (which overlap: each runs what it needs of the others):
 the tour rests (``_update_rests``: the subset DP, or beyond ``MAX_EXACT_STOPS`` pending stops the nearest-stop
 order's, when a taxi's stops or seats changed), the per-taxi look-ups (to each stop and after each of the 16
-moves, ``_progress_heading``), and the rivals/claims. Run on one core:
+moves, ``_progress_heading``), and the rivals/claims. With ``--lookahead``, part 1 also times the step that observes
+``heading_lookahead``, and part 2 its kernel (on the states as ``stop_features`` leaves them: their kept tours up to
+date). Run on one core:
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py \
+        --lookahead --cases berlin_instances:64:1 berlin_random:64:1 berlin_random:64:4
+
+Against another checkout (before/after in one session): ``benchmarks/run_against.py``.
 """
 
 from __future__ import annotations
@@ -26,12 +32,13 @@ from numba import njit
 
 import uamfleet
 from uamfleet.env import kernels, tours
+from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import WorldArrays
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import TableArrays, table_distance
-from uamfleet.types import DELIVERED, HIDDEN, FleetState
+from uamfleet.types import DELIVERED, HIDDEN, NUM_HEADINGS, FleetState
 
 
 @dataclass
@@ -45,6 +52,8 @@ class Args:
     """states kept for the kernel breakdown (one every few steps)"""
     every: int = 3
     """keep one state every this many steps"""
+    lookahead: bool = False
+    """with the heading look-ahead (EnvConfig.heading_lookahead) too: its step rate and its kernel's parts"""
 
 
 def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -52,9 +61,12 @@ def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.argmax(scores, axis=-1)
 
 
-def make_env(scenario: str, num_envs: int, num_taxis: int, stop_features: bool) -> uamfleet.VectorEnv:
+def make_env(
+    scenario: str, num_envs: int, num_taxis: int, stop_features: bool, lookahead: bool = False
+) -> uamfleet.VectorEnv:
     off = {} if stop_features else {"stop_rivals": False, "stop_claims": False}  # the fleet presets' extras too
-    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, stop_features=stop_features, **off)
+    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, stop_features=stop_features,
+                              heading_lookahead=lookahead, **off)  # fmt: skip
     if stop_features:
         table_for(env.world).fill()
     return env
@@ -153,7 +165,7 @@ def _time(kernel, states: list[FleetState], *args) -> float:  # type: ignore[no-
 
 
 def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
-    env = make_env(scenario, num_envs, num_taxis, True)
+    env = make_env(scenario, num_envs, num_taxis, True, args.lookahead)
     states = snapshots(env, args.snapshots, args.every)
     table = table_for(env.world)
     w = env.world.arrays
@@ -172,6 +184,12 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
         claims = np.empty((num_envs, num_taxis, *shape), np.int8) if shape else np.zeros((0, 0, 0, 0), np.int8)
         rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.arrays,
                                                      rivals, claims)))  # fmt: skip
+    if args.lookahead:
+        after = [s.copy() for s in states]  # the kept tours as stop_features leaves them (not timed)
+        for s in after:
+            kernels.stop_features(s, w, table.arrays, *paths)
+        look = np.empty((num_envs, num_taxis, NUM_HEADINGS), np.float32)
+        rows.append(("heading_lookahead (whole)", _time(heading_lookahead, after, w, table.arrays, look)))
     exact = 0
     for s in states:
         for e in range(num_envs):
@@ -189,13 +207,16 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
 
 def main(args: Args) -> None:
     cases = [(name, int(e), int(a)) for name, e, a in (c.split(":") for c in args.cases)]
-    print("env.step, agent-steps per second of thread CPU time (stop features off | on)")
-    print(f"{'scenario':<18} {'E':>4} {'A':>3} {'core':>12} {'+ stop feat.':>13} {'ratio':>6}")
+    print("env.step, agent-steps per second of thread CPU time (stop features off | on | on with the look-ahead)")
+    print(f"{'scenario':<18} {'E':>4} {'A':>3} {'core':>12} {'+ stop feat.':>13} {'ratio':>6}"
+          + (f" {'+ look-ahead':>13}" if args.lookahead else ""))  # fmt: skip
     for scenario, num_envs, num_taxis in cases:
         core = step_rate(make_env(scenario, num_envs, num_taxis, False), args.seconds)
         full = step_rate(make_env(scenario, num_envs, num_taxis, True), args.seconds)
-        print(f"{scenario:<18} {num_envs:>4} {num_taxis:>3} {core:>12,.0f} {full:>13,.0f} {core / full:>5.1f}x",
-              flush=True)  # fmt: skip
+        line = f"{scenario:<18} {num_envs:>4} {num_taxis:>3} {core:>12,.0f} {full:>13,.0f} {core / full:>5.1f}x"
+        if args.lookahead:
+            line += f" {step_rate(make_env(scenario, num_envs, num_taxis, True, True), args.seconds):>13,.0f}"
+        print(line, flush=True)
     for scenario, num_envs, num_taxis in cases:
         breakdown(scenario, num_envs, num_taxis, args)
 
