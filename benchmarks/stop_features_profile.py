@@ -8,10 +8,10 @@ Part 2 takes the states the observer hands the stop-feature kernels during such 
 kernels' per-episode caches as they were at that moment) and times, on a fresh copy of each, the kernels whole
 (``stop_features``, ``stop_rivals``) and their parts (which overlap: each runs what it needs of the others):
 the tour rests (``_update_rests``: the subset DP, or beyond ``MAX_EXACT_STOPS`` pending stops the nearest-stop
-order's, when a taxi's stops or seats changed), the per-taxi look-ups (to each stop and after each of the 16
-moves, ``_progress_heading``), and the rivals/claims. With ``--lookahead``, part 1 also times the step that observes
-``heading_lookahead``, and part 2 its kernel (on the states as ``stop_features`` leaves them: their kept tours up to
-date). Run on one core:
+order's, when a taxi's stops or seats changed), the rows (the whole less the rests: the per-taxi look-ups to each
+stop and after the moves, ``_progress_heading``), and the rivals/claims. With ``--lookahead``, part 1 also times the
+step that observes ``heading_lookahead``, and part 2 its kernel (on the states as ``stop_features`` leaves them:
+their kept tours up to date). Run on one core:
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py \
@@ -33,12 +33,12 @@ from numba import njit
 import uamfleet
 from uamfleet.env import kernels, tours
 from uamfleet.env.lookahead import heading_lookahead
-from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
+from uamfleet.env.kernels import _update_rests
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import WorldArrays
 from uamfleet.paths import table_for
-from uamfleet.paths.distance_table import TableArrays, table_distance
-from uamfleet.types import DELIVERED, HIDDEN, NUM_HEADINGS, FleetState
+from uamfleet.paths.distance_table import TableArrays
+from uamfleet.types import NUM_HEADINGS, FleetState
 
 
 @dataclass
@@ -129,29 +129,6 @@ def tour_rests_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
     return computed
 
 
-@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
-def lookups_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
-    """Each taxi's table look-ups towards its actionable stops: to the stop, and after each allowed move
-    (:func:`kernels._progress_heading`); returns the number of rows."""
-    rows = 0
-    total = 0.0
-    for e in range(s.free_seats.shape[0]):
-        for a in range(s.free_seats.shape[1]):
-            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            for p in range(s.pax_status.shape[1]):
-                status = s.pax_status[e, p]
-                if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
-                    continue
-                point = row_stop(s, e, a, p)
-                if point < 0:
-                    continue
-                g = s.pax_origin_m[e, p] if point % 2 == 0 else s.pax_dest_m[e, p]
-                total += table_distance(t, x, y, g[0], g[1])
-                total += _progress_heading(s.action_mask[e, a], w, t, x, y, g[0], g[1])
-                rows += 1
-    return rows if not math.isnan(total) else -rows
-
-
 def _time(kernel, states: list[FleetState], *args) -> float:  # type: ignore[no-untyped-def]
     """Thread CPU seconds of ``kernel(copy, *args)`` summed over fresh copies of ``states``."""
     kernel(states[0].copy(), *args)  # compile
@@ -173,10 +150,12 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     layout = env.observer.layout
     fields = ("stop_paths", "stop_heading_mask")
     paths = [np.empty((num_envs, num_taxis, *layout[k].shape), layout[k].dtype) for k in fields]
+    whole = _time(kernels.stop_features, states, w, table.arrays, *paths)
+    rests = _time(tour_rests_only, states, w, table.arrays)
     rows: list[tuple[str, float]] = [
-        ("stop_features (whole)", _time(kernels.stop_features, states, w, table.arrays, *paths)),
-        ("  tour rests (_update_rests)", _time(tour_rests_only, states, w, table.arrays)),
-        ("  look-ups: to stop + 16 moves", _time(lookups_only, states, w, table.arrays)),
+        ("stop_features (whole)", whole),
+        ("  tour rests (_update_rests)", rests),
+        ("  the rows: look-ups to stop + moves (whole - rests)", whole - rests),
     ]
     if "stop_rivals" in layout:
         rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)

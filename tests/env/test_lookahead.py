@@ -13,7 +13,7 @@ from uamfleet.baselines.step_planner import released_only
 from uamfleet.config import ConfigError, make_config
 from uamfleet.env import lookahead
 from uamfleet.env.arrays import WorldArrays
-from uamfleet.env.kernels import row_stop
+from uamfleet.env.kernels import StopRows, row_stop
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths.distance_table import TableArrays
 from uamfleet.types import LOOKAHEAD_CLIP, NUM_HEADINGS, STOP_PATH_TO_STOP, STOP_TOUR_VIA_STOP, FleetState
@@ -93,25 +93,26 @@ def _costs_both_ways(s: FleetState, w: WorldArrays, t: TableArrays, fast: np.nda
             if lookahead._heading_costs(s, w, t, e, a, pts, scratch, fast[e, a]) != 1:
                 continue
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
             sets, any_served = 0, False
             for h in range(NUM_HEADINGS):
                 plain[e, a, h] = math.inf
                 if not s.action_mask[e, a, h]:
                     continue
                 qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
-                if lookahead._serve_at(s, e, a, qx, qy, w.radius_m + 1e-9, undo):
+                if lookahead._serve_at(rows, a, pts, qx, qy, w.radius_m + 1e-9, undo):
                     any_served = True
                     sets += 1
                     found = lookahead._rests_after_serving(s, e, a, pts, t, rests)
-                    tour = lookahead._tour_from(s, e, a, qx, qy, pts, rests, t) if found == 1 else math.nan
-                    lookahead._unserve(s, e, a, undo)
+                    tour = lookahead._tour_from(rows, a, qx, qy, pts, rests, t) if found == 1 else math.nan
+                    lookahead._unserve(rows, a, undo)
                 else:
-                    tour = lookahead._tour_from(s, e, a, qx, qy, pts, s.stop_tour_m[e, a], t)
+                    tour = lookahead._tour_from(rows, a, qx, qy, pts, s.stop_tour_m[e, a], t)
                     counts[2] += _beaten_by_bound(s, e, a, qx, qy, pts, tour)
                 plain[e, a, h] = w.step_m + tour
-            counts[0] += sets - _distinct_sets(s, w, e, a, undo)
+            counts[0] += sets - _distinct_sets(s, w, rows, pts, e, a, undo)
             counts[1] += not any_served and not lookahead._stop_within(
-                s, e, a, x, y, pts, w.radius_m + 1e-9 + lookahead._longest_move(w) + lookahead.SURE_M
+                rows, a, x, y, pts, w.radius_m + 1e-9 + lookahead._longest_move(w.moves_m) + lookahead.SURE_M
             )
     return counts
 
@@ -129,13 +130,15 @@ def _beaten_by_bound(s: FleetState, e: int, a: int, qx: float, qy: float, pts: n
 
 
 @njit
-def _distinct_sets(s: FleetState, w: WorldArrays, e: int, a: int, undo: np.ndarray) -> int:
+def _distinct_sets(
+    s: FleetState, w: WorldArrays, rows: StopRows, pts: np.ndarray, e: int, a: int, undo: np.ndarray
+) -> int:
     seen = np.empty((NUM_HEADINGS, undo.size), np.int64)
     count = 0
     for h in range(NUM_HEADINGS):
         qx, qy = s.pos_m[e, a, 0] + w.moves_m[h, 0], s.pos_m[e, a, 1] + w.moves_m[h, 1]
-        if s.action_mask[e, a, h] and lookahead._serve_at(s, e, a, qx, qy, w.radius_m + 1e-9, undo):
-            lookahead._unserve(s, e, a, undo)
+        if s.action_mask[e, a, h] and lookahead._serve_at(rows, a, pts, qx, qy, w.radius_m + 1e-9, undo):
+            lookahead._unserve(rows, a, undo)
             if lookahead._matching_set(undo, seen, count) < 0:
                 seen[count] = undo
                 count += 1
