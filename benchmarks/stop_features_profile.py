@@ -155,7 +155,7 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     rows: list[tuple[str, float]] = [
         ("stop_features (whole)", whole),
         ("  tour rests (_update_rests)", rests),
-        ("  the rows: look-ups to stop + moves (whole - rests)", whole - rests),
+        ("  rows: look-ups (whole - rests)", whole - rests),
     ]
     if "stop_rivals" in layout:
         rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)
