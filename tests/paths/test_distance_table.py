@@ -174,7 +174,7 @@ def test_prepared_lookups_equal_the_plain_lookup_bit_for_bit() -> None:
     corners = dt.new_corners(len(pts))
     for k, (x, y) in enumerate(pts):
         prepare_corners_py(table.arrays, x, y, corners, k)
-    assert set(corners.count.tolist()) == {1, 2, 4}  # on a centre, on a centre line, between centres
+    assert set(corners.used.tolist()) == {1, 2, 4}  # on a centre, on a centre line, between centres
     got = np.array([[_corner(table.arrays, corners, i, j, *a, *b) for j, b in enumerate(pts)]
                     for i, a in enumerate(pts)])  # fmt: skip
     want = np.array([[dt.table_distance(table.arrays, *a, *b) for b in pts] for a in pts])

@@ -319,7 +319,7 @@ def corner_rows(points: np.ndarray, t: TableArrays, out: np.ndarray) -> None:
     for k in range(points.shape[0]):
         prepare_corners(t, points[k, 0], points[k, 1], corners, 0)
         out[k] = -1
-        out[k, : corners.count[0]] = corners.cells[0, : corners.count[0]]
+        out[k, : corners.used[0]] = corners.cells[0, : corners.used[0]]
 
 
 @njit(cache=True)
@@ -369,7 +369,7 @@ class Corners(NamedTuple):
 
     cells: np.ndarray  # [K, 4] int64 flat block-centre indices
     weights: np.ndarray  # [K, 4] float64
-    count: np.ndarray  # [K] int64 how many of the 4 are used
+    used: np.ndarray  # [K] int64 how many of the 4 are used
 
 
 @njit(cache=True)
@@ -390,7 +390,7 @@ def prepare_corners(t: TableArrays, x: float, y: float, c: Corners, k: int) -> N
             continue
         c.cells[k, n], c.weights[k, n] = (ix + (corner & 1)) * t.nby + iy + (corner >> 1), w
         n += 1
-    c.count[k] = n
+    c.used[k] = n
 
 
 @njit(cache=True, inline="always")
@@ -403,10 +403,10 @@ def corner_distance(
     table = t.distance_m
     total = 0.0
     weight = 0.0
-    for cb in range(b.count[j]):
+    for cb in range(b.used[j]):
         row = table[b.cells[j, cb]]
         wb = b.weights[j, cb]
-        for ca in range(a.count[i]):
+        for ca in range(a.used[i]):
             d = row[a.cells[i, ca]]
             if math.isnan(d):
                 return math.nan  # a row not computed yet: the caller ensures it and asks again
