@@ -253,6 +253,7 @@ def stop_features(
     pts = np.empty((2 * num_pax, 2))
     taxi, stop = new_corners(NUM_HEADINGS + 1), new_corners(1)  # look-up scratch (:func:`_stop_rows`)
     moves = MoveGeometry(w.moves_m, w.step_m, w.radius_m)
+    bounds = np.empty(NUM_HEADINGS)  # scratch of the progress headings
     for e in range(num_envs):
         memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
         for p in range(num_pax):
@@ -265,7 +266,7 @@ def stop_features(
             rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
             allowed = s.action_mask[e, a]
             if not _stop_rows(rows, moves, w.side_m, a, s.pos_m[e, a], allowed, memo, pts, t, o_paths[e, a],
-                              o_heading[e, a], taxi, stop):  # fmt: skip
+                              o_heading[e, a], taxi, stop, bounds):  # fmt: skip
                 return False
     return True
 
@@ -274,12 +275,14 @@ def stop_features(
 def _stop_rows(
     rows: StopRows, moves: MoveGeometry, side: float, a: int, pos: np.ndarray, allowed: np.ndarray, memo: np.ndarray,
     pts: np.ndarray, t: TableArrays, o_paths: np.ndarray, o_heading: np.ndarray, taxi: Corners, stop: Corners,
+    bounds: np.ndarray,
 ) -> bool:  # fmt: skip
     """Taxi a's stop-feature rows (``o_paths`` [P, ...], ``o_heading`` [P, 16]: zeros for a passenger hidden,
     absent or delivered; only the ride for a row that is not actionable); False when a table row it reads is not
     computed yet. One call per taxi, not per row, and with the arrays it reads rather than the state: a call that
     passes the state reference-counts each of its ~30 arrays. ``taxi`` and ``stop`` are scratch for the look-ups
-    (:func:`prepare_moves`): the taxi's position and move ends, and the row's stop, are each prepared once."""
+    (:func:`prepare_moves`): the taxi's position and move ends, and the row's stop, are each prepared once;
+    ``bounds`` for the progress heading's (:func:`_progress_heading_prepared`)."""
     x, y = pos[0], pos[1]
     prepared = False
     for p in range(rows.statuses.size):
@@ -308,7 +311,7 @@ def _stop_rows(
         o_paths[p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
         rest = rows.tour_rests[point]
         o_paths[p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-        best = _progress_heading_prepared(allowed, moves, t, x, y, gx, gy, taxi, stop, 0)  # rows read above
+        best = _progress_heading_prepared(allowed, moves, t, x, y, gx, gy, taxi, stop, 0, bounds)  # rows read above
         if best >= 0:
             o_heading[p, best] = 1
     return True
@@ -398,7 +401,7 @@ def _progress_heading(
     prepare_moves(w.moves_m, t, x, y, taxi)
     prepare_corners(t, gx, gy, stop, 0)
     return _progress_heading_prepared(allowed, MoveGeometry(w.moves_m, w.step_m, w.radius_m), t, x, y, gx, gy, taxi,
-                                      stop, 0)  # fmt: skip
+                                      stop, 0, np.empty(NUM_HEADINGS))  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -413,16 +416,16 @@ def prepare_moves(moves_m: np.ndarray, t: TableArrays, x: float, y: float, taxi:
 @njit(cache=True, inline="always")
 def _progress_heading_prepared(
     allowed: np.ndarray, w: MoveGeometry, t: TableArrays, x: float, y: float, gx: float, gy: float, taxi: Corners,
-    stop: Corners, j: int,
+    stop: Corners, j: int, bounds: np.ndarray,
 ) -> int:  # fmt: skip
     """:func:`_progress_heading`, its look-ups prepared: the taxi's moves in ``taxi`` (:func:`prepare_moves`), the
-    stop (gx, gy) in slot j of ``stop``.
+    stop (gx, gy) in slot j of ``stop``; ``bounds`` [16] is scratch (each move's bound, computed once).
 
     A move costs at least ``step_m`` + its end's straight-line distance to the stop (:func:`_move_bound`; the table
     distance never undercuts the straight line), so the move with the least bound is costed first and a move
     whose bound cannot beat the best so far is never looked up: the same heading as costing all 16 in order, for
     a few look-ups instead of 16."""
-    first = _least_bound_move(allowed, w, x, y, gx, gy)
+    first = _least_bound_move(allowed, w, x, y, gx, gy, bounds)
     if first < 0:
         return -1
     best, best_cost = first, _move_cost(w, t, x, y, first, gx, gy, taxi, stop, j)
@@ -431,7 +434,7 @@ def _progress_heading_prepared(
     for h in range(NUM_HEADINGS):
         if not allowed[h] or h == first:
             continue
-        bound = _move_bound(w, x, y, h, gx, gy)
+        bound = bounds[h]
         if bound > best_cost or (bound == best_cost and h > best):
             continue  # its cost is >= bound: it cannot win, not even a tie
         cost = _move_cost(w, t, x, y, h, gx, gy, taxi, stop, j)
@@ -441,12 +444,16 @@ def _progress_heading_prepared(
 
 
 @njit(cache=True, inline="always")
-def _least_bound_move(allowed: np.ndarray, w: MoveGeometry, x: float, y: float, gx: float, gy: float) -> int:
-    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed."""
+def _least_bound_move(
+    allowed: np.ndarray, w: MoveGeometry, x: float, y: float, gx: float, gy: float, bounds: np.ndarray
+) -> int:
+    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed. Each
+    allowed move's bound goes into ``bounds``."""
     first, first_bound = -1, math.inf
     for h in range(NUM_HEADINGS):
         if allowed[h]:
             bound = _move_bound(w, x, y, h, gx, gy)
+            bounds[h] = bound
             if bound < first_bound:
                 first, first_bound = h, bound
     return first
