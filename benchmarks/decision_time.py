@@ -3,7 +3,10 @@
 A call is what a deployed planner does every step: normalise the observation, run the network, take the
 greedy heading (``GreedyPolicy.__call__``), for a batch of taxis at once. Observations come from real episodes of
 the policy's own layout (Berlin instances, random demand), and the policy's first calls (allocations) are not
-timed. Run on one core, with the shipped Berlin generalist or any checkpoint:
+timed. The observation itself (the stop features and, for the look-ahead policy, ``heading_lookahead``) is built by
+the env's step, outside the call: it is timed apart (``Observer.observe`` inside each step), and the last column adds
+the two, what a deployed planner spends per decision. Run on one core, with the shipped Berlin generalist or any
+checkpoint:
 
     OMP_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/decision_time.py
     OMP_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/decision_time.py --checkpoint runs/x/best.pt
@@ -12,6 +15,7 @@ timed. Run on one core, with the shipped Berlin generalist or any checkpoint:
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +25,7 @@ import tyro
 
 from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.types import FleetState
 from uamfleet.zoo import pretrained_path
 from uamfleet.rl.policy import load_policy
 
@@ -42,25 +47,52 @@ def main(args: Args) -> list[dict[str, float]]:
     assert policy.trained_on is not None
     print(f"policy: {path} ({sum(p.numel() for p in policy.net.parameters()):,} parameters), "
           f"torch {torch.__version__}, {args.threads} thread(s)")  # fmt: skip
-    print(f"{'taxis per call':>15} {'p50 ms/call':>12} {'p95 ms/call':>12} {'p50 ms/taxi':>12}")
+    print(f"{'taxis per call':>15} {'p50 ms/call':>12} {'p95 ms/call':>12} {'p50 ms/taxi':>12} "
+          f"{'p50 ms/obs':>11} {'p50 obs+call':>13}")  # fmt: skip
     rows = []
     for batch in args.batch:
         cfg = policy.layout(make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis))
         env = VectorEnv(cfg, num_envs=batch)
+        observe_times: list[float] = []
+        env.observer.observe = _timed(env.observer.observe, observe_times)  # type: ignore[method-assign]
         obs, _ = env.reset(seed=0)
-        times = []
+        times, obs_times = [], []
         for i in range(args.calls + 10):
             start = time.perf_counter()
             actions = policy(obs)
             if i >= 10:
                 times.append(time.perf_counter() - start)
+            before = len(observe_times)
             obs, *_ = env.step(actions)
+            if i >= 9:  # the observation the next (timed) call decides on, an episode's first one included
+                obs_times.append(sum(observe_times[before:]))
         ms = 1000 * np.array(times)
+        obs_ms = 1000 * np.array(obs_times[: len(times)])
+        both_ms = ms + obs_ms
         taxis = batch * cfg.num_taxis
-        row = {"taxis": taxis, "p50_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95))}
+        row = {
+            "taxis": taxis,
+            "p50_ms": float(np.median(ms)),
+            "p95_ms": float(np.percentile(ms, 95)),
+            "p50_observe_ms": float(np.median(obs_ms)),
+            "p50_observe_and_call_ms": float(np.median(both_ms)),
+        }
         rows.append(row)
-        print(f"{taxis:>15} {row['p50_ms']:>12.3f} {row['p95_ms']:>12.3f} {row['p50_ms'] / taxis:>12.3f}")
+        print(f"{taxis:>15} {row['p50_ms']:>12.3f} {row['p95_ms']:>12.3f} {row['p50_ms'] / taxis:>12.3f} "
+              f"{row['p50_observe_ms']:>11.3f} {row['p50_observe_and_call_ms']:>13.3f}")  # fmt: skip
     return rows
+
+
+def _timed(observe: Callable[[FleetState], dict[str, np.ndarray]], into: list[float]):  # type: ignore[no-untyped-def]
+    """``observe`` that appends its wall-clock seconds to ``into``."""
+
+    def timed(state: FleetState) -> dict[str, np.ndarray]:
+        start = time.perf_counter()
+        out = observe(state)
+        into.append(time.perf_counter() - start)
+        return out
+
+    return timed
 
 
 if __name__ == "__main__":

@@ -8,10 +8,16 @@ Part 2 takes the states the observer hands the stop-feature kernels during such 
 kernels' per-episode caches as they were at that moment) and times, on a fresh copy of each, the kernels whole
 (``stop_features``, ``stop_rivals``) and their parts (which overlap: each runs what it needs of the others):
 the tour rests (``_update_rests``: the subset DP, or beyond ``MAX_EXACT_STOPS`` pending stops the nearest-stop
-order's, when a taxi's stops or seats changed), the per-taxi look-ups (to each stop and after each of the 16
-moves, ``_progress_heading``), and the rivals/claims. Run on one core:
+order's, when a taxi's stops or seats changed), the rows (the whole less the rests: the per-taxi look-ups to each
+stop and after the moves, ``_progress_heading``), and the rivals/claims. With ``--lookahead``, part 1 also times the
+step that observes ``heading_lookahead``, and part 2 its kernel (on the states as ``stop_features`` leaves them:
+their kept tours up to date). Run on one core:
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py \
+        --lookahead --cases berlin_instances:64:1 berlin_random:64:1 berlin_random:64:4
+
+Against another checkout (before/after in one session): ``benchmarks/run_against.py``.
 """
 
 from __future__ import annotations
@@ -26,12 +32,13 @@ from numba import njit
 
 import uamfleet
 from uamfleet.env import kernels, tours
-from uamfleet.env.kernels import _progress_heading, _update_rests, row_stop
+from uamfleet.env.lookahead import heading_lookahead
+from uamfleet.env.kernels import _update_rests
 from uamfleet.env.observer import Observer
 from uamfleet.env.world import WorldArrays
 from uamfleet.paths import table_for
-from uamfleet.paths.distance_table import TableArrays, table_distance
-from uamfleet.types import DELIVERED, HIDDEN, FleetState
+from uamfleet.paths.distance_table import TableArrays
+from uamfleet.types import NUM_HEADINGS, FleetState
 
 
 @dataclass
@@ -45,6 +52,8 @@ class Args:
     """states kept for the kernel breakdown (one every few steps)"""
     every: int = 3
     """keep one state every this many steps"""
+    lookahead: bool = False
+    """with the heading look-ahead (EnvConfig.heading_lookahead) too: its step rate and its kernel's parts"""
 
 
 def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -52,9 +61,12 @@ def _allowed_actions(mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.argmax(scores, axis=-1)
 
 
-def make_env(scenario: str, num_envs: int, num_taxis: int, stop_features: bool) -> uamfleet.VectorEnv:
+def make_env(
+    scenario: str, num_envs: int, num_taxis: int, stop_features: bool, lookahead: bool = False
+) -> uamfleet.VectorEnv:
     off = {} if stop_features else {"stop_rivals": False, "stop_claims": False}  # the fleet presets' extras too
-    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, stop_features=stop_features, **off)
+    env = uamfleet.vector_env(scenario, num_envs=num_envs, num_taxis=num_taxis, stop_features=stop_features,
+                              heading_lookahead=lookahead, **off)  # fmt: skip
     if stop_features:
         table_for(env.world).fill()
     return env
@@ -117,29 +129,6 @@ def tour_rests_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
     return computed
 
 
-@njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
-def lookups_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
-    """Each taxi's table look-ups towards its actionable stops: to the stop, and after each allowed move
-    (:func:`kernels._progress_heading`); returns the number of rows."""
-    rows = 0
-    total = 0.0
-    for e in range(s.free_seats.shape[0]):
-        for a in range(s.free_seats.shape[1]):
-            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-            for p in range(s.pax_status.shape[1]):
-                status = s.pax_status[e, p]
-                if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
-                    continue
-                point = row_stop(s, e, a, p)
-                if point < 0:
-                    continue
-                g = s.pax_origin_m[e, p] if point % 2 == 0 else s.pax_dest_m[e, p]
-                total += table_distance(t, x, y, g[0], g[1])
-                total += _progress_heading(s.action_mask[e, a], w, t, x, y, g[0], g[1])
-                rows += 1
-    return rows if not math.isnan(total) else -rows
-
-
 def _time(kernel, states: list[FleetState], *args) -> float:  # type: ignore[no-untyped-def]
     """Thread CPU seconds of ``kernel(copy, *args)`` summed over fresh copies of ``states``."""
     kernel(states[0].copy(), *args)  # compile
@@ -153,7 +142,7 @@ def _time(kernel, states: list[FleetState], *args) -> float:  # type: ignore[no-
 
 
 def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
-    env = make_env(scenario, num_envs, num_taxis, True)
+    env = make_env(scenario, num_envs, num_taxis, True, args.lookahead)
     states = snapshots(env, args.snapshots, args.every)
     table = table_for(env.world)
     w = env.world.arrays
@@ -161,10 +150,12 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     layout = env.observer.layout
     fields = ("stop_paths", "stop_heading_mask")
     paths = [np.empty((num_envs, num_taxis, *layout[k].shape), layout[k].dtype) for k in fields]
+    whole = _time(kernels.stop_features, states, w, table.arrays, *paths)
+    rests = _time(tour_rests_only, states, w, table.arrays)
     rows: list[tuple[str, float]] = [
-        ("stop_features (whole)", _time(kernels.stop_features, states, w, table.arrays, *paths)),
-        ("  tour rests (_update_rests)", _time(tour_rests_only, states, w, table.arrays)),
-        ("  look-ups: to stop + 16 moves", _time(lookups_only, states, w, table.arrays)),
+        ("stop_features (whole)", whole),
+        ("  tour rests (_update_rests)", rests),
+        ("  rows: look-ups (whole - rests)", whole - rests),
     ]
     if "stop_rivals" in layout:
         rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)
@@ -172,6 +163,12 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
         claims = np.empty((num_envs, num_taxis, *shape), np.int8) if shape else np.zeros((0, 0, 0, 0), np.int8)
         rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.arrays,
                                                      rivals, claims)))  # fmt: skip
+    if args.lookahead:
+        after = [s.copy() for s in states]  # the kept tours as stop_features leaves them (not timed)
+        for s in after:
+            kernels.stop_features(s, w, table.arrays, *paths)
+        look = np.empty((num_envs, num_taxis, NUM_HEADINGS), np.float32)
+        rows.append(("heading_lookahead (whole)", _time(heading_lookahead, after, w, table.arrays, look)))
     exact = 0
     for s in states:
         for e in range(num_envs):
@@ -189,13 +186,16 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
 
 def main(args: Args) -> None:
     cases = [(name, int(e), int(a)) for name, e, a in (c.split(":") for c in args.cases)]
-    print("env.step, agent-steps per second of thread CPU time (stop features off | on)")
-    print(f"{'scenario':<18} {'E':>4} {'A':>3} {'core':>12} {'+ stop feat.':>13} {'ratio':>6}")
+    print("env.step, agent-steps per second of thread CPU time (stop features off | on | on with the look-ahead)")
+    print(f"{'scenario':<18} {'E':>4} {'A':>3} {'core':>12} {'+ stop feat.':>13} {'ratio':>6}"
+          + (f" {'+ look-ahead':>13}" if args.lookahead else ""))  # fmt: skip
     for scenario, num_envs, num_taxis in cases:
         core = step_rate(make_env(scenario, num_envs, num_taxis, False), args.seconds)
         full = step_rate(make_env(scenario, num_envs, num_taxis, True), args.seconds)
-        print(f"{scenario:<18} {num_envs:>4} {num_taxis:>3} {core:>12,.0f} {full:>13,.0f} {core / full:>5.1f}x",
-              flush=True)  # fmt: skip
+        line = f"{scenario:<18} {num_envs:>4} {num_taxis:>3} {core:>12,.0f} {full:>13,.0f} {core / full:>5.1f}x"
+        if args.lookahead:
+            line += f" {step_rate(make_env(scenario, num_envs, num_taxis, True, True), args.seconds):>13,.0f}"
+        print(line, flush=True)
     for scenario, num_envs, num_taxis in cases:
         breakdown(scenario, num_envs, num_taxis, args)
 

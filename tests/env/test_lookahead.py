@@ -3,13 +3,20 @@ copy of the env over the requests known so far, costed as the move plus the shor
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from numba import njit
 
 from uamfleet.baselines.step_planner import released_only
 from uamfleet.config import ConfigError, make_config
+from uamfleet.env import lookahead
+from uamfleet.env.arrays import WorldArrays
+from uamfleet.env.kernels import StopRows, row_stop
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.types import LOOKAHEAD_CLIP, NUM_HEADINGS, STOP_PATH_TO_STOP, STOP_TOUR_VIA_STOP
+from uamfleet.paths.distance_table import TableArrays
+from uamfleet.types import LOOKAHEAD_CLIP, NUM_HEADINGS, STOP_PATH_TO_STOP, STOP_TOUR_VIA_STOP, FleetState
 
 
 def _expected_lookahead(env: VectorEnv, e: int, scratch: VectorEnv) -> tuple[np.ndarray, bool]:
@@ -63,3 +70,101 @@ def test_lookahead_is_the_move_plus_the_tour_the_step_leaves() -> None:
 def test_lookahead_needs_the_stop_features() -> None:
     with pytest.raises(ConfigError, match="heading_lookahead=True needs stop_features=True"):
         make_config("berlin_p4", heading_lookahead=True)
+
+
+@njit
+def _costs_both_ways(s: FleetState, w: WorldArrays, t: TableArrays, fast: np.ndarray, plain: np.ndarray) -> np.ndarray:
+    """fast[e, a] = :func:`lookahead._heading_costs` (bounded look-ups, shared served sets), plain[e, a] = the same
+    costs without any shortcut: every heading tested for serving, its tours computed afresh, every offered stop
+    looked up. Returns counts [3]: headings that reused another heading's served set, taxis where no move can serve
+    (the serving test skipped), look-ups a bound can skip."""
+    num_envs, num_taxis = s.free_seats.shape
+    num_pax = s.pax_status.shape[1]
+    pts = np.empty((2 * num_pax, 2))
+    scratch = lookahead._new_scratch(num_pax)
+    rests, undo = np.empty(2 * num_pax), np.empty(num_pax, np.int64)
+    counts = np.zeros(3, np.int64)
+    for e in range(num_envs):
+        for p in range(num_pax):
+            pts[2 * p], pts[2 * p + 1] = s.pax_origin_m[e, p], s.pax_dest_m[e, p]
+        for a in range(num_taxis):
+            fast[e, a] = np.nan
+            plain[e, a] = np.nan
+            if lookahead._heading_costs(s, w, t, e, a, pts, scratch, fast[e, a]) != 1:
+                continue
+            x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+            rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
+            sets, any_served = 0, False
+            for h in range(NUM_HEADINGS):
+                plain[e, a, h] = math.inf
+                if not s.action_mask[e, a, h]:
+                    continue
+                qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+                if lookahead._serve_at(rows, a, pts, qx, qy, w.radius_m + 1e-9, undo):
+                    any_served = True
+                    sets += 1
+                    found = lookahead._rests_after_serving(s, e, a, pts, t, rests)
+                    tour = lookahead._tour_from(rows, a, qx, qy, pts, rests, t) if found == 1 else math.nan
+                    lookahead._unserve(rows, a, undo)
+                else:
+                    tour = lookahead._tour_from(rows, a, qx, qy, pts, s.stop_tour_m[e, a], t)
+                    counts[2] += _beaten_by_bound(s, e, a, qx, qy, pts, tour)
+                plain[e, a, h] = w.step_m + tour
+            counts[0] += sets - _distinct_sets(s, w, rows, pts, e, a, undo)
+            counts[1] += not any_served and not lookahead._stop_within(
+                rows, a, x, y, pts, w.radius_m + 1e-9 + lookahead._longest_move(w.moves_m) + lookahead.SURE_M
+            )
+    return counts
+
+
+@njit
+def _beaten_by_bound(s: FleetState, e: int, a: int, qx: float, qy: float, pts: np.ndarray, tour: float) -> int:
+    """How many offered stops' straight line from (qx, qy) plus their rest is at least the tour (look-ups a bound
+    can skip)."""
+    count = 0
+    for p in range(s.pax_status.shape[1]):
+        point = row_stop(s, e, a, p) if s.pax_exists[e, p] else -1
+        if point >= 0 and math.hypot(qx - pts[point, 0], qy - pts[point, 1]) + s.stop_tour_m[e, a, point] > tour:
+            count += 1
+    return count
+
+
+@njit
+def _distinct_sets(
+    s: FleetState, w: WorldArrays, rows: StopRows, pts: np.ndarray, e: int, a: int, undo: np.ndarray
+) -> int:
+    seen = np.empty((NUM_HEADINGS, undo.size), np.int64)
+    count = 0
+    for h in range(NUM_HEADINGS):
+        qx, qy = s.pos_m[e, a, 0] + w.moves_m[h, 0], s.pos_m[e, a, 1] + w.moves_m[h, 1]
+        if s.action_mask[e, a, h] and lookahead._serve_at(rows, a, pts, qx, qy, w.radius_m + 1e-9, undo):
+            lookahead._unserve(rows, a, undo)
+            if lookahead._matching_set(undo, seen, count) < 0:
+                seen[count] = undo
+                count += 1
+    return count
+
+
+@pytest.mark.parametrize(("scenario", "num_taxis"), [("berlin_instances", 1), ("berlin_random", 1),
+                                                     ("berlin_random", 4)])  # fmt: skip
+def test_the_shortcuts_change_no_cost(scenario: str, num_taxis: int) -> None:
+    """The look-ahead's bounded look-ups and shared served sets give every heading's cost bit for bit as computing
+    each afresh does, on scenes drawn from rollouts that serve stops (and the shortcuts are exercised)."""
+    cfg = make_config(scenario, num_taxis=num_taxis, stop_features=True, heading_lookahead=True)
+    env = VectorEnv(cfg, num_envs=8)
+    obs, _ = env.reset(seed=11)
+    rng = np.random.default_rng(2)
+    fast, plain = np.empty((8, num_taxis, NUM_HEADINGS)), np.empty((8, num_taxis, NUM_HEADINGS))
+    table = env.observer.table
+    assert table is not None
+    counts = np.zeros(3, np.int64)
+    for _ in range(60):
+        state = env.state.copy()  # the state heading_lookahead saw, its kept tours up to date
+        counts += _costs_both_ways(state, env.world.arrays, table.arrays, fast, plain)
+        assert np.array_equal(fast, plain, equal_nan=True)
+        allowed = obs["action_mask"] > 0
+        best = np.where(allowed, obs["heading_lookahead"], np.inf).argmin(-1)
+        random = np.where(allowed, rng.random(allowed.shape), -1.0).argmax(-1)
+        obs, *_ = env.step(np.where(rng.random(best.shape) < 0.8, best, random))
+    shared, skipped_serving, skippable = counts
+    assert shared > 0 and skipped_serving > 0 and skippable > 0, counts

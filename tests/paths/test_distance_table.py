@@ -7,11 +7,13 @@ import math
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy.sparse import csgraph
 
 import uamfleet
 from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields, DistanceTable, graph_for, table_for
+from uamfleet.paths import distance_table as dt
 from uamfleet.paths.distance_table import table_graph
 from uamfleet.paths.grid_graph import GridGraph
 
@@ -157,3 +159,34 @@ def test_a_fine_raster_gets_a_coarser_table_graph(feasibility: str) -> None:
 def test_the_berlin_table_uses_the_exact_metrics_graph() -> None:
     world = World(uamfleet.make_config("berlin_random"))
     assert table_for(world).graph is graph_for(world)
+
+
+def test_prepared_lookups_equal_the_plain_lookup_bit_for_bit() -> None:
+    """corner_distance from prepared points is table_distance exactly: on and between block centres, beyond the
+    outer centres, across a wall (unreachable corner pairs and points), towards rows not computed yet (NaN)."""
+    feasible = np.ones((24, 24), bool)
+    feasible[:, 8:12] = False  # a full wall y in [200, 300): two components
+    table = DistanceTable(GridGraph(feasible, RES), BLOCK, (6, 6))
+    table.ensure(np.array([[510.0, 190.0], [50.0, 550.0], [350.0, 420.0]]))  # some rows only: others read NaN
+    rng = np.random.default_rng(4)
+    grid = np.array([-30.0, 0.0, 50.0, 150.0, 250.0, 350.0, 450.0, 550.0, 600.0, 640.0])  # centres, edges, beyond
+    pts = np.concatenate([rng.uniform(-50, 650, (60, 2)), rng.choice(grid, (30, 2)), [[510.0, 190.0]]])
+    corners = dt.new_corners(len(pts))
+    for k, (x, y) in enumerate(pts):
+        prepare_corners_py(table.arrays, x, y, corners, k)
+    assert set(corners.used.tolist()) == {1, 2, 4}  # on a centre, on a centre line, between centres
+    got = np.array([[_corner(table.arrays, corners, i, j, *a, *b) for j, b in enumerate(pts)]
+                    for i, a in enumerate(pts)])  # fmt: skip
+    want = np.array([[dt.table_distance(table.arrays, *a, *b) for b in pts] for a in pts])
+    assert np.isnan(want).any() and np.isinf(want).any() and np.isfinite(want).any()
+    np.testing.assert_array_equal(got, want)
+
+
+@njit
+def prepare_corners_py(t: dt.TableArrays, x: float, y: float, c: dt.Corners, k: int) -> None:
+    dt.prepare_corners(t, x, y, c, k)  # inline-only in the kernels: called from here through a compiled wrapper
+
+
+@njit
+def _corner(t: dt.TableArrays, c: dt.Corners, i: int, j: int, ax: float, ay: float, bx: float, by: float) -> float:
+    return dt.corner_distance(t, c, i, c, j, ax, ay, bx, by)

@@ -15,6 +15,7 @@ batch size. ``cache=True`` stores the machine code next to this file, so only th
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -22,7 +23,13 @@ from numba import njit
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
 from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
 from uamfleet.env.tours import MAX_EXACT_STOPS, _nearest_stop_tour, _pending_key, _shortest_rests, _stop_distance
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import (
+    Corners,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+)
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -198,6 +205,26 @@ def _patches(s: FleetState, w: WorldArrays, o_sinr: np.ndarray, o_visit: np.ndar
                     visit_flat[out + j] = min(np.float32(visits_flat[n * cells + cell + j]) / steps, one)
 
 
+class StopRows(NamedTuple):
+    """What :func:`_stop_rows` reads of env e's state for taxi a: views of ``pax_exists[e]``, ``pax_status[e]``,
+    ``pax_taxi[e]``, ``free_seats[e]`` and the taxi's kept tour rests ``stop_tour_m[e, a]``."""
+
+    exists: np.ndarray  # [P]
+    statuses: np.ndarray  # [P]
+    carriers: np.ndarray  # [P]
+    free_seats: np.ndarray  # [A]
+    tour_rests: np.ndarray  # [2P]
+
+
+class MoveGeometry(NamedTuple):
+    """What the move costs read of :class:`WorldArrays`: passed in its place in per-row and per-move calls, which
+    would reference-count each of the world's arrays on every call."""
+
+    moves_m: np.ndarray  # [NUM_HEADINGS, 2]
+    step_m: float
+    radius_m: float
+
+
 @njit(cache=True)
 def stop_features(
     s: FleetState,
@@ -224,65 +251,86 @@ def stop_features(
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
+    taxi, stop = new_corners(NUM_HEADINGS + 1), new_corners(1)  # look-up scratch (:func:`_stop_rows`)
+    moves = MoveGeometry(w.moves_m, w.step_m, w.radius_m)
+    bounds = np.empty(NUM_HEADINGS)  # scratch of the progress headings
     for e in range(num_envs):
         memo = s.stop_pair_m[e]  # [2P, 2P] kept across steps: the stops never move within an episode
         for p in range(num_pax):
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            if _update_rests(s, e, a, memo, pts, t) < 0:
+            key = _pending_key(s.pax_exists, s.pax_status, s.pax_taxi, s.free_seats, e, a)
+            if s.stop_tour_key[e, a] != key and _update_rests(s, e, a, memo, pts, t) < 0:  # kept while valid
                 return False
-            if not _stop_rows(s, w, e, a, memo, pts, t, o_paths, o_heading):
+            rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
+            allowed = s.action_mask[e, a]
+            if not _stop_rows(rows, moves, w.side_m, a, s.pos_m[e, a], allowed, memo, pts, t, o_paths[e, a],
+                              o_heading[e, a], taxi, stop, bounds):  # fmt: skip
                 return False
     return True
 
 
 @njit(cache=True)
 def _stop_rows(
-    s: FleetState, w: WorldArrays, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
-    o_paths: np.ndarray, o_heading: np.ndarray,
+    rows: StopRows, moves: MoveGeometry, side: float, a: int, pos: np.ndarray, allowed: np.ndarray, memo: np.ndarray,
+    pts: np.ndarray, t: TableArrays, o_paths: np.ndarray, o_heading: np.ndarray, taxi: Corners, stop: Corners,
+    bounds: np.ndarray,
 ) -> bool:  # fmt: skip
-    """Taxi a's stop-feature rows (zeros for a passenger hidden, absent or delivered; only the ride for a row that
-    is not actionable); False when a table row it reads is not computed yet. One call per taxi, not per row: a
-    call passes (and reference-counts) every array of the state."""
-    side = w.side_m
-    x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
-    for p in range(s.pax_status.shape[1]):
-        o_heading[e, a, p, :] = 0
-        o_paths[e, a, p, STOP_PATH_TO_STOP] = 0.0
-        o_paths[e, a, p, STOP_RIDE_PATH] = 0.0
-        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = 0.0
-        status = s.pax_status[e, p]
-        if not s.pax_exists[e, p] or status == HIDDEN or status == DELIVERED:
+    """Taxi a's stop-feature rows (``o_paths`` [P, ...], ``o_heading`` [P, 16]: zeros for a passenger hidden,
+    absent or delivered; only the ride for a row that is not actionable); False when a table row it reads is not
+    computed yet. One call per taxi, not per row, and with the arrays it reads rather than the state: a call that
+    passes the state reference-counts each of its ~30 arrays. ``taxi`` and ``stop`` are scratch for the look-ups
+    (:func:`prepare_moves`): the taxi's position and move ends, and the row's stop, are each prepared once;
+    ``bounds`` for the progress heading's (:func:`_progress_heading_prepared`)."""
+    x, y = pos[0], pos[1]
+    prepared = False
+    for p in range(rows.statuses.size):
+        o_heading[p, :] = 0
+        o_paths[p, STOP_PATH_TO_STOP] = 0.0
+        o_paths[p, STOP_RIDE_PATH] = 0.0
+        o_paths[p, STOP_TOUR_VIA_STOP] = 0.0
+        status = rows.statuses[p]
+        if not rows.exists[p] or status == HIDDEN or status == DELIVERED:
             continue
         trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
         if math.isnan(trip):
             return False
-        o_paths[e, a, p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
-        point = row_stop(s, e, a, p)
+        o_paths[p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
+        point = stop_of(status, rows.carriers[p], rows.free_seats[a], a, p)
         if point < 0:
             continue
         gx, gy = pts[point, 0], pts[point, 1]
-        here = table_distance(t, x, y, gx, gy)
+        if not prepared:
+            prepare_moves(moves.moves_m, t, x, y, taxi)
+            prepared = True
+        prepare_corners(t, gx, gy, stop, 0)
+        here = corner_distance(t, taxi, NUM_HEADINGS, stop, 0, x, y, gx, gy)
         if math.isnan(here):
             return False
-        o_paths[e, a, p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
-        rest = s.stop_tour_m[e, a, point]
-        o_paths[e, a, p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
-        best = _progress_heading(s.action_mask[e, a], w, t, x, y, gx, gy)  # rows read above
+        o_paths[p, STOP_PATH_TO_STOP] = min(here / side, STOP_PATH_CLIP)
+        rest = rows.tour_rests[point]
+        o_paths[p, STOP_TOUR_VIA_STOP] = min((here + rest) / side, STOP_PATH_CLIP)
+        best = _progress_heading_prepared(allowed, moves, t, x, y, gx, gy, taxi, stop, 0, bounds)  # rows read above
         if best >= 0:
-            o_heading[e, a, p, best] = 1
+            o_heading[p, best] = 1
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
     """The stop point row p offers taxi a (its *actionable* stop; the shaping potential's stops too): its
     destination (2p + 1) while p rides in a, its origin (2p) while p waits and a has a free seat, else -1."""
-    status = s.pax_status[e, p]
-    if status == ON_BOARD and s.pax_taxi[e, p] == a:
+    return stop_of(s.pax_status[e, p], s.pax_taxi[e, p], s.free_seats[e, a], a, p)
+
+
+@njit(cache=True, inline="always")
+def stop_of(status: int, carrier: int, free_seats: int, a: int, p: int) -> int:
+    """:func:`row_stop` from row p's status and carrier and taxi a's free seats. Hot loops call this rather than
+    :func:`row_stop`: a call that passes the state, even inlined, reference-counts each of its ~30 arrays (~0.25 µs)."""
+    if status == ON_BOARD and carrier == a:
         return 2 * p + 1
-    if status == WAITING and s.free_seats[e, a] > 0:
+    if status == WAITING and free_seats > 0:
         return 2 * p
     return -1
 
@@ -295,7 +343,7 @@ def _update_rests(
     :data:`MAX_EXACT_STOPS` pending stops the nearest-stop order's (:func:`_nearest_stop_tour`) of every stop
     the taxi's rows offer. Both change only when a stop or seat does, so they are kept in the state under the key
     of what they were computed for. 1: the rests are in the state; -1: a table row is missing."""
-    key = _pending_key(s, e, a)
+    key = _pending_key(s.pax_exists, s.pax_status, s.pax_taxi, s.free_seats, e, a)
     if s.stop_tour_key[e, a] == key:
         return 1
     found = _shortest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a])
@@ -347,44 +395,72 @@ def _progress_heading(
 ) -> int:
     """The allowed heading from (x, y) with the least move + table distance left to (gx, gy) (the move alone when it
     ends within the pick-up radius), ties to the lowest heading; -1 when none is allowed or reachable. The stop's
-    table rows must be computed (the caller has read them).
+    table rows must be computed (the caller has read them). Prepares its own look-ups; a kernel that has them
+    calls :func:`_progress_heading_prepared`."""
+    taxi, stop = new_corners(NUM_HEADINGS + 1), new_corners(1)
+    prepare_moves(w.moves_m, t, x, y, taxi)
+    prepare_corners(t, gx, gy, stop, 0)
+    return _progress_heading_prepared(allowed, MoveGeometry(w.moves_m, w.step_m, w.radius_m), t, x, y, gx, gy, taxi,
+                                      stop, 0, np.empty(NUM_HEADINGS))  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def prepare_moves(moves_m: np.ndarray, t: TableArrays, x: float, y: float, taxi: Corners) -> None:
+    """Prepare the look-ups from the ends of the 16 moves from (x, y) (slots 0-15, the same float operations as the
+    moves' costs) and from (x, y) itself (slot 16) in ``taxi`` (:func:`uamfleet.paths.distance_table.Corners`)."""
+    for h in range(NUM_HEADINGS):
+        prepare_corners(t, x + moves_m[h, 0], y + moves_m[h, 1], taxi, h)
+    prepare_corners(t, x, y, taxi, NUM_HEADINGS)
+
+
+@njit(cache=True, inline="always")
+def _progress_heading_prepared(
+    allowed: np.ndarray, w: MoveGeometry, t: TableArrays, x: float, y: float, gx: float, gy: float, taxi: Corners,
+    stop: Corners, j: int, bounds: np.ndarray,
+) -> int:  # fmt: skip
+    """:func:`_progress_heading`, its look-ups prepared: the taxi's moves in ``taxi`` (:func:`prepare_moves`), the
+    stop (gx, gy) in slot j of ``stop``; ``bounds`` [16] is scratch (each move's bound, computed once).
 
     A move costs at least ``step_m`` + its end's straight-line distance to the stop (:func:`_move_bound`; the table
     distance never undercuts the straight line), so the move with the least bound is costed first and a move
     whose bound cannot beat the best so far is never looked up: the same heading as costing all 16 in order, for
     a few look-ups instead of 16."""
-    first = _least_bound_move(allowed, w, x, y, gx, gy)
+    first = _least_bound_move(allowed, w, x, y, gx, gy, bounds)
     if first < 0:
         return -1
-    best, best_cost = first, _move_cost(w, t, x, y, h=first, gx=gx, gy=gy)
+    best, best_cost = first, _move_cost(w, t, x, y, first, gx, gy, taxi, stop, j)
     if best_cost == math.inf:
         best = -1
     for h in range(NUM_HEADINGS):
         if not allowed[h] or h == first:
             continue
-        bound = _move_bound(w, x, y, h, gx, gy)
+        bound = bounds[h]
         if bound > best_cost or (bound == best_cost and h > best):
             continue  # its cost is >= bound: it cannot win, not even a tie
-        cost = _move_cost(w, t, x, y, h, gx, gy)
+        cost = _move_cost(w, t, x, y, h, gx, gy, taxi, stop, j)
         if cost < best_cost or (cost == best_cost and cost < math.inf and h < best):
             best, best_cost = h, cost
     return best
 
 
 @njit(cache=True, inline="always")
-def _least_bound_move(allowed: np.ndarray, w: WorldArrays, x: float, y: float, gx: float, gy: float) -> int:
-    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed."""
+def _least_bound_move(
+    allowed: np.ndarray, w: MoveGeometry, x: float, y: float, gx: float, gy: float, bounds: np.ndarray
+) -> int:
+    """The allowed heading of least :func:`_move_bound` (the lowest of equal ones); -1 when none is allowed. Each
+    allowed move's bound goes into ``bounds``."""
     first, first_bound = -1, math.inf
     for h in range(NUM_HEADINGS):
         if allowed[h]:
             bound = _move_bound(w, x, y, h, gx, gy)
+            bounds[h] = bound
             if bound < first_bound:
                 first, first_bound = h, bound
     return first
 
 
 @njit(cache=True, inline="always")
-def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
+def _move_bound(w: MoveGeometry, x: float, y: float, h: int, gx: float, gy: float) -> float:
     """A lower bound of :func:`_move_cost`, in the same float operations: the move plus the straight line left."""
     qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
     if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
@@ -394,13 +470,16 @@ def _move_bound(w: WorldArrays, x: float, y: float, h: int, gx: float, gy: float
 
 
 @njit(cache=True, inline="always")
-def _move_cost(w: WorldArrays, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float) -> float:
+def _move_cost(
+    w: MoveGeometry, t: TableArrays, x: float, y: float, h: int, gx: float, gy: float, taxi: Corners, stop: Corners,
+    j: int,
+) -> float:  # fmt: skip
     """Heading h's move plus the table distance left from its end to (gx, gy); the move alone within the
-    pick-up radius."""
+    pick-up radius (look-ups prepared: :func:`_progress_heading_prepared`)."""
     qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
     if (qx - gx) ** 2 + (qy - gy) ** 2 <= w.radius_m * w.radius_m:
         return w.step_m
-    return w.step_m + table_distance(t, qx, qy, gx, gy)
+    return w.step_m + corner_distance(t, taxi, h, stop, j, qx, qy, gx, gy)
 
 
 @njit(cache=True)
@@ -429,15 +508,20 @@ def stop_rivals(
     side = w.side_m
     claims = o_claims.shape[0] > 0
     dist = np.empty((num_taxis, num_pax))  # [A, P] taxi -> waiting origin, inf for other rows
+    taxis, origin = new_corners(num_taxis), new_corners(1)  # look-ups prepared once per point
     for e in range(num_envs):
+        for b in range(num_taxis):
+            prepare_corners(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], taxis, b)
         for p in range(num_pax):
             waiting = s.pax_exists[e, p] and s.pax_status[e, p] == WAITING
             ox, oy = s.pax_origin_m[e, p, 0], s.pax_origin_m[e, p, 1]
+            if waiting:
+                prepare_corners(t, ox, oy, origin, 0)
             for b in range(num_taxis):
                 if not waiting:
                     dist[b, p] = math.inf
                     continue
-                d = table_distance(t, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
+                d = corner_distance(t, taxis, b, origin, 0, s.pos_m[e, b, 0], s.pos_m[e, b, 1], ox, oy)
                 if math.isnan(d):
                     return False
                 dist[b, p] = d

@@ -18,14 +18,22 @@ the stop's centre. A heading with value 0 here is as good as the best one-step c
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from uamfleet.env.arrays import WorldArrays
-from uamfleet.env.kernels import _nearest_rests, row_stop
+from uamfleet.env.kernels import StopRows, _nearest_rests, prepare_moves, stop_of
 from uamfleet.env.tours import _shortest_rests
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import (
+    Corners,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+    table_distance,
+)
 from uamfleet.types import DELIVERED, LOOKAHEAD_CLIP, NUM_HEADINGS, ON_BOARD, WAITING, FleetState
 
 
@@ -37,19 +45,46 @@ def heading_lookahead(s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
-    rests = np.empty(2 * num_pax)  # scratch: the tour rests after a move that serves a stop
-    undo = np.empty(num_pax, np.int64)  # scratch: what a hypothetical move served
+    scratch = _new_scratch(num_pax)
     cost = np.empty(NUM_HEADINGS)
     for e in range(num_envs):
         for p in range(num_pax):
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            found = _heading_costs(s, w, t, e, a, pts, rests, undo, cost)
+            found = _heading_costs(s, w, t, e, a, pts, scratch, cost)
             if found < 0:
                 return False
             _write_excess(s.action_mask[e, a], cost, found == 1, w.step_m, o_look[e, a])
     return True
+
+
+class _Scratch(NamedTuple):
+    """Work arrays of :func:`_heading_costs`, allocated once per call of :func:`heading_lookahead`."""
+
+    stops: np.ndarray  # [2P] the offered stop points, least straight-line bound first (:func:`_offered_by_bound`)
+    bound: np.ndarray  # [2P] their straight-line distance from the taxi plus their kept tour rest
+    undo: np.ndarray  # [P] what a hypothetical move served (:func:`_serve_at`)
+    served_undo: np.ndarray  # [16, P] each distinct served set met at this taxi (its undo record) ...
+    served_rests: np.ndarray  # [16, 2P] ... the tour rests after it ...
+    served_found: np.ndarray  # [16] ... and what computing them returned (1, 0: a table row missing)
+    moves: Corners  # the look-ups from the taxi's 16 move ends, prepared (:func:`uamfleet.env.kernels.prepare_moves`)
+    stop_corners: Corners  # ... and towards the offered stops, in the order of ``stops``
+
+
+@njit(cache=True)
+def _new_scratch(num_pax: int) -> _Scratch:
+    return _Scratch(
+        stops=np.empty(2 * num_pax, np.int64), bound=np.empty(2 * num_pax),
+        undo=np.empty(num_pax, np.int64), served_undo=np.empty((NUM_HEADINGS, num_pax), np.int64),
+        served_rests=np.empty((NUM_HEADINGS, 2 * num_pax)), served_found=np.empty(NUM_HEADINGS, np.int64),
+        moves=new_corners(NUM_HEADINGS + 1), stop_corners=new_corners(2 * num_pax),
+    )  # fmt: skip
+
+
+SURE_M = 1e-3
+"""Slack (metres) on the triangle inequality where a bound decides to skip work: float rounding on map coordinates
+is ~1e-12 m, so a skip it allows is also allowed exactly, and what is computed is the same as without the skip."""
 
 
 @njit(cache=True)
@@ -71,28 +106,48 @@ def _write_excess(allowed: np.ndarray, cost: np.ndarray, any_stop: bool, step_m:
 
 @njit(cache=True)
 def _heading_costs(
-    s: FleetState, w: WorldArrays, t: TableArrays, e: int, a: int, pts: np.ndarray, rests: np.ndarray,
-    undo: np.ndarray, cost: np.ndarray,
+    s: FleetState, w: WorldArrays, t: TableArrays, e: int, a: int, pts: np.ndarray, scratch: _Scratch,
+    cost: np.ndarray,
 ) -> int:  # fmt: skip
     """cost[h]: heading h's move plus the shortest tour from its end (module docstring), for the allowed headings.
-    Returns 1, 0 when taxi a has no stop to fly to (cost untouched), -1 when a table row is missing."""
-    if not _has_stop(s, e, a):
+    Returns 1, 0 when taxi a has no stop to fly to (cost untouched), -1 when a table row is missing.
+
+    Three shortcuts, none of which changes a number: a move that serves nothing leaves the kept rests, and the
+    tour from its end looks up only the stops whose straight-line bound can still win (:func:`_tour_from_bounded`);
+    moves are tested for serving only when some stop lies within reach of a move's end; the moves that serve the
+    same stops share one computation of the tours after them (the served state is the same)."""
+    # the rows as views, which the helpers (called per heading) take rather than the state: a call that passes the
+    # state reference-counts each of its ~30 arrays (~0.25 µs); _serve_at writes through them
+    rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
+    if not _has_stop(rows, a):
         return 0
-    memo = s.stop_pair_m[e]
     x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+    kept = rows.tour_rests
+    m = _offered_by_bound(rows, a, x, y, pts, kept, scratch.stops, scratch.bound)
+    prepare_moves(w.moves_m, t, x, y, scratch.moves)
+    for k in range(m):
+        prepare_corners(t, pts[scratch.stops[k], 0], pts[scratch.stops[k], 1], scratch.stop_corners, k)
+    reach = w.radius_m + 1e-9
+    may_serve = _stop_within(rows, a, x, y, pts, reach + _longest_move(w.moves_m) + SURE_M)
+    num_sets = 0  # distinct served sets met so far at this taxi
     for h in range(NUM_HEADINGS):
         cost[h] = math.inf
         if not s.action_mask[e, a, h]:
             continue
         qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
-        if _serve_at(s, e, a, qx, qy, w.radius_m + 1e-9, undo):  # the stops left after the move: tours from scratch
-            found = _shortest_rests(s, e, a, memo, pts, t, rests)
-            if found == -1:
-                found = 1 if _nearest_rests(s, e, a, memo, pts, t, rests) else 0
-            tour = _tour_from(s, e, a, qx, qy, pts, rests, t) if found == 1 else math.nan
-            _unserve(s, e, a, undo)
+        if may_serve and _serve_at(rows, a, pts, qx, qy, reach, scratch.undo):  # the stops left: their own tours
+            k = _matching_set(scratch.undo, scratch.served_undo, num_sets)
+            if k < 0:
+                k, num_sets = num_sets, num_sets + 1
+                scratch.served_undo[k] = scratch.undo
+                scratch.served_found[k] = _rests_after_serving(s, e, a, pts, t, scratch.served_rests[k])
+            rests = scratch.served_rests[k]
+            tour = _tour_from(rows, a, qx, qy, pts, rests, t) if scratch.served_found[k] == 1 else math.nan
+            _unserve(rows, a, scratch.undo)
         else:  # nothing served: the kept rests hold
-            tour = _tour_from(s, e, a, qx, qy, pts, s.stop_tour_m[e, a], t)
+            move_m = math.sqrt(w.moves_m[h, 0] ** 2 + w.moves_m[h, 1] ** 2)
+            tour = _tour_from_bounded(t, qx, qy, h, pts, kept, scratch.stops, scratch.bound, m, move_m,
+                                      scratch.moves, scratch.stop_corners)  # fmt: skip
         if math.isnan(tour):
             return -1
         cost[h] = w.step_m + tour
@@ -100,25 +155,132 @@ def _heading_costs(
 
 
 @njit(cache=True)
-def _has_stop(s: FleetState, e: int, a: int) -> bool:
-    """Whether any row offers taxi a a stop (:func:`uamfleet.env.kernels.row_stop`)."""
-    for p in range(s.pax_status.shape[1]):
-        if s.pax_exists[e, p] and row_stop(s, e, a, p) >= 0:
+def _rests_after_serving(s: FleetState, e: int, a: int, pts: np.ndarray, t: TableArrays, out: np.ndarray) -> int:
+    """Taxi a's tour rests in the (served) state into ``out``, as :func:`uamfleet.env.kernels.stop_features` keeps
+    them: exact, else the nearest-stop order's. 1, or 0 when a table row is missing."""
+    memo = s.stop_pair_m[e]
+    found = _shortest_rests(s, e, a, memo, pts, t, out)
+    if found == -1:
+        found = 1 if _nearest_rests(s, e, a, memo, pts, t, out) else 0
+    return found
+
+
+@njit(cache=True, inline="always")
+def _matching_set(undo: np.ndarray, served_undo: np.ndarray, num_sets: int) -> int:
+    """The index of the served set recorded as ``undo`` among the first ``num_sets``, or -1."""
+    for k in range(num_sets):
+        same = True
+        for p in range(undo.size):
+            if served_undo[k, p] != undo[p]:
+                same = False
+                break
+        if same:
+            return k
+    return -1
+
+
+@njit(cache=True, inline="always")
+def _longest_move(moves_m: np.ndarray) -> float:
+    longest = 0.0
+    for h in range(NUM_HEADINGS):
+        longest = max(longest, math.sqrt(moves_m[h, 0] ** 2 + moves_m[h, 1] ** 2))
+    return longest
+
+
+@njit(cache=True, inline="always")
+def _stop_within(rows: StopRows, a: int, x: float, y: float, pts: np.ndarray, reach: float) -> bool:
+    """Whether a stop :func:`_serve_at` could serve (a's riders' destinations, the waiting origins) lies within
+    ``reach`` of (x, y)."""
+    for p in range(rows.statuses.size):
+        if not rows.exists[p]:
+            continue
+        if rows.statuses[p] == ON_BOARD and rows.carriers[p] == a:
+            point = 2 * p + 1
+        elif rows.statuses[p] == WAITING:
+            point = 2 * p
+        else:
+            continue
+        if math.hypot(x - pts[point, 0], y - pts[point, 1]) <= reach:
             return True
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _offered_by_bound(
+    rows: StopRows, a: int, x: float, y: float, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray, bound: np.ndarray
+) -> int:
+    """The stops taxi a's rows offer (:func:`uamfleet.env.kernels.row_stop`) into ``stops``, sorted by ``bound``:
+    the straight line from (x, y) plus the stop's tour rest (insertion sort: a few dozen stops at most). Their
+    number."""
+    m = 0
+    for p in range(rows.statuses.size):
+        point = _offered(rows, a, p)
+        if point < 0:
+            continue
+        value = math.hypot(x - pts[point, 0], y - pts[point, 1]) + rests[point]
+        k = m
+        while k > 0 and bound[k - 1] > value:
+            stops[k], bound[k] = stops[k - 1], bound[k - 1]
+            k -= 1
+        stops[k], bound[k] = point, value
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _tour_from_bounded(
+    t: TableArrays, qx: float, qy: float, h: int, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray,
+    bound: np.ndarray, m: int, move_m: float, moves: Corners, stop_corners: Corners,
+) -> float:  # fmt: skip
+    """:func:`_tour_from` from (qx, qy), the end of move h (``move_m`` long), over the offered stops
+    (:func:`_offered_by_bound`; look-ups prepared in ``moves`` and ``stop_corners``), with the same result: a stop
+    is looked up only when its straight line from (qx, qy) plus its rest is below the best so far (the table
+    distance is at least that straight line, in the same float operations,
+    :func:`uamfleet.paths.distance_table.table_distance`), and the scan stops where the taxi's bound less the move
+    exceeds the best (triangle inequality: so does every later stop's)."""
+    if m == 0:
+        return 0.0
+    best = math.inf
+    for k in range(m):
+        if bound[k] - move_m - SURE_M > best:
+            break
+        point = stops[k]
+        gx, gy = pts[point, 0], pts[point, 1]
+        dx, dy = qx - gx, qy - gy
+        rest = rests[point]
+        if math.sqrt(dx * dx + dy * dy) + rest >= best:
+            continue
+        d = corner_distance(t, moves, h, stop_corners, k, qx, qy, gx, gy)
+        if math.isnan(d):
+            return math.nan
+        best = min(best, d + rest)
+    return best
+
+
+@njit(cache=True, inline="always")
+def _has_stop(rows: StopRows, a: int) -> bool:
+    """Whether any row offers taxi a a stop (:func:`uamfleet.env.kernels.row_stop`)."""
+    for p in range(rows.statuses.size):
+        if _offered(rows, a, p) >= 0:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _offered(rows: StopRows, a: int, p: int) -> int:
+    """The stop row p offers taxi a (:func:`uamfleet.env.kernels.row_stop`), -1 for none or an absent row."""
+    return stop_of(rows.statuses[p], rows.carriers[p], rows.free_seats[a], a, p) if rows.exists[p] else -1
+
+
+@njit(cache=True, inline="always")
 def _tour_from(
-    s: FleetState, e: int, a: int, qx: float, qy: float, pts: np.ndarray, rests: np.ndarray, t: TableArrays
+    rows: StopRows, a: int, qx: float, qy: float, pts: np.ndarray, rests: np.ndarray, t: TableArrays
 ) -> float:
     """The shortest tour from (qx, qy) through taxi a's stops: the least table distance to a stop a row offers plus
     the tour's rest after it (``rests``); 0 when no stop is left; NaN when a table row is missing."""
     best, any_stop = math.inf, False
-    for p in range(s.pax_status.shape[1]):
-        if not s.pax_exists[e, p]:
-            continue
-        point = row_stop(s, e, a, p)
+    for p in range(rows.statuses.size):
+        point = _offered(rows, a, p)
         if point < 0:
             continue
         any_stop = True
@@ -129,42 +291,42 @@ def _tour_from(
     return best if any_stop else 0.0
 
 
-@njit(cache=True)
-def _serve_at(s: FleetState, e: int, a: int, qx: float, qy: float, reach: float, undo: np.ndarray) -> bool:
+@njit(cache=True, inline="always")
+def _serve_at(rows: StopRows, a: int, pts: np.ndarray, qx: float, qy: float, reach: float, undo: np.ndarray) -> bool:
     """Serve taxi a's stops within ``reach`` of (qx, qy) in the state, as the step's drop-offs and pick-ups would
     (without other taxis); ``undo`` [P] records each row's change for :func:`_unserve` (0 none, 1 dropped off,
     2 picked up). Returns whether anything was served."""
     served = False
-    for p in range(s.pax_status.shape[1]):
+    for p in range(rows.statuses.size):
         undo[p] = 0
-        if s.pax_exists[e, p] and s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
-            if math.hypot(qx - s.pax_dest_m[e, p, 0], qy - s.pax_dest_m[e, p, 1]) <= reach:
-                s.pax_status[e, p] = DELIVERED
-                s.free_seats[e, a] += 1
+        if rows.exists[p] and rows.statuses[p] == ON_BOARD and rows.carriers[p] == a:
+            if math.hypot(qx - pts[2 * p + 1, 0], qy - pts[2 * p + 1, 1]) <= reach:
+                rows.statuses[p] = DELIVERED
+                rows.free_seats[a] += 1
                 undo[p], served = 1, True
-    for p in range(s.pax_status.shape[1]):
-        if s.free_seats[e, a] == 0:
+    for p in range(rows.statuses.size):
+        if rows.free_seats[a] == 0:
             break
-        if s.pax_exists[e, p] and s.pax_status[e, p] == WAITING:
-            if math.hypot(qx - s.pax_origin_m[e, p, 0], qy - s.pax_origin_m[e, p, 1]) <= reach:
-                s.pax_status[e, p] = ON_BOARD
-                s.free_seats[e, a] -= 1
-                undo[p], served = 2 + s.pax_taxi[e, p] + 1, True  # 2 + (old carrier + 1): restored by _unserve
-                s.pax_taxi[e, p] = a
+        if rows.exists[p] and rows.statuses[p] == WAITING:
+            if math.hypot(qx - pts[2 * p, 0], qy - pts[2 * p, 1]) <= reach:
+                rows.statuses[p] = ON_BOARD
+                rows.free_seats[a] -= 1
+                undo[p], served = 2 + rows.carriers[p] + 1, True  # 2 + (old carrier + 1): restored by _unserve
+                rows.carriers[p] = a
     return served
 
 
-@njit(cache=True)
-def _unserve(s: FleetState, e: int, a: int, undo: np.ndarray) -> None:
+@njit(cache=True, inline="always")
+def _unserve(rows: StopRows, a: int, undo: np.ndarray) -> None:
     """Undo :func:`_serve_at`."""
-    for p in range(s.pax_status.shape[1]):
+    for p in range(rows.statuses.size):
         if undo[p] == 1:
-            s.pax_status[e, p] = ON_BOARD
-            s.free_seats[e, a] -= 1
+            rows.statuses[p] = ON_BOARD
+            rows.free_seats[a] -= 1
         elif undo[p] >= 2:
-            s.pax_status[e, p] = WAITING
-            s.free_seats[e, a] += 1
-            s.pax_taxi[e, p] = undo[p] - 3
+            rows.statuses[p] = WAITING
+            rows.free_seats[a] += 1
+            rows.carriers[p] = undo[p] - 3
 
 
 __all__ = ["heading_lookahead"]

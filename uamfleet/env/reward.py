@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from uamfleet.config import REWARD_TERMS, RewardConfig
-from uamfleet.env.kernels import row_stop
+from uamfleet.env.kernels import stop_of
 from uamfleet.env.pretyped import PreTyped
 from uamfleet.paths import DistanceFields, DistanceTable, table_for
 from uamfleet.paths.distance_table import TableArrays, table_distance
@@ -182,7 +182,8 @@ def _phi(
             x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
             nearest = math.inf
             for p in range(num_pax):
-                point = row_stop(s, e, a, p)  # 2p: p's origin, 2p + 1: her destination, -1: none for taxi a
+                # row_stop(s, e, a, p), without passing the state (that reference-counts its ~30 arrays per call)
+                point = stop_of(s.pax_status[e, p], s.pax_taxi[e, p], s.free_seats[e, a], a, p)
                 if point < 0:
                     continue
                 stops = s.pax_dest_m if point % 2 else s.pax_origin_m

@@ -29,27 +29,32 @@ MAX_EXACT_STOPS = 12
 subsets); beyond, the nearest-stop order's."""
 
 
-@njit(cache=True)
-def _pending_key(s: FleetState, e: int, a: int) -> int:
+@njit(cache=True, inline="always")
+def _pending_key(
+    exists: np.ndarray, statuses: np.ndarray, carriers: np.ndarray, free_seats: np.ndarray, e: int, a: int
+) -> int:
     """A number that changes whenever taxi a's tours can change: its stops still to visit (bits over the 2P stop
     points) and its free seats. On a passenger axis too long for a bit per stop (2P > 56), a count of the episode's
-    status changes instead (:func:`_progress_key`)."""
-    num_pax = s.pax_status.shape[1]
+    status changes instead (:func:`_progress_key`). Takes the state's arrays (``pax_exists``, ``pax_status``,
+    ``pax_taxi``, ``free_seats``), not the state: a call that passes the state reference-counts its ~30 arrays."""
+    num_pax = statuses.shape[1]
     if 2 * num_pax > 56:
-        return _progress_key(s, e, a)
+        return _progress_key(exists, statuses, carriers, free_seats, e, a)
     key = 0
     for p in range(num_pax):
-        if not s.pax_exists[e, p]:
+        if not exists[e, p]:
             continue
-        if s.pax_status[e, p] == WAITING:
+        if statuses[e, p] == WAITING:
             key |= 3 << (2 * p)
-        elif s.pax_status[e, p] == ON_BOARD and s.pax_taxi[e, p] == a:
+        elif statuses[e, p] == ON_BOARD and carriers[e, p] == a:
             key |= 2 << (2 * p)
-    return key | (s.free_seats[e, a] << (2 * num_pax)) | (1 << 60)
+    return key | (free_seats[e, a] << (2 * num_pax)) | (1 << 60)
 
 
-@njit(cache=True)
-def _progress_key(s: FleetState, e: int, a: int) -> int:
+@njit(cache=True, inline="always")
+def _progress_key(
+    exists: np.ndarray, statuses: np.ndarray, carriers: np.ndarray, free_seats: np.ndarray, e: int, a: int
+) -> int:
     """Env e's progress as a key of taxi a's tours, for any passenger axis: within an episode a passenger's status
     only moves forward (HIDDEN 0, WAITING 1, ON_BOARD 2, DELIVERED 3; the carrier is set on the way) and the kept
     key is cleared with the stops (``generator``), so the sum of the statuses takes a new value at every change
@@ -58,14 +63,14 @@ def _progress_key(s: FleetState, e: int, a: int) -> int:
     seats go in too, so that a state edited by hand still changes its key. Bit 61 keeps it apart from
     :func:`_pending_key`'s keys."""
     total, weighted = 0, 0
-    for p in range(s.pax_status.shape[1]):
-        if s.pax_exists[e, p]:
-            status = s.pax_status[e, p]
-            if status == DELIVERED and s.pax_taxi[e, p] != a:
+    for p in range(statuses.shape[1]):
+        if exists[e, p]:
+            status = statuses[e, p]
+            if status == DELIVERED and carriers[e, p] != a:
                 status = ON_BOARD
             total += status
             weighted += (p + 1) * status
-    return (total & 0xFFFFF) | ((weighted & 0xFFFFFFFF) << 20) | ((s.free_seats[e, a] & 0xFF) << 52) | (1 << 61)
+    return (total & 0xFFFFF) | ((weighted & 0xFFFFFFFF) << 20) | ((free_seats[e, a] & 0xFF) << 52) | (1 << 61)
 
 
 @njit(cache=True)
