@@ -409,3 +409,27 @@ def test_the_separation_shield():
                 off = np.mean([float(b[column]) for _, b in pairs])
                 worst = max(worst, on / off - 1)
     says(GLANCE, f"with waits at most {100 * worst:.1f} % above the same method without it")
+
+
+def test_the_loaded_regimes_and_any_load():
+    loaded, big = rows("fleet_shield_loaded100.csv"), rows("fleet_window_shield_8x200.csv")
+    assert all(int(float(r["separation_violations"])) == 0 for r in loaded + big)
+    says(GLANCE, f"no loss of separation in {len(loaded) + len(big)} shielded episodes")
+    assert len(big) == 100 and all(float(r["service_pct"]) == 100.0 for r in big)
+    says(GLANCE, f"and {len(big)} of the learned fleet with 8 taxis × 200 requests over 30 minutes")
+
+    def mean(setting: str, dispatcher: str, column: str) -> float:
+        mine = [float(r[column]) for r in loaded if r["setting"] == setting and r["dispatcher"] == dispatcher]
+        assert len(mine) == 100
+        return float(np.mean(mine))
+
+    learned = "learned:berlin_fleet+window24"
+    p50 = [mean(s, learned, "wait_p50_s") - mean(s, "greedy", "wait_p50_s") for s in ("4x48", "8x96")]
+    td_ = [
+        mean(s, learned, "td_per_delivered_m") / mean(s, "batch_assignment", "td_per_delivered_m")
+        for s in ("4x48", "8x96")
+    ]
+    p95 = [mean(s, learned, "wait_p95_s") / mean(s, "insertion", "wait_p95_s") for s in ("4x48", "8x96")]
+    says(GLANCE, f"median wait is at most {max(p50):.1f} s above `greedy`'s")
+    says(GLANCE, f"flies {100 * (min(td_) - 1):.0f}–{100 * (max(td_) - 1):.0f} % more per delivered passenger")
+    says(GLANCE, f"p95 wait is {100 * (min(p95) - 1):.0f}–{100 * (max(p95) - 1):.0f} % above `insertion`'s")
