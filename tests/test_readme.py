@@ -327,8 +327,10 @@ MEASURED = {
     "3": "ditto; and 3 min 30 s for the generalist section, measured for this README earlier that day",
     "30": "ditto",
     "2026-12-01": "the date of that measurement",
-    "9": "the main job from a fresh clone after the shipped generalist changed (9 min 20 s, set-up included)",
-    "20": "ditto",
+    "41": "the main job from a fresh clone on the idle machine after it became fine-tuning (2 min 41 s, set-up "
+    "included), measured for this README",
+    "63": "ditto: its training's seconds",
+    "43": "ditto: its generalist section's seconds",
 }
 SETUP = {
     # the set-up the figures were taken under, not results: scenario, budgets, counts of runs and instances
