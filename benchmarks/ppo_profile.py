@@ -125,7 +125,7 @@ def phase_profile(run: trainer.Run, learner: trainer.Learner, iterations: int) -
         patched(trainer, "normalise", clock.wrap("rollout: normaliser", trainer.normalise)),
         patched(net, "forward", clock.wrap("rollout: network forward", net.forward)),
         patched(buf, "minibatch", clock.wrap("update: minibatch assembly", buf.minibatch)),
-        patched(net, "get_action_and_value", clock.wrap("update: forward", net.get_action_and_value)),
+        patched(net, "policy_and_value", clock.wrap("update: forward", net.policy_and_value)),
         patched(torch.Tensor, "backward", clock.wrap("update: backward", backward)),
         patched(torch.nn.utils, "clip_grad_norm_", clock.wrap("update: clip + Adam", clip)),
         patched(learner.optimizer, "step", clock.wrap("update: clip + Adam", learner.optimizer.step)),
@@ -137,7 +137,7 @@ def phase_profile(run: trainer.Run, learner: trainer.Learner, iterations: int) -
             with clock.part("rollout"):  # the rollout and GAE's one forward (counted as network forward)
                 trainer.collect_rollout(run, learner)
                 advantages, returns = trainer.compute_advantages(run, learner)
-            with clock.part("update"):  # the update's forward is get_action_and_value, not net.forward
+            with clock.part("update"):  # the update's forward is policy_and_value, not net.forward
                 trainer.ppo_update(run, learner, advantages, returns)
     seconds = dict(clock.seconds)
     seconds["rollout: network forward"] -= seconds.get("update: forward", 0.0)  # net.forward inside it

@@ -582,10 +582,17 @@ class MSHAActorCritic(nn.Module):
         state: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """CleanRL's call: (action [B] long, log-prob [B], entropy [B], value [B]); samples if action is None."""
-        logits, value = self(obs, state)  # [B, 16], [B]
-        dist = Categorical(logits=logits)
+        dist, value = self.policy_and_value(obs, state)
         action = dist.sample() if action is None else action.long()  # [B]
         return action, dist.log_prob(action), dist.entropy(), value
+
+    def policy_and_value(
+        self, obs: dict[str, torch.Tensor], state: torch.Tensor | None = None
+    ) -> tuple[Categorical, torch.Tensor]:
+        """The action distribution over the masked logits, and the value [B]: what the PPO update differentiates
+        (the log-probability and entropy of its actions, and a KL term that needs every action's probability)."""
+        logits, value = self(obs, state)  # [B, 16], [B]
+        return Categorical(logits=logits), value
 
 
 def obs_to_torch(obs: dict[str, np.ndarray], device: torch.device | str) -> dict[str, torch.Tensor]:

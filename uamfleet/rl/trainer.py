@@ -428,8 +428,7 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
             idx = order[begin : begin + minibatch_size]  # global flat indices t * N_global + n
             local, share = _local_indices(run, idx)
             mb_obs, mb_state, mb_actions, mb_logprobs = buf.minibatch(local, dev)
-            logits, new_value = learner.net(mb_obs, state=mb_state)  # [B, 16], [B]
-            dist = Categorical(logits=logits)
+            dist, new_value = learner.net.policy_and_value(mb_obs, state=mb_state)
             new_logprob, entropy = dist.log_prob(mb_actions.long()), dist.entropy()  # [B], [B]
             stats, denominator = None, None
             if ranks.active:
@@ -441,7 +440,7 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
             if learner.reference is not None:
                 with torch.no_grad():
                     reference_logits = learner.reference.masked_logits(mb_obs)  # [B, 16]
-                kl = categorical_kl(logits, reference_logits)  # [B]
+                kl = categorical_kl(dist.logits, reference_logits)  # [B]
                 kl_mean = kl.mean() if denominator is None else kl.sum() / denominator
                 loss = loss + args.kl_to_init * kl_mean
                 info = dataclasses.replace(info, kl_to_init=float(kl_mean.detach()))
