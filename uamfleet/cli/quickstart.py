@@ -37,6 +37,7 @@ from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.config import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
+from uamfleet.rl.checkpoint import Checkpoint, checkpoint_args, checkpoint_source
 from uamfleet.rl.trainer import GreedyPolicy, TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
 
@@ -116,12 +117,15 @@ def training_args(args: Args) -> TrainArgs:
     if args.init_from is None:
         steps = SCRATCH_STEPS if args.total_timesteps is None else args.total_timesteps
         return replace(common, total_timesteps=steps, variant=args.variant, shaping_gamma=args.shaping_gamma)
-    # The start's own reward (no shaping, a long horizon), a smaller step than from scratch, an entropy bonus to
-    # try other flights and a KL term to stay near the start where the return does not say otherwise.
+    # The start's own reward (read from its checkpoint: for the shipped generalist no shaping and a long horizon),
+    # a smaller step than from scratch, an entropy bonus to try other flights and a KL term to stay near the start
+    # where the return does not say otherwise.
+    start = checkpoint_args(Checkpoint.load(checkpoint_source(args.init_from), map_location="cpu"))
     steps = FINE_TUNE_STEPS if args.total_timesteps is None else args.total_timesteps
     return replace(
-        common, total_timesteps=steps, init_from=args.init_from, kl_to_init=args.kl_to_init, shaping=0.0,
-        gamma=0.995, learning_rate=3e-4, ent_coef=0.01,
+        common, total_timesteps=steps, init_from=args.init_from, kl_to_init=args.kl_to_init,
+        shaping=start.shaping, shaping_metric=start.shaping_metric, shaping_gamma=start.shaping_gamma,
+        gamma=start.gamma, learning_rate=3e-4, ent_coef=0.01,
     )  # fmt: skip
 
 
