@@ -76,6 +76,7 @@ class GuidedSearchPolicy:
                 f"GuidedSearchPolicy flies one taxi in one env; got {env.num_envs} env(s) x {env.num_taxis} taxi(s)."
             )
         self.env = env
+        self.policy.reset(env)  # its loop guard, for the steps it flies after a plan
         if self.scratch is None or self.scratch.cfg is not env.cfg:
             self.scratch = VectorEnv(env.cfg, num_envs=self.top_k + self.samples, autoreset=True)
             self.scratch.reset(seed=0)

@@ -26,6 +26,7 @@ from uamfleet.env.layout import (
 )
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args, run_config
+from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
 from uamfleet.rollout import Trajectory, fly
@@ -38,7 +39,11 @@ class GreedyPolicy:
     training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
     ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it;
     ``thresholds_db`` (lowest, highest threshold it trained on), when given, makes :meth:`layout` warn once about a
-    threshold outside them."""
+    threshold outside them.
+
+    Greedy decoding keeps one rule besides the argmax (:class:`uamfleet.rl.loop_guard.LoopGuard`, docs/rules.md
+    "Greedy decoding of a trained policy"): a taxi does not fly back to a point it stood on since its last event
+    while another allowed heading is left. :attr:`loop_guard` = None turns it off (the argmax alone)."""
 
     def __init__(
         self,
@@ -56,6 +61,12 @@ class GreedyPolicy:
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
         self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
         self._warned_threshold = False
+        self.loop_guard: LoopGuard | None = LoopGuard()
+
+    def reset(self, env: object = None) -> None:
+        """A new episode (``Policy.reset``): the loop guard forgets every taxi's points."""
+        if self.loop_guard is not None:
+            self.loop_guard.reset()
 
     def layout(self, cfg: EnvConfig) -> EnvConfig:
         """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
@@ -158,6 +169,8 @@ class GreedyPolicy:
         normalizer = normalizer.resized(shapes) if normalizer is not None else None
         fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db)
         fitted.trained_num_taxis = self.trained_num_taxis
+        if self.loop_guard is None:
+            fitted.loop_guard = None
         return fitted
 
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
@@ -203,7 +216,10 @@ class GreedyPolicy:
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         E, A = obs["action_mask"].shape[:2]
-        return self.logits_of(self.network_input(obs)).argmax(-1).cpu().numpy().reshape(E, A)
+        logits = self.logits_of(self.network_input(obs))
+        if self.loop_guard is None:
+            return logits.argmax(-1).cpu().numpy().reshape(E, A)
+        return self.loop_guard.choose(obs, logits.cpu().numpy()).reshape(E, A)
 
 
 __all__ = ["GreedyPolicy"]
