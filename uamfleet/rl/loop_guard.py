@@ -83,18 +83,24 @@ class LoopGuard:
         self._count += 1
 
         choice = logits.argmax(-1)
-        ends = here[:, None, :] + self._step[:, None, None] * _UNIT[None]  # [B, 16, 2]
-        kept = np.arange(self.memory)[None, :] < np.minimum(self._count, self.memory)[:, None]  # [B, M]
-        gap = np.linalg.norm(ends[:, :, None, :] - self._points[:, None, :, :], axis=-1)  # [B, 16, M]
-        revisit = np.any((gap < 0.1 * self._step[:, None, None]) & kept[:, None, :], axis=-1)  # [B, 16]
-        revisit &= (self._step > 0)[:, None]
-        moves = logits[:, :NUM_HEADINGS]
-        allowed = obs["action_mask"].reshape(rows, NUM_HEADINGS).astype(bool)
-        flagged = revisit[np.arange(rows), np.minimum(choice, NUM_HEADINGS - 1)] & (choice < NUM_HEADINGS) & has_goal
-        fresh = allowed & ~revisit
+        heading = np.minimum(choice, NUM_HEADINGS - 1)
+        flagged = self._revisits(here, _UNIT[heading][:, None, :])[:, 0] & (choice < NUM_HEADINGS) & has_goal
+        if not flagged.any():  # the common case: one look-up per taxi, not sixteen
+            return choice
+        revisit = self._revisits(here, _UNIT[None])  # [B, 16]
+        fresh = obs["action_mask"].reshape(rows, NUM_HEADINGS).astype(bool) & ~revisit
         switch = flagged & fresh.any(-1)
         if switch.any():
-            guarded = np.where(fresh, moves, -np.inf)
+            guarded = np.where(fresh, logits[:, :NUM_HEADINGS], -np.inf)
             choice = np.where(switch, guarded.argmax(-1), choice)
             self.interventions += int(switch.sum())
         return choice
+
+    def _revisits(self, here: np.ndarray, units: np.ndarray) -> np.ndarray:
+        """[B, H] whether the move from ``here`` [B, 2] along each of ``units`` [B or 1, H, 2] ends within a tenth
+        of a move of a point the row remembers (False while its step length is unknown)."""
+        ends = here[:, None, :] + self._step[:, None, None] * units  # [B, H, 2]
+        kept = np.arange(self.memory)[None, :] < np.minimum(self._count, self.memory)[:, None]  # [B, M]
+        gap = np.linalg.norm(ends[:, :, None, :] - self._points[:, None, :, :], axis=-1)  # [B, H, M]
+        near = (gap < 0.1 * self._step[:, None, None]) & kept[:, None, :]
+        return near.any(-1) & (self._step > 0)[:, None]
