@@ -181,6 +181,8 @@ class EnvConfig:
     stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
     stop_claims: bool = False  # with stop_features: "stop_rivals", "stop_claims" and "hover_heading_mask" (rules.md)
     heading_lookahead: bool = False  # with stop_features: "heading_lookahead", each heading's move + tour after it
+    lookahead_depth: int = 1  # 2: each heading's move + the best second move + the tour after both (read only
+    # with heading_lookahead, so a copy that turns the look-ahead off keeps a valid config)
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -268,6 +270,11 @@ class EnvConfig:
             raise ConfigError(
                 "heading_lookahead=True needs stop_features=True (the look-ahead reads the stop features' tours)."
             )
+        if self.lookahead_depth not in (1, 2):
+            raise ConfigError(
+                f"lookahead_depth={self.lookahead_depth!r} must be 1 (each heading's move and the tour after it) or 2 "
+                "(its move, the best second move and the tour after both)."
+            )
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
         if self.separation not in SEPARATION_MODES:
@@ -339,6 +346,7 @@ class EnvConfig:
             max_passengers=self.max_passengers if windowed else like.num_passengers,
             passenger_window=like.passenger_window, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
             stop_claims=like.stop_claims, heading_lookahead=like.heading_lookahead,
+            lookahead_depth=like.lookahead_depth,
             time_limit_steps=self.time_limit_steps if windowed else like.time_limit_steps,
             patch_size=like.patch_size, history_len=like.history_len,
         )  # fmt: skip

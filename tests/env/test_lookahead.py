@@ -67,6 +67,68 @@ def test_lookahead_is_the_move_plus_the_tour_the_step_leaves() -> None:
     assert checked > 80 and served_by_a_move > 3  # the branch that serves stops at the move's end is exercised
 
 
+def _expected_two_move_lookahead(env: VectorEnv, e: int, scratch: VectorEnv) -> np.ndarray:
+    """[16] depth 2: each heading's move, then the best second move allowed from its end, then the shortest tour the
+    copy observes (the move alone where it serves every known stop), minus the best heading's, in moves: every
+    pair of headings flown in a 256-env copy of env e over the requests known so far."""
+    root = released_only(env.state)
+    for target, source in zip(scratch.state, root, strict=True):
+        target[:] = np.repeat(source[e : e + 1], NUM_HEADINGS**2, axis=0)
+    first, second = np.repeat(np.arange(NUM_HEADINGS), NUM_HEADINGS), np.tile(np.arange(NUM_HEADINGS), NUM_HEADINGS)
+    obs1, _, done1, _, info1 = scratch.step(first[:, None])
+    second_allowed = obs1["action_mask"][np.arange(first.size), 0, second] > 0
+    obs2, _, done2, truncated, info2 = scratch.step(second[:, None])
+    assert not truncated.any(), "the test's flight must end before the time limit"
+    side, step = env.cfg.side_m, env.cfg.step_m
+    paths = obs2["stop_paths"][:, 0]
+    offered = paths[..., STOP_PATH_TO_STOP] > 0
+    tour = np.where(offered, paths[..., STOP_TOUR_VIA_STOP], np.inf).min(-1) * side
+    tour = np.where(offered.any(-1) & ~done2, tour, 0.0)
+    moved1, moved2 = info1["events"].moved[:, 0], info2["events"].moved[:, 0]
+    cost = np.where(second_allowed, (moved1 + moved2) * step + tour, np.inf)
+    cost = np.where(done1, moved1 * step, cost).reshape(NUM_HEADINGS, NUM_HEADINGS).min(1)
+    allowed = env.state.action_mask[e, 0].astype(bool) & np.isfinite(cost)
+    out = np.full(NUM_HEADINGS, LOOKAHEAD_CLIP)
+    out[allowed] = np.minimum((cost[allowed] - cost[allowed].min()) / step, LOOKAHEAD_CLIP)
+    return out
+
+
+@pytest.mark.parametrize("feasibility", ["endpoint_block", "segment_raster"])
+def test_depth_two_is_the_best_pair_of_moves_and_the_tour_they_leave(feasibility: str) -> None:
+    """``lookahead_depth=2`` against the env's own step: every pair of headings flown in a copy of the env."""
+    cfg = make_config(
+        "berlin_instances", sinr_min_db=-4.0, heading_lookahead=True, lookahead_depth=2, feasibility=feasibility
+    )
+    env = VectorEnv(cfg, num_envs=3)
+    scratch = VectorEnv(cfg, num_envs=NUM_HEADINGS**2, autoreset=True)
+    scratch.reset(seed=0)
+    obs, _ = env.reset(seed=3)
+    rng = np.random.default_rng(1)
+    checked = differs_from_depth_one = 0
+    single = VectorEnv(cfg.replace(lookahead_depth=1), num_envs=3)
+    for _ in range(20):
+        for e in range(env.num_envs):
+            if not obs["stop_heading_mask"][e, 0].any():
+                continue
+            expected = _expected_two_move_lookahead(env, e, scratch)
+            np.testing.assert_allclose(obs["heading_lookahead"][e, 0], expected, atol=2e-3)
+            checked += 1
+            for target, source in zip(single.state, env.state, strict=True):
+                target[:] = source
+            depth_one = single.observer.observe(single.state)["heading_lookahead"][e, 0]
+            differs_from_depth_one += not np.allclose(depth_one, expected, atol=2e-3)
+        allowed = obs["action_mask"][:, 0].astype(bool)
+        best = np.where(allowed, obs["heading_lookahead"][:, 0], np.inf).argmin(-1)
+        random = np.array([rng.choice(np.flatnonzero(a)) for a in allowed])
+        obs, *_ = env.step(np.where(rng.random(env.num_envs) < 0.8, best, random)[:, None])
+    assert checked > 40 and differs_from_depth_one > 5  # depth 2 is another field than depth 1
+
+
+def test_the_depth_is_one_or_two() -> None:
+    with pytest.raises(ConfigError, match="lookahead_depth=3 must be 1"):
+        make_config("berlin_instances", heading_lookahead=True, lookahead_depth=3)
+
+
 def test_lookahead_needs_the_stop_features() -> None:
     with pytest.raises(ConfigError, match="heading_lookahead=True needs stop_features=True"):
         make_config("berlin_p4", heading_lookahead=True)

@@ -25,6 +25,7 @@ from numba import njit
 
 from uamfleet.env.arrays import WorldArrays
 from uamfleet.env.kernels import StopRows, _nearest_rests, prepare_moves, stop_of
+from uamfleet.env.motion import action_mask
 from uamfleet.env.tours import _shortest_rests
 from uamfleet.paths.distance_table import (
     Corners,
@@ -38,25 +39,95 @@ from uamfleet.types import DELIVERED, LOOKAHEAD_CLIP, NUM_HEADINGS, ON_BOARD, WA
 
 
 @njit(cache=True)
-def heading_lookahead(s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.ndarray) -> bool:
+def heading_lookahead(
+    s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.ndarray, depth: int = 1
+) -> bool:  # fmt: skip
     """Write ``o_look`` [E, A, 16] (module docstring). The taxis' kept tour rests (``s.stop_tour_m``) must be up to
-    date: call after :func:`uamfleet.env.kernels.stop_features` has succeeded. Returns False when a table row it
-    reads is not computed yet (the caller fills the rows and calls again)."""
+    date: call after :func:`uamfleet.env.kernels.stop_features` has succeeded. ``depth`` 2 costs each heading by its
+    move plus the best allowed second move from its end and the tour after both (:func:`_two_move_costs`). Returns
+    False when a table row it reads is not computed yet (the caller fills the rows and calls again)."""
     num_envs, num_taxis = s.free_seats.shape
     num_pax = s.pax_status.shape[1]
     pts = np.empty((2 * num_pax, 2))
     scratch = _new_scratch(num_pax)
+    inner = _new_scratch(num_pax) if depth > 1 else scratch
     cost = np.empty(NUM_HEADINGS)
     for e in range(num_envs):
         for p in range(num_pax):
             pts[2 * p] = s.pax_origin_m[e, p]
             pts[2 * p + 1] = s.pax_dest_m[e, p]
         for a in range(num_taxis):
-            found = _heading_costs(s, w, t, e, a, pts, scratch, cost)
+            if depth > 1:
+                found = _two_move_costs(s, w, t, e, a, pts, scratch, inner, cost)
+            else:
+                found = _heading_costs(s, w, t, e, a, pts, scratch, cost)
             if found < 0:
                 return False
             _write_excess(s.action_mask[e, a], cost, found == 1, w.step_m, o_look[e, a])
     return True
+
+
+@njit(cache=True)
+def _two_move_costs(
+    s: FleetState, w: WorldArrays, t: TableArrays, e: int, a: int, pts: np.ndarray, scratch: _Scratch,
+    inner: _Scratch, cost: np.ndarray,
+) -> int:  # fmt: skip
+    """cost[h]: heading h's move plus the least, over the second moves allowed from its end, of that move and the
+    shortest tour after it (each move's end served as the step serves it); the move alone when it serves every
+    stop; inf when no second move is allowed. Same returns as :func:`_heading_costs`.
+
+    The one-move costs from the move's end are :func:`_heading_costs` itself, run on the state as the move leaves
+    it: the taxi moved there, its stops served, its action mask and kept tour rests those of that state (the
+    rests after a served set computed once per distinct set); everything is put back before the next heading."""
+    rows = StopRows(s.pax_exists[e], s.pax_status[e], s.pax_taxi[e], s.free_seats[e], s.stop_tour_m[e, a])
+    if not _has_stop(rows, a):
+        return 0
+    x, y = s.pos_m[e, a, 0], s.pos_m[e, a, 1]
+    mask = s.action_mask[e, a].copy()
+    kept = rows.tour_rests.copy()
+    end, end_mask = np.empty((1, 2)), np.empty((1, NUM_HEADINGS), s.action_mask.dtype)
+    second = np.empty(NUM_HEADINGS)
+    reach = w.radius_m + 1e-9
+    num_sets, found = 0, 1
+    for h in range(NUM_HEADINGS):
+        cost[h] = math.inf
+        if not mask[h]:
+            continue
+        qx, qy = x + w.moves_m[h, 0], y + w.moves_m[h, 1]
+        served = _serve_at(rows, a, pts, qx, qy, reach, scratch.undo)
+        if served:
+            k = _matching_set(scratch.undo, scratch.served_undo, num_sets)
+            if k < 0:
+                k, num_sets = num_sets, num_sets + 1
+                scratch.served_undo[k] = scratch.undo
+                scratch.served_found[k] = _rests_after_serving(s, e, a, pts, t, scratch.served_rests[k])
+            if scratch.served_found[k] != 1:
+                found = -1
+            rows.tour_rests[:] = scratch.served_rests[k]
+        if found == 1:
+            end[0, 0], end[0, 1] = qx, qy
+            action_mask(end, w, end_mask)
+            s.pos_m[e, a, 0], s.pos_m[e, a, 1] = qx, qy
+            s.action_mask[e, a] = end_mask[0]
+            after = _heading_costs(s, w, t, e, a, pts, inner, second)
+            s.pos_m[e, a, 0], s.pos_m[e, a, 1] = x, y
+            s.action_mask[e, a] = mask
+            if after < 0:
+                found = -1
+            elif after == 0:  # the move serves every stop the taxi knows of
+                cost[h] = w.step_m
+            else:
+                least = math.inf
+                for h2 in range(NUM_HEADINGS):
+                    if end_mask[0, h2] and second[h2] < least:
+                        least = second[h2]
+                cost[h] = w.step_m + least
+        if served:
+            rows.tour_rests[:] = kept
+            _unserve(rows, a, scratch.undo)
+        if found < 0:
+            return -1
+    return 1
 
 
 class _Scratch(NamedTuple):

@@ -117,8 +117,10 @@ class Observer:
             kernels.stop_features(*paths)
             if rivals is not None:
                 kernels.stop_rivals(*rivals)
-        if "heading_lookahead" in obs and not heading_lookahead(state, self.world.arrays, table.arrays,
-                                                                obs["heading_lookahead"]):  # fmt: skip
+        depth = self.cfg.lookahead_depth
+        if "heading_lookahead" in obs and not heading_lookahead(
+            state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
+        ):
             raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
 
     def state(self, state: FleetState) -> np.ndarray:

@@ -75,6 +75,9 @@ class ImitationArgs:
     lookahead: bool = False
     """also observe each heading's one-step look-ahead on the exact tour (``EnvConfig.heading_lookahead``) and fit
     a learned correction of the flight from it (``NetConfig.lookahead_inputs``, zero at first)"""
+    lookahead_depth: int = 1
+    """with --lookahead: its depth (``EnvConfig.lookahead_depth``; 2: each heading's move, the best second move and
+    the tour after both)"""
     correction_weight: float = 1.0
     """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
@@ -106,6 +109,10 @@ class ImitationArgs:
         self.run_dir = Path(self.run_dir)
         if self.train == "lookahead" and not self.lookahead:
             raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
+        if self.lookahead_depth not in (1, 2) or (self.lookahead_depth != 1 and not self.lookahead):
+            raise ConfigError(
+                f"--lookahead-depth={self.lookahead_depth}: use 1 or 2, and a depth other than 1 with --lookahead."
+            )
 
     def beta(self, round_index: int) -> float:
         """Probability that a step of round ``round_index`` flies the expert's heading."""
@@ -335,7 +342,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     ckpt = Checkpoint.load(init)
     source_args = checkpoint_args(ckpt)
     if args.lookahead:
-        source_args = dataclasses.replace(source_args, heading_lookahead=True)
+        source_args = dataclasses.replace(source_args, heading_lookahead=True, lookahead_depth=args.lookahead_depth)
     prior, _ = load_policy(init)
     policy = with_heading_residual(prior, lookahead=args.lookahead)
     family = family_of(source_args.scenario)
@@ -410,7 +417,7 @@ def _save(
     on): loads with load_policy like any trained checkpoint."""
     layout = observation_layout(like)
     read = {k: spec for k, spec in layout.items() if k in policy.net.shapes}
-    extra = {"heading_lookahead": True} if args.lookahead else {}
+    extra = {"heading_lookahead": True, "lookahead_depth": args.lookahead_depth} if args.lookahead else {}
     out = dataclasses.replace(
         source,
         model={k: v.detach().clone() for k, v in policy.net.state_dict().items()},

@@ -59,6 +59,9 @@ class TrainArgs:
     heading_lookahead: bool = False
     """observe each heading's move plus the shortest tour after it (EnvConfig.heading_lookahead; needs a scenario
     with stop features); a stop-head network then reads it as a learned correction of its flight"""
+    lookahead_depth: int = 1
+    """the look-ahead's depth (EnvConfig.lookahead_depth): 2 costs each heading by its move, the best second move
+    and the tour after both"""
     shaping: float = 50.0
     """weight of the potential-based shaping term (0 = the authors' reward only). Strong on purpose: one step of
     progress along the feasible path is then worth 50, a quarter of a pick-up, so the heading that makes progress
@@ -269,6 +272,8 @@ class TrainArgs:
         overrides["time_limit_steps"] = limit
         if self.heading_lookahead:
             overrides["heading_lookahead"] = True
+        if self.lookahead_depth != 1:
+            overrides["lookahead_depth"] = self.lookahead_depth
         if self.passenger_window is not None:
             overrides["passenger_window"] = self.passenger_window
         return overrides
