@@ -14,6 +14,7 @@ from uamfleet.config import ConfigError, make_config
 from uamfleet.env.mixture import OTHER_TAXI_FIELDS, MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path, run_config
+from uamfleet.types import STATE_PASSENGER_FEATURES, STATE_TAXI_FEATURES
 from uamfleet.rl.runs import read_progress
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.zoo import pretrained
@@ -136,6 +137,12 @@ def test_what_cannot_start_from_the_shipped_fleet_is_refused_with_the_fix(tmp_pa
     at_two = dict(fleet_mixture=(), num_taxis=2, total_timesteps=64, reinit_critic=False, centralised_critic=True)
     with pytest.raises(ConfigError, match=r"global state of 4 taxi\(s\) and 24 passenger\(s\).*--reinit-critic"):
         train(_mixture_args(tmp_path, **at_two))
+    # ... and with --reinit-critic it keeps its MAPPO critic, afresh, sized for this run's state (2 taxis, 24
+    # passengers: 2 x taxi features + 24 x passenger features + time + a one-hot of 2 taxis)
+    result = train(_mixture_args(tmp_path, **{**at_two, "reinit_critic": True}, eval_every=0))
+    policy, _ = load_policy(result.run_dir / "last.pt")
+    assert policy.net.cfg.critic_state_dim == 2 * len(STATE_TAXI_FEATURES) + 24 * len(STATE_PASSENGER_FEATURES) + 1 + 2
+    assert 4 * len(STATE_TAXI_FEATURES) + 24 * len(STATE_PASSENGER_FEATURES) + 1 + 4 == 237  # the start's, as logged
     # no one global state holds a mixture of sizes
     with pytest.raises(ConfigError, match=r"states of different sizes.*--no-centralised-critic"):
         train(_mixture_args(tmp_path, centralised_critic=True))
