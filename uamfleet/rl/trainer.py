@@ -99,7 +99,9 @@ class Counters:
 @dataclass
 class Run:
     """One rank's share of a run: its envs (global envs [env_offset, env_offset + num_envs)), rollout buffer
-    and the current observation."""
+    and the current observation. Its agents are the envs' taxis, env-major; in a mixture of fleet sizes
+    (``--fleet-mixture``) the envs are padded to the largest fleet and the agents are the real taxis only
+    (:attr:`agent_rows`: what :meth:`flat`, :meth:`per_agent` and :meth:`env_actions` convert through)."""
 
     args: TrainArgs
     ranks: Ranks
