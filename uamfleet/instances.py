@@ -259,11 +259,12 @@ def family_of(scenario: str) -> str:
 def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
     """Instance ``seed`` of ``family`` laid out as the config ``like`` a policy trained on: its rule, passenger
     axis, stop features, reward and time limit (the observation's time feature is a fraction of the limit). A
-    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis and its demand's request count."""
+    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis, its demand's request count and
+    its separation rule and hover action (a policy trained under the shield is evaluated under it)."""
     if like.scenario.endswith("_fleet"):
         cfg = make_fleet_instance(
             family, seed, like.num_taxis, like.demand.max_requests, feasibility=like.feasibility,
-            max_passengers=like.num_passengers,
+            max_passengers=like.num_passengers, separation=like.separation, hover_action=like.hover_action,
         )  # fmt: skip
     else:
         cfg = make_instance(family, seed, feasibility=like.feasibility, max_passengers=like.num_passengers)

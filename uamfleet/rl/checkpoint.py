@@ -45,7 +45,10 @@ ARCHITECTURE_FIELDS = (
     "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
     "stop_free_move", "stop_prior",
 )  # fmt: skip
-ENVIRONMENT_FIELDS = ("scenario", "sinr_min_db", "thresholds", "num_taxis", "feasibility", "norm_obs", "norm_reward")
+ENVIRONMENT_FIELDS = (
+    "scenario", "sinr_min_db", "thresholds", "num_taxis", "num_requests", "fleet_mixture", "feasibility", "norm_obs",
+    "norm_reward",
+)  # fmt: skip
 
 NET_LIMITS: dict[str, int] = {"d_model": 4096, "num_heads": 256, "local_window": 256, "hidden": 16384,
                               "critic_state_dim": 1_000_000}  # fmt: skip
@@ -508,10 +511,19 @@ def run_config(args: TrainArgs, scenario: str | EnvConfig | None = None, trainin
     of ``scenario`` (default ``args.scenario``), laid out as the policy it starts from (``args.init_from``) reads
     its observation: passenger axis, stop fields, look-ahead, patch, history and time limit
     (:meth:`EnvConfig.with_layout_of`). Training, evaluating and loading a fine-tuned run all go through here, so
-    its checkpoint loads like any other."""
+    its checkpoint loads like any other.
+
+    A run that sets its own ``--passenger-window`` reads that window whatever its start read: a windowed observation
+    does not depend on the number of requests, so the run keeps its own requests and time limit (a start trained
+    without a window is fitted to it as ``GreedyPolicy.for_fleet`` flies it: its passenger statistics pooled)."""
     cfg = make_env_config(args.scenario if scenario is None else scenario, args, training=training)
     like = _init_layout(args, depth=0)
-    return cfg if like is None else cfg.with_layout_of(like)
+    return cfg if like is None else cfg.with_layout_of(_with_own_window(like, args))
+
+
+def _with_own_window(like: EnvConfig, args: TrainArgs) -> EnvConfig:
+    """The start's layout ``like`` with the run's own passenger window, when it sets one."""
+    return like if args.passenger_window is None else like.replace(passenger_window=args.passenger_window)
 
 
 def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
@@ -527,7 +539,7 @@ def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
     init_args = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
     cfg = make_env_config(init_args.scenario, init_args, training=False)
     like = _init_layout(init_args, depth + 1)
-    return cfg if like is None else cfg.with_layout_of(like)
+    return cfg if like is None else cfg.with_layout_of(_with_own_window(like, init_args))
 
 
 def numpy_rng_state() -> dict[str, Any]:

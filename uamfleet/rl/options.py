@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from uamfleet.config import (
     FEASIBILITY_RULES,
+    MAX_TAXIS,
     SCENARIOS,
     ConfigError,
     EnvConfig,
@@ -43,7 +44,15 @@ class TrainArgs:
     sinr_min_db: float | None = None
     """SINR threshold in dB; None: the scenario's"""
     num_taxis: int | None = None
-    """fleet size; None: the scenario's"""
+    """fleet size; None: the scenario's (with --fleet-mixture: its largest fleet)"""
+    num_requests: int | None = None
+    """requests per episode of a *_fleet scenario, released over its arrival window (e.g. 48 with 4 taxis: the
+    loaded regime); None: the preset's 6 per taxi"""
+    fleet_mixture: tuple[str, ...] = ()
+    """train on several fleet settings at once, each <taxis>x<requests> (a *_fleet scenario; e.g. 2x12 2x24 4x24
+    4x48 8x48 8x96: fleet sizes and loads): the envs split into one group per setting (and --thresholds value),
+    smaller fleets padded to the largest (uamfleet.env.mixture). The run's own config (its evaluation, its
+    checkpoints' layout) is --num-taxis, which must be the largest fleet of the mixture, with --num-requests"""
     thresholds: tuple[float, ...] = ()
     """train on several SINR thresholds at once (dB; the envs split into one group per threshold, see
     uamfleet.env.mixture); empty: the one of --sinr-min-db. A generalist over -7 ... -3 dB on Berlin:
@@ -107,6 +116,11 @@ class TrainArgs:
     patch, history and time limit: EnvConfig.with_layout_of), so e.g. the Berlin generalist is fine-tuned on
     Berlin P4 with --scenario berlin_p4 --init-from berlin. A greedy evaluation of the start comes first, so
     best.pt is never worse than it on the evaluation"""
+    reinit_critic: bool = False
+    """with --init-from: start the critic afresh, the actor and its torso from the start. Needed when the start's
+    critic cannot read this run's input: a centralised critic (MAPPO) reads the global state, whose size is set by
+    the number of taxis and passengers, so it does not fit another fleet size or load, and no one state holds a
+    --fleet-mixture of them. With it, --centralised-critic is this run's own choice (without it, the start's)"""
     kl_to_init: float = 0.0
     """weight of KL(pi || pi_init), the new policy's divergence from the --init-from policy averaged over each
     minibatch, in the loss: PPO may leave the start where the return pays for it, not drift where it does not
@@ -215,6 +229,12 @@ class TrainArgs:
                 f"--kl-to-init={self.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
                 "with --init-from (a shipped name such as berlin, or a checkpoint file), or drop --kl-to-init."
             )
+        self._check_fleet_mixture()
+        if self.reinit_critic and self.init_from is None:
+            raise ConfigError(
+                "--reinit-critic starts the critic of an --init-from policy afresh; give that policy with "
+                "--init-from, or drop --reinit-critic (a run from scratch starts every weight afresh)."
+            )
         for name in ("scenario", "run_name", "init_from"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, str):
@@ -255,6 +275,51 @@ class TrainArgs:
                 "give one of them."
             )
 
+    def _check_fleet_mixture(self) -> None:
+        """--num-requests and --fleet-mixture: a *_fleet scenario, settings <taxis>x<requests>, each given once,
+        --num-taxis the largest fleet (stored as a tuple of strings)."""
+        fleet = self.scenario.endswith("_fleet") if isinstance(self.scenario, str) else False
+        if self.num_requests is not None:
+            check_integer("--num-requests", self.num_requests, 1)
+            if not fleet:
+                raise ConfigError(
+                    f"--num-requests={self.num_requests} sets a fleet scenario's demand; it needs a *_fleet scenario "
+                    f"(not {self.scenario!r}), e.g. --scenario berlin_fleet."
+                )
+        if isinstance(self.fleet_mixture, str | bytes) or not hasattr(self.fleet_mixture, "__iter__"):
+            raise ConfigError(f"--fleet-mixture={self.fleet_mixture!r} must be a list of settings, e.g. 2x12 4x48.")
+        self.fleet_mixture = tuple(str(s) for s in self.fleet_mixture)
+        if not self.fleet_mixture:
+            return
+        if not fleet:
+            raise ConfigError(
+                f"--fleet-mixture={list(self.fleet_mixture)} mixes fleet settings; it needs a *_fleet scenario "
+                f"(not {self.scenario!r}), e.g. --scenario berlin_fleet."
+            )
+        settings = self.fleet_settings()
+        repeated = sorted({s for s in self.fleet_mixture if self.fleet_mixture.count(s) > 1})
+        if repeated:
+            raise ConfigError(f"--fleet-mixture={list(self.fleet_mixture)} repeats {repeated}; give each setting once.")
+        largest = max(taxis for taxis, _ in settings)
+        if self.num_taxis is not None and self.num_taxis != largest:
+            raise ConfigError(
+                f"--num-taxis={self.num_taxis} is not the largest fleet of --fleet-mixture={list(self.fleet_mixture)} "
+                f"({largest}): the run's observation holds the largest fleet's other taxis; set --num-taxis {largest} "
+                "or leave it out."
+            )
+
+    def fleet_settings(self) -> list[tuple[int, int]]:
+        """(taxis, requests) of each --fleet-mixture setting, in the order given (ConfigError for a malformed one)."""
+        out = []
+        for setting in self.fleet_mixture:
+            taxis, sep, requests = setting.partition("x")
+            if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
+                raise ConfigError(
+                    f"--fleet-mixture setting {setting!r} is not <taxis>x<requests> with both >= 1 (e.g. 4x48)."
+                )
+            out.append((check_integer("--fleet-mixture taxis", int(taxis), 1, MAX_TAXIS), int(requests)))
+        return out
+
     @property
     def name(self) -> str:
         if self.run_name:
@@ -266,8 +331,11 @@ class TrainArgs:
         overrides: dict[str, Any] = {"feasibility": self.feasibility}
         if self.sinr_min_db is not None:
             overrides["sinr_min_db"] = self.sinr_min_db
-        if self.num_taxis is not None:
-            overrides["num_taxis"] = self.num_taxis
+        taxis = self.num_taxis
+        if taxis is None and self.fleet_mixture:
+            taxis = max(n for n, _ in self.fleet_settings())
+        if taxis is not None:
+            overrides["num_taxis"] = taxis
         limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
         overrides["time_limit_steps"] = limit
         if self.heading_lookahead:
@@ -306,6 +374,8 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
     potential-based for the return PPO maximises (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own
     gamma)."""
     cfg = make_config(scenario, **args.env_overrides(training=training))
+    if args.num_requests is not None:
+        cfg = with_num_requests(cfg, args.num_requests)
     reward = dataclasses.replace(
         cfg.reward,
         shaping=args.shaping,
@@ -313,6 +383,15 @@ def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool =
         shaping_gamma=args.gamma if args.shaping_gamma is None else args.shaping_gamma,
     )
     return cfg.replace(reward=reward)
+
+
+def with_num_requests(cfg: EnvConfig, requests: int) -> EnvConfig:
+    """A random-demand config with exactly ``requests`` per episode (its arrival law and window kept) and a
+    passenger axis that holds them (a passenger window, when set, still decides the rows observed)."""
+    demand = dataclasses.replace(
+        cfg.demand, min_requests=requests, max_requests=requests, num_initial=min(cfg.demand.num_initial, requests)
+    )
+    return cfg.replace(demand=demand, max_passengers=requests)
 
 
 def plain_args(args: TrainArgs) -> dict[str, Any]:

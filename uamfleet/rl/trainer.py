@@ -29,7 +29,7 @@ import torch
 from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
-from uamfleet.env.layout import Layout, layout_shapes, layout_to_dict, observation_layout
+from uamfleet.env.layout import Layout, layout_differences, layout_shapes, layout_to_dict, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
@@ -99,7 +99,9 @@ class Counters:
 @dataclass
 class Run:
     """One rank's share of a run: its envs (global envs [env_offset, env_offset + num_envs)), rollout buffer
-    and the current observation."""
+    and the current observation. Its agents are the envs' taxis, env-major; in a mixture of fleet sizes
+    (``--fleet-mixture``) the envs are padded to the largest fleet and the agents are the real taxis only
+    (:attr:`agent_rows`: what :meth:`flat`, :meth:`per_agent` and :meth:`env_actions` convert through)."""
 
     args: TrainArgs
     ranks: Ranks
@@ -117,6 +119,7 @@ class Run:
     total_agents: int  # agents per step over all ranks
     num_iterations: int
     state_dim: int
+    agent_rows: np.ndarray | None = None  # a mixture of fleet sizes: flat indices of the real taxis in [E * A_max]
     obs: dict[str, np.ndarray] = field(default_factory=dict)
     start_time: float = field(default_factory=time.time)
 
@@ -125,7 +128,28 @@ class Run:
         return self.args.num_steps * self.total_agents
 
     def flat(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {k: v.reshape(self.num_agents, *v.shape[2:]) for k, v in obs.items()}
+        """The core's [E, A, ...] observation as the agents' [N, ...] rows (a mixture's padding taxis left out)."""
+        return {k: self.per_agent(v) for k, v in obs.items()}
+
+    def per_agent(self, x: np.ndarray) -> np.ndarray:
+        """A per-taxi array [E, A, ...] as [N, ...], or a per-env array [E] repeated for each of its taxis."""
+        if x.ndim == 1:
+            x = np.repeat(x[:, None], self.venv.num_taxis, axis=1)
+        flat = x.reshape(-1, *x.shape[2:])
+        return flat if self.agent_rows is None else flat[self.agent_rows]
+
+    def env_actions(self, actions: np.ndarray) -> np.ndarray:
+        """The agents' actions [N] as the core's [E, A] (a mixture's padding taxis get heading 0, ignored)."""
+        if self.agent_rows is None:
+            return actions.reshape(-1, self.venv.num_taxis)
+        full = np.zeros(self.venv.num_envs * self.venv.num_taxis, actions.dtype)
+        full[self.agent_rows] = actions
+        return full.reshape(-1, self.venv.num_taxis)
+
+    def finished_episode(self, episode: dict[str, np.ndarray], e: int) -> dict[str, np.ndarray]:
+        """Env ``e``'s episode statistics (``info["episode"]``) as a batch of one, its own taxis only."""
+        taxis = int(self.venv.taxis_per_env[e]) if isinstance(self.venv, MixtureVectorEnv) else self.venv.num_taxis
+        return {k: v[e : e + 1, :taxis] if v.ndim >= 2 else v[e : e + 1] for k, v in episode.items()}
 
     def global_state(self) -> np.ndarray | None:
         """[N, S + A] the critic's agent-specific global state (MAPPO): each taxi's env state and a one-hot of
@@ -144,34 +168,82 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     env_offset, local_envs = ranks.shard(args.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.scenario
     cfg = run_config(args, base, training=True)
-    venv = _training_envs(args, cfg, local_envs)
-    taxis = cfg.num_taxis
+    venv = _training_envs(args, cfg, base, local_envs)
+    taxis = cfg.num_taxis  # taxis per env (a mixture of fleet sizes: its largest, padded; --num-taxis)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
     layout = observation_layout(cfg)
     assert layout_shapes(layout) == shapes, "the env's observation is built from its spec"
-    state_dim = int(venv.state_space.shape[0]) + taxis if args.centralised_critic else 0
-    batch = args.num_steps * args.num_envs * taxis
+    state_dim = _critic_state_dim(args, venv)
+    rows = None
+    if isinstance(venv, MixtureVectorEnv) and venv.mixed_sizes:
+        if ranks.active:
+            raise ConfigError(
+                f"--fleet-mixture={list(args.fleet_mixture)} mixes fleet sizes, whose agents do not split evenly "
+                "among torchrun ranks; train it in one process."
+            )
+        rows = np.flatnonzero(venv.taxi_mask.reshape(-1))
+    local_agents = local_envs * taxis if rows is None else len(rows)
+    total_agents = args.num_envs * taxis if rows is None else len(rows)
+    batch = args.num_steps * total_agents
     _check_batch(args, batch, taxis)
     return Run(
         args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
         eval_cfg=run_config(args, base, training=False), venv=venv, obs_shapes=shapes, layout=layout,
-        buffer=RolloutBuffer(args.num_steps, local_envs * taxis, shapes, state_dim), env_offset=env_offset,
-        num_agents=local_envs * taxis, agent_offset=env_offset * taxis, total_agents=args.num_envs * taxis,
-        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim,
+        buffer=RolloutBuffer(args.num_steps, local_agents, shapes, state_dim), env_offset=env_offset,
+        num_agents=local_agents, agent_offset=env_offset * taxis, total_agents=total_agents,
+        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim, agent_rows=rows,
     )  # fmt: skip
 
 
-def _training_envs(args: TrainArgs, cfg: EnvConfig, local_envs: int) -> VectorEnv | MixtureVectorEnv:
-    """This rank's training envs: one config, or a mixture over ``--thresholds``; tables filled if asked."""
+def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv) -> int:
+    """Size of the centralised critic's state (the env state and a one-hot of the taxi); 0 without one.
+    ConfigError for a mixture whose settings' global states differ in size (no one critic input holds them)."""
+    if not args.centralised_critic:
+        return 0
+    if venv.state_space is None:
+        raise ConfigError(
+            f"--centralised-critic reads one global state, but the settings of --fleet-mixture="
+            f"{list(args.fleet_mixture)} have states of different sizes (taxis and passengers); train with "
+            "--no-centralised-critic (the critic reads each taxi's own features, of any fleet), and with an "
+            "--init-from policy whose critic is centralised add --reinit-critic."
+        )
+    return int(venv.state_space.shape[0]) + venv.num_taxis
+
+
+def _training_envs(
+    args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local_envs: int
+) -> VectorEnv | MixtureVectorEnv:
+    """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``; tables
+    filled if asked."""
+    cfgs = training_configs(args, cfg, base)
     venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
-    if args.thresholds:
-        venv = MixtureVectorEnv([cfg.replace(sinr_min_db=t) for t in args.thresholds], num_envs=local_envs)
+    if args.thresholds or args.fleet_mixture:
+        venv = MixtureVectorEnv(cfgs, num_envs=local_envs)
     if args.fill_tables and cfg.stop_features and cfg.requests is None:
         # Random demand reads every row of the distance tables within minutes: compute them now (or load them
         # from the disk cache), instead of a few Dijkstras in every new episode's reset.
         for env in venv.envs if isinstance(venv, MixtureVectorEnv) else [venv]:
             table_for(env.world).fill()
     return venv
+
+
+def training_configs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig) -> list[EnvConfig]:
+    """The configs of the training envs' groups: ``cfg`` (the run's config) at each ``--thresholds`` value, in each
+    ``--fleet-mixture`` setting (threshold-major); ``[cfg]`` without either."""
+    settings = [cfg]
+    if args.fleet_mixture:
+        if not isinstance(base, str):
+            raise ConfigError(
+                f"--fleet-mixture={list(args.fleet_mixture)} draws each setting from a *_fleet scenario by name; "
+                "it cannot vary a config given as an EnvConfig (train one setting, or name the scenario)."
+            )
+        settings = [
+            run_config(dataclasses.replace(args, num_taxis=taxis, num_requests=requests, fleet_mixture=()), base)
+            for taxis, requests in args.fleet_settings()
+        ]  # the run's own options (window, time limit, reward, the start's layout) in each setting
+    if not args.thresholds:
+        return settings
+    return [c.replace(sinr_min_db=t) for t in args.thresholds for c in settings]
 
 
 def _check_batch(args: TrainArgs, batch: int, taxis: int) -> None:
@@ -193,8 +265,9 @@ def _check_batch(args: TrainArgs, batch: int, taxis: int) -> None:
 
 def with_init_architecture(args: TrainArgs) -> TrainArgs:
     """``args`` with the architecture options of the ``--init-from`` policy (its network is what trains), so the
-    run's checkpoints state what they hold; unchanged without ``init_from``. ConfigError when the start lies in
-    the run's own folder (replacing the run would delete the file its checkpoints point at)."""
+    run's checkpoints state what they hold; unchanged without ``init_from``. With ``--reinit-critic`` the critic
+    starts afresh, so ``--centralised-critic`` stays the run's own. ConfigError when the start lies in the run's own
+    folder (replacing the run would delete the file its checkpoints point at)."""
     if args.init_from is None:
         return args
     source = checkpoint_source(args.init_from)
@@ -205,15 +278,16 @@ def with_init_architecture(args: TrainArgs) -> TrainArgs:
             "choose another --run-name."
         )
     start = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
-    if args.centralised_critic != start.centralised_critic:
+    if args.centralised_critic != start.centralised_critic and not args.reinit_critic:
         reads = "the global state" if start.centralised_critic else "its own features"
         raise ConfigError(
             f"--centralised-critic={args.centralised_critic} differs from the --init-from policy's "
             f"({start.centralised_critic}): its critic reads {reads}; set --centralised-critic "
-            f"{start.centralised_critic}."
+            f"{start.centralised_critic}, or add --reinit-critic to start the critic afresh."
         )
     # (the env's layout, look-ahead included, follows the start through run_config, not through these flags)
-    return dataclasses.replace(args, **{name: getattr(start, name) for name in ARCHITECTURE_FIELDS})
+    taken = [name for name in ARCHITECTURE_FIELDS if not (args.reinit_critic and name == "centralised_critic")]
+    return dataclasses.replace(args, **{name: getattr(start, name) for name in taken})
 
 
 def make_learner(run: Run) -> Learner:
@@ -239,9 +313,15 @@ def make_learner(run: Run) -> Learner:
 def _learner_from(run: Run, source: Path) -> Learner:
     """A learner whose network and observation statistics are the policy at ``source`` (``--init-from``): the
     reward scaler starts afresh (the new task's rewards), and with ``--kl-to-init`` a frozen copy is the
-    reference."""
+    reference.
+
+    The start is fitted to this run's layout as :meth:`GreedyPolicy.for_fleet` flies it at another fleet size or
+    passenger window (the same weights: the network reads the other taxis and the passengers as sets; their
+    normaliser statistics pooled over the rows). Its actor and torso are always loaded; its critic when it reads
+    this run's input (own features, or a global state of the same fleet and passenger count), else only with
+    ``--reinit-critic``, which starts it afresh and says so."""
     args = run.args
-    start, _ = load_policy(source, device=str(run.device), env_config=run.eval_cfg)  # checks its spec is this env's
+    start, trained_on = _fitted_start(run, source)
     if set(start.obs_shapes or {}) != set(run.obs_shapes):
         unread = sorted(set(run.obs_shapes) - set(start.obs_shapes or {}))
         raise ConfigError(
@@ -249,17 +329,68 @@ def _learner_from(run: Run, source: Path) -> Learner:
             f"{unread}, which its network has no weights for; train that policy from scratch, or use a scenario "
             "without those fields."
         )
-    net = start.net.train()
-    for parameter in net.parameters():
-        parameter.requires_grad_(True)
+    net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None)
+    net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
+    weights = start.net.state_dict()
+    critic_reads = _critic_input(start.net.cfg.critic_state_dim, trained_on)
+    if critic_reads == _critic_input(net_cfg.critic_state_dim, run.cfg) and not args.reinit_critic:
+        net.load_state_dict(weights)
+    elif not args.reinit_critic:
+        raise ConfigError(
+            f"--init-from={args.init_from!r}: its critic reads {critic_reads}, this run's would read "
+            f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}; add --reinit-critic to start the critic afresh "
+            "(the actor and its torso are still the start's), or train at the start's fleet size and load."
+        )
+    else:
+        missing, unexpected = net.load_state_dict(
+            {k: v for k, v in weights.items() if not k.startswith("critic.")}, strict=False
+        )
+        assert all(k.startswith("critic.") for k in missing) and not unexpected, (missing, unexpected)
+        if run.ranks.is_main:
+            print(f"--init-from={args.init_from!r}: actor and torso loaded; critic re-initialised (--reinit-critic): "
+                  f"the start's read {critic_reads}, this run's reads "
+                  f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}")  # fmt: skip
+    net.train()
     reference = None
     if args.kl_to_init > 0:
         reference = copy.deepcopy(net).eval().requires_grad_(False)
     return Learner(
-        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net.cfg,
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
         normalizer=start.normalizer if args.norm_obs else None,
         scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None, reference=reference,
     )  # fmt: skip
+
+
+def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
+    """The ``--init-from`` policy laid out for this run (its fleet size and passenger window or axis: the largest
+    fleet of a mixture), and the config it trained on; ConfigError naming every field whose meaning differs from
+    this run's."""
+    start, _ = load_policy(source, device=str(run.device))
+    assert start.trained_on is not None, "load_policy always gives the config it trained on"
+    trained_on = start.trained_on
+    window = run.cfg.passenger_window
+    slots = None if window is not None else run.cfg.num_passengers
+    try:
+        start = start.for_fleet(run.cfg.num_taxis, passenger_slots=slots, passenger_window=window)
+    except ValueError as err:
+        raise ConfigError(f"--init-from={run.args.init_from!r} cannot fly this run's layout: {err}") from None
+    assert start.trained_on is not None
+    read = observation_layout(start.trained_on)
+    differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})
+    if differences:
+        raise ConfigError(
+            f"--init-from={run.args.init_from!r} reads another observation than this run's env (start vs run): "
+            + "; ".join(differences)
+            + "; train that policy from scratch, or match its scenario's layout."
+        )
+    return start, trained_on
+
+
+def _critic_input(state_dim: int | None, cfg: EnvConfig) -> str:
+    """What a critic reads, in words: its own features, or the global state of a fleet and passenger count."""
+    if state_dim is None:
+        return "each taxi's own features"
+    return f"the global state of {cfg.num_taxis} taxi(s) and {cfg.num_passengers} passenger(s) ({state_dim} values)"
 
 
 def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
@@ -355,7 +486,7 @@ def normalise(run: Run, learner: Learner, obs: dict[str, np.ndarray], update: bo
 
 def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
     """num_steps steps of this rank's envs into ``run.buffer``; actions sampled from the current policy."""
-    buf, net, dev, taxis = run.buffer, learner.net, run.device, run.venv.num_taxis
+    buf, net, dev = run.buffer, learner.net, run.device
     term_sums, episodes = np.zeros(len(REWARD_TERMS)), EpisodeSums()
     for step in range(run.args.num_steps):
         norm_obs = normalise(run, learner, run.obs, update=True)
@@ -371,21 +502,21 @@ def collect_rollout(run: Run, learner: Learner) -> RolloutStats:
         buf.actions[step] = action.cpu().numpy()
         buf.logprobs[step] = logprob.cpu().numpy()
         buf.values[step] = value.cpu().numpy()
-        next_obs, rewards, terminated, truncated, info = run.venv.step(buf.actions[step].reshape(-1, taxis))
-        term_sums += info["reward_terms"].sum(axis=(0, 1))
+        next_obs, rewards, terminated, truncated, info = run.venv.step(run.env_actions(buf.actions[step]))
+        term_sums += info["reward_terms"].sum(axis=(0, 1))  # (a mixture's padding taxis add zeros)
         done = terminated | truncated  # [E]
-        buf.terminated[step] = np.repeat(terminated, taxis)
-        buf.truncated[step] = np.repeat(truncated, taxis)
-        buf.rewards[step] = rewards.reshape(-1)
+        buf.terminated[step] = run.per_agent(terminated)
+        buf.truncated[step] = run.per_agent(truncated)
+        buf.rewards[step] = run.per_agent(rewards)
         if learner.scaler is not None and not run.ranks.active:
-            buf.rewards[step] = learner.scaler(buf.rewards[step], np.repeat(done, taxis))
+            buf.rewards[step] = learner.scaler(buf.rewards[step], run.per_agent(done))
         if truncated.any():  # bootstrap a time limit from the real final observation
             final = normalise(run, learner, run.flat(info["final_obs"]), update=False)
             with torch.inference_mode():
                 _, final_value = net(obs_to_torch(final, dev), state=_tensor(state, dev))
             buf.final_values[step] = final_value.cpu().numpy()
         for e in np.flatnonzero(done):
-            episodes.add(info["episode"], int(e))
+            episodes.add(run.finished_episode(info["episode"], int(e)), 0)
         run.obs = run.flat(next_obs)
     if learner.scaler is not None and run.ranks.active:  # all steps' statistics in one all-reduce
         buf.rewards[:] = learner.scaler.scale_rollout(buf.rewards, buf.terminated | buf.truncated, run.ranks)
