@@ -468,7 +468,10 @@ def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
 
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests;
-    # berlin_stops plus a look-ahead correction of its flight learned from replan (DAgger, issue 20)
+    # berlin_stops plus a correction of its flight learned from replan (DAgger, issue 20), reading each heading's
+    # two-move look-ahead on the tour (EnvConfig.lookahead_depth=2; since 2026-12-02)
+    "berlin_lookahead1": "berlin_lookahead1.pt",  # the same from the one-move look-ahead (shipped as "berlin"
+    # 2026-12-01 ... 2026-12-02), for its results
     "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
     # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
     "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
