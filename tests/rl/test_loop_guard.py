@@ -135,10 +135,11 @@ def test_rows_of_a_batch_keep_their_own_points() -> None:
 
 
 @pytest.mark.parametrize("guarded", [True, False])
-def test_the_shipped_policy_no_longer_circles_under_segment_raster(guarded: bool) -> None:
-    """Berlin test instance 2000015 under ``segment_raster``: unguarded, the shipped policy delivered 1 of 4 and flew
-    headings 6 and 14 back and forth until the 600-step limit (docs/results.md); guarded it delivers everyone."""
-    policy = uamfleet.pretrained("berlin")
+def test_a_policy_that_circled_under_segment_raster_no_longer_does(guarded: bool) -> None:
+    """Berlin test instance 2000015 under ``segment_raster``: unguarded, the one-move look-ahead policy (shipped as
+    "berlin" until 2026-12-02) delivered 1 of 4 and flew headings 6 and 14 back and forth until the 600-step limit
+    (docs/results.md); guarded it delivers everyone."""
+    policy = uamfleet.pretrained("berlin_lookahead1")
     assert policy.trained_on is not None
     cfg = policy.layout(instance_for_policy("berlin", 2000015, policy.trained_on.replace(feasibility="segment_raster")))
     if not guarded:
