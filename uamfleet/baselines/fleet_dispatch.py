@@ -21,7 +21,10 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
   at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch).
 
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
-``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`).
+``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
+separation shield an idle taxi in the way of a busy taxi's next move steps aside (:func:`make_way`): the shield
+never moves a hovering taxi, so one idle taxi hovering in a narrow passage otherwise held a taxi with a rider
+back until the time limit (:func:`fleet_actions`).
 
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
@@ -38,9 +41,10 @@ import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
+from uamfleet.config import heading_vectors
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
-from uamfleet.types import HIDDEN, HOVER_ACTION, ON_BOARD, WAITING
+from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
 DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
@@ -87,6 +91,59 @@ def fleet_action(
             idle = idle_at[taxi] = pos.copy()
         goal = idle
     return fields.heading(pos, s.action_mask[0, taxi], goal)
+
+
+def fleet_actions(
+    env: VectorEnv, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None]
+) -> np.ndarray:
+    """[1, A] every taxi's action in env 0: :func:`fleet_action` toward its target (None: nothing to do), then,
+    under the separation shield, the idle taxis in the way of a busy taxi's next move step aside
+    (:func:`make_way`)."""
+    actions = np.array([[fleet_action(env, fields, idle_at, a, t) for a, t in enumerate(targets)]], dtype=np.int64)
+    if env.cfg.separation == "shield":
+        make_way(env, actions[0], [t is None for t in targets], idle_at)
+    return actions
+
+
+def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at: list[np.ndarray | None]) -> None:
+    """Idle taxis step out of the way of busy ones (env 0, ``actions`` [A] changed in place).
+
+    The shield keeps a hover and turns the other taxi aside (docs/rules.md "Separation shield"), so an idle taxi
+    hovering in a passage a taxi with a rider must fly through held that taxi back until the time limit (Berlin
+    8 x 96: ``batch_assignment`` test seeds 2000056 and 2000088, ``greedy`` 2000049, each one rider short). An
+    idle taxi that the next move of a busy taxi would come within ``min_separation_m`` of, with the shield's own
+    test (:func:`_passes_within`), instead flies the allowed heading that ends farthest from where those busy
+    taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about where it ends up.
+    Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without
+    shield interventions flies as before."""
+    s = env.state
+    pos, allowed = s.pos_m[0], s.action_mask[0]
+    moves = env.cfg.step_m * heading_vectors()
+    radius = env.cfg.min_separation_m
+    busy_moves = [
+        (pos[b], pos[b] + moves[k]) for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]
+    ]
+    for a in np.flatnonzero(idle):
+        headed_to = [end for start, end in busy_moves if _passes_within(start, end, pos[a], radius)]
+        headings = np.flatnonzero(allowed[a, :NUM_HEADINGS])
+        if not headed_to or not headings.size:
+            continue
+        ends = pos[a] + moves[headings]  # [H, 2]
+        clearance = np.linalg.norm(ends[:, None] - np.asarray(headed_to)[None], axis=-1).min(axis=1)
+        actions[a] = headings[int(np.argmax(clearance))]
+        idle_at[a] = None
+
+
+def _passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, radius: float) -> bool:
+    """The shield's conflict test of a straight move ``start`` -> ``end`` against a taxi staying at ``point``:
+    the end closer than ``radius``, or, when the move starts at least that far away, its closest approach."""
+    if np.linalg.norm(end - point) < radius:
+        return True
+    if np.linalg.norm(start - point) < radius:
+        return False  # pairs that start closer need only a clear end (as the shield)
+    d = end - start
+    t = float(np.clip(np.dot(point - start, d) / max(float(np.dot(d, d)), 1e-12), 0.0, 1.0))
+    return bool(np.linalg.norm(start + t * d - point) < radius)
 
 
 class ScheduleFleetPolicy:
@@ -266,10 +323,7 @@ class ScheduleFleetPolicy:
         self._seen |= newly
         self._repair()
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
-        actions = np.zeros((1, self.num_taxis), dtype=np.int64)
-        for a in range(self.num_taxis):
-            actions[0, a] = fleet_action(self.env, self.fields, self._idle_at, a, self.target(a))
-        return actions
+        return fleet_actions(self.env, self.fields, self._idle_at, [self.target(a) for a in range(self.num_taxis)])
 
     def target(self, taxi: int) -> np.ndarray | None:
         """The first stop of the taxi's schedule it can act on now."""
@@ -422,4 +476,6 @@ __all__ = [
     "ScheduleFleetPolicy",
     "assign_trips",
     "fleet_action",
+    "fleet_actions",
+    "make_way",
 ]

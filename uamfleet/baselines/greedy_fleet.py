@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uamfleet.baselines.fleet_dispatch import fleet_action, shared_fields
+from uamfleet.baselines.fleet_dispatch import fleet_actions, shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 
@@ -17,7 +17,8 @@ class GreedyFleetPolicy:
     first). It steers along feasible paths (:class:`~uamfleet.paths.DistanceFields`), so taxis go round no-fly
     areas instead of getting stuck at their edges. A taxi with nothing to do hovers (the hover action, where the env
     has it) or zig-zags about the point where it became idle (as the other fleet dispatchers do:
-    :func:`~uamfleet.baselines.fleet_dispatch.fleet_action`), instead of chasing its own position.
+    :func:`~uamfleet.baselines.fleet_dispatch.fleet_actions`, which also makes an idle taxi step out of a busy
+    one's way under the shield), instead of chasing its own position.
     """
 
     def reset(self, env: VectorEnv) -> None:
@@ -28,10 +29,7 @@ class GreedyFleetPolicy:
         self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        actions = np.zeros((1, self.env.num_taxis), dtype=np.int64)
-        for a, target in enumerate(self._targets()):
-            actions[0, a] = fleet_action(self.env, self.fields, self._idle_at, a, target)
-        return actions
+        return fleet_actions(self.env, self.fields, self._idle_at, self._targets())
 
     def _targets(self) -> list[np.ndarray | None]:
         s = self.env.state
