@@ -153,3 +153,21 @@ def test_training_refuses_the_option_without_the_hover_action() -> None:
     with pytest.raises(ConfigError, match="drop --hover-logit"):
         _check_hover_logit(on, make_fleet_instance("berlin", 0, 4, 48, hover_action=False))
     _check_hover_logit(on, make_fleet_instance("berlin", 0, 4, 48, hover_action=True))
+
+
+def test_a_fine_tune_with_the_option_trains_17_logits_and_its_checkpoint_records_it(tmp_path: Path) -> None:
+    """One tiny PPO iteration from the shipped fleet with --hover-logit: 17-way sampling, update and evaluation."""
+    from uamfleet.rl.runs import read_progress
+    from uamfleet.rl.trainer import TrainArgs, train
+
+    args = TrainArgs(
+        scenario="berlin_fleet", init_from="berlin_fleet", hover_logit=True, passenger_window=24, num_taxis=4,
+        num_requests=24, reinit_critic=True, centralised_critic=False, total_timesteps=256, num_envs=2, num_steps=32,
+        num_minibatches=2, update_epochs=1, eval_every=1, eval_instances=1, checkpoint_every=1, run_dir=tmp_path,
+        run_name="hover", progress=False, tensorboard=False, threads=1, shaping=0.0, time_limit_steps=200,
+    )  # fmt: skip
+    train(args)
+    rows = read_progress(tmp_path / "hover" / "progress.csv")
+    assert rows[-1]["iteration"] == 1 and rows[0]["eval/pr_pct"] == 100.0
+    policy, saved = load_policy(tmp_path / "hover" / "last.pt")
+    assert saved.hover_logit and policy.net.cfg.hover_logit and policy.net.num_actions == NUM_HEADINGS + 1
