@@ -75,7 +75,8 @@ STOP_PRIORS: tuple[str, ...] = ("tour", "nearest")
 """The stop head's prior measure of a stop (``stop_paths`` column): the shortest tour that flies to it first, or
 the path to it alone."""
 READOUTS: tuple[str, ...] = ("flatten", "mean")
-NUM_ACTIONS = NUM_HEADINGS  # one logit per heading
+NUM_ACTIONS = NUM_HEADINGS  # one logit per heading (the action mask's width)
+NUM_ACTIONS_HOVER = NUM_HEADINGS + 1  # ... and the hover action's (HOVER_ACTION), with NetConfig.hover_logit
 MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
 
 
@@ -100,6 +101,9 @@ class NetConfig:
     rival_inputs: bool = False  # ... and what the other taxis offer for each stop (needs stop_inputs)
     claim_inputs: bool = False  # ... and the nearest-first matching's claims (needs rival_inputs)
     stop_hover: bool = False  # "stops": a hover component beside the free move (needs claim_inputs)
+    # "stops" with stop_hover, for an env with the hover action (EnvConfig.hover_action): the hover component is
+    # the logit of action 16 (HOVER_ACTION, stay in place) instead of mass on the hover heading: 17 logits
+    hover_logit: bool = False
     lookahead_inputs: bool = False  # "stops": a learned correction from each heading's look-ahead (zero at first)
 
     def __post_init__(self) -> None:
@@ -152,6 +156,11 @@ class NetConfig:
                 raise ValueError(f"{name}=True needs {needs}=True (the observation has them only together).")
         if self.stop_hover and self.action_head != "stops":
             raise ValueError("stop_hover=True is a component of the stop head: it needs action_head='stops'.")
+        if self.hover_logit and not self.stop_hover:
+            raise ValueError(
+                "hover_logit=True makes the stop head's hover component the hover action's logit: it needs "
+                "stop_hover=True (action_head='stops' with claim inputs and the 'hover_heading_mask' field)."
+            )
         if self.lookahead_inputs and self.action_head != "stops":
             raise ValueError(
                 "lookahead_inputs=True corrects the stop head's flight: it needs action_head='stops' (the 'headings' "
@@ -370,7 +379,10 @@ class StopHead(nn.Module):
     (it carries nobody and no passenger is left for it): the taxi may then wait instead of chasing another
     taxi's passenger. With ``hover=True`` (the observation has ``hover_heading_mask``, the heading back to where
     the taxi was a step ago) a hover component opens with the free move and starts :data:`HOVER_LEAD` logits ahead
-    of it: an idle taxi then hovers about a point, as the dispatchers' idle taxis do.
+    of it: an idle taxi then hovers about a point, as the dispatchers' idle taxis do. With ``hover_logit=True``
+    (``NetConfig.hover_logit``, for an env with the hover action) that component's log-weight is instead the
+    log-probability of action 16 (stay in place), open whenever no stop is (it needs no hover heading): the output
+    has 17 columns, and the stop and free components keep their headings' log-probabilities unchanged.
 
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
@@ -393,9 +405,11 @@ class StopHead(nn.Module):
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
         claims: bool = False, hover: bool = False, residual: bool = False, lookahead: bool = False,
+        hover_logit: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
         self.free_move, self.claims, self.hovers, self.residual = free_move, claims, hover, residual
+        self.hover_logit = hover_logit  # the hover component is action 16's logit (no parameters of its own)
         self.lookahead = lookahead
         if lookahead:  # g(look-ahead of heading h) added to heading h's logit; zero at first
             self.residual_lookahead = nn.Sequential(
@@ -447,30 +461,35 @@ class StopHead(nn.Module):
             if hover_mask is None:
                 raise ValueError("this stop head hovers: pass hover_mask [B, 16] (obs 'hover_heading_mask').")
             hover_at = as_bool(hover_mask)  # [B, 16] one-hot (all zero: no move allowed)
-            closed = open_stop.any(-1, keepdim=True) | ~hover_at.any(-1, keepdim=True)  # [B, 1]
+            closed = open_stop.any(-1, keepdim=True)  # [B, 1] a stop to fly to: no hovering
+            if not self.hover_logit:  # the hover heading is needed to hover by it; the hover action needs none
+                closed = closed | ~hover_at.any(-1, keepdim=True)
             idle.append(self.hover(features).masked_fill(closed, NOT_THIS))
         weights = torch.log_softmax(torch.cat([scores, *idle], dim=-1), dim=-1)  # [B, P + 1 (+ 1)]
         P = scores.shape[-1]
         per_stop = weights[:, :P, None] + torch.where(onehot, 0.0, NOT_THIS)  # [B, P, 16]
         free = weights[:, P : P + 1, None] + torch.log_softmax(free_logits, dim=-1).unsqueeze(1)  # [B, 1, 16]
         parts = [per_stop, free]
-        if self.hovers:
+        if self.hovers and not self.hover_logit:
             parts.append(weights[:, P + 1 :, None] + torch.where(hover_at, 0.0, NOT_THIS).unsqueeze(1))  # [B, 1, 16]
         logp = torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
+        if self.hover_logit:  # the hover's log-weight is the hover action's log-probability (+ logp's: 1 in all)
+            logp = torch.cat([logp, weights[:, P + 1 :]], dim=-1)  # [B, 17]
         if not ((self.residual or self.lookahead) and with_residual):
             return logp
-        logits = logp.clamp(min=PRIOR_FLOOR)  # [B, 16]
+        logits = logp.clamp(min=PRIOR_FLOOR)  # [B, 16 (+ 1)] the corrections below are the headings' only
+        headings = logits[:, :NUM_HEADINGS]  # [B, 16]
         if self.residual:  # each stop's own flight correction (from its hidden row), weighted by its mixture weight
             per_stop = torch.einsum("bp,bph->bh", weights[:, :P].exp(), self.residual_per_stop(hidden))  # [B, 16]
-            logits = logits + per_stop + self.residual_free(features)
+            headings = headings + per_stop + self.residual_free(features)
         if self.lookahead:
             if lookahead is None:
                 raise ValueError(
                     "this stop head reads the look-ahead: pass lookahead [B, 16] (obs 'heading_lookahead')."
                 )
             correction = self.residual_lookahead(lookahead.unsqueeze(-1)).squeeze(-1)  # [B, 16]
-            logits = logits + LOOKAHEAD_GAIN * correction
-        return logits
+            headings = headings + LOOKAHEAD_GAIN * correction
+        return torch.cat([headings, logits[:, NUM_HEADINGS:]], dim=-1)  # [B, 16 (+ 1)]
 
 
 # ---------------------------------------------------------------------------------------------- the policy
@@ -495,10 +514,17 @@ class MSHAActorCritic(nn.Module):
             self.stop_head = StopHead(
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
                 hover=cfg.stop_hover, residual=cfg.heading_residual, lookahead=cfg.lookahead_inputs,
+                hover_logit=cfg.hover_logit,
             )  # fmt: skip
 
+    @property
+    def num_actions(self) -> int:
+        """Logits per row: the 16 headings, and the hover action (HOVER_ACTION) with ``NetConfig.hover_logit``."""
+        return NUM_ACTIONS_HOVER if self.cfg.hover_logit else NUM_ACTIONS
+
     def _actor(self, obs: dict[str, torch.Tensor], with_residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
-        """(masked logits [B, 16], torso features [B, F]); ``with_residual=False``: the stop head's prior alone."""
+        """(masked logits [B, 16 or 17], torso features [B, F]); ``with_residual=False``: the stop head's prior
+        alone. Action 16 (``hover_logit``) is never masked: the hover is always allowed."""
         if self.stop_head is None:
             features = self.torso(obs)  # [B, F]
             return mask_logits(self.actor(features), obs["action_mask"]), features
@@ -512,8 +538,11 @@ class MSHAActorCritic(nn.Module):
         look = obs["heading_lookahead"] if self.stop_head.lookahead else None  # [B, 16]
         logp = self.stop_head(
             features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual, look
-        )  # [B, 16]
-        return mask_logits(logp, obs["action_mask"]), features
+        )  # [B, 16 (+ 1)]
+        allowed = obs["action_mask"]  # [B, 16]
+        if self.cfg.hover_logit:
+            allowed = torch.cat([allowed, torch.ones_like(allowed[:, :1])], dim=-1)  # [B, 17]
+        return mask_logits(logp, allowed), features
 
     def check(self, obs: dict[str, torch.Tensor]) -> int:
         """Raise :class:`ObservationShapeError` unless every field is [B, *space shape]; return B."""
@@ -604,7 +633,8 @@ def obs_to_torch(obs: dict[str, np.ndarray], device: torch.device | str) -> dict
 # The building blocks live in uamfleet.rl.encoders; they stay importable from here.
 __all__ = [
     "ACTION_HEADS", "CLAIMED_BY_OTHER", "CLAIM_INIT", "HOVER_LEAD", "INPUT_FIELDS", "MASK_FIELDS", "NEARNESS_INIT",
-    "NOT_THIS", "NUM_ACTIONS", "PATH_TO_STOP", "PRIOR_FLOOR", "READOUTS", "STOP_PRIORS", "TOUR_VIA_STOP", "VARIANTS",
+    "NOT_THIS", "NUM_ACTIONS", "NUM_ACTIONS_HOVER", "PATH_TO_STOP", "PRIOR_FLOOR", "READOUTS", "STOP_PRIORS",
+    "TOUR_VIA_STOP", "VARIANTS",
     "DesignedTorso", "GridReadout", "HybridAttention", "LinearTorso", "MSHAActorCritic", "MapEncoder",
     "MultiSourceFusion", "NetConfig", "PassengerEncoder", "PointerPool", "SetEncoder", "StopHead", "TaxiEncoder",
     "as_bool", "check_observation_fits", "global_attention", "layer_init", "local_attention", "mask_logits",

@@ -108,6 +108,10 @@ class TrainArgs:
     stop_prior: Literal["tour", "nearest"] = "tour"
     """with --action-head stops: the prior prefers the stop that starts the shortest tour through every known stop
     (one taxi), or the nearest stop (a fleet with claims: the greedy dispatcher's rule along feasible paths)"""
+    hover_logit: bool = False
+    """with --action-head stops and a hover component (a *_fleet scenario: EnvConfig.hover_action): the hover
+    component is the logit of the hover action (16, stay in place) instead of mass on the heading back to where the
+    taxi was (NetConfig.hover_logit); also switches it on for an --init-from policy, whose weights are kept"""
     # fine-tuning
     init_from: str | None = None
     """start from this policy's weights and observation statistics: a shipped name (e.g. berlin, see

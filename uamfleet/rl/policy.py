@@ -85,6 +85,11 @@ class GreedyPolicy:
                 UserWarning,
                 stacklevel=3,
             )
+        if self.net.cfg.hover_logit and not cfg.hover_action:
+            raise ValueError(
+                "this policy's network takes the hover action (16; NetConfig.hover_logit), which the config lacks: "
+                "fly it with EnvConfig(hover_action=True) (the *_fleet presets have it)."
+            )
         if self.trained_on is None:
             return cfg
         like = self.trained_on
@@ -210,8 +215,9 @@ class GreedyPolicy:
 
     @torch.inference_mode()
     def logits_of(self, inputs: dict[str, np.ndarray]) -> torch.Tensor:
-        """Masked logits [B, 16] for :meth:`network_input` rows (needs no critic state). Under inference mode, not
-        only no_grad: less overhead per call, which a lone taxi's decision is mostly (docs/benchmarks.md)."""
+        """Masked logits [B, 16] (17 with the hover action's, ``NetConfig.hover_logit``) for :meth:`network_input`
+        rows (needs no critic state). Under inference mode, not only no_grad: less overhead per call, which a lone
+        taxi's decision is mostly (docs/benchmarks.md)."""
         return self.net.masked_logits(obs_to_torch(inputs, self.device))
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:

@@ -299,9 +299,10 @@ def make_learner(run: Run) -> Learner:
     net_cfg = NetConfig(
         variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
         readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
-        stop_free_move=args.stop_free_move, stop_prior=args.stop_prior,
+        stop_free_move=args.stop_free_move, stop_prior=args.stop_prior, hover_logit=args.hover_logit,
         **observed_inputs(run.layout, args.variant, args.action_head),  # from the env's spec
     )  # fmt: skip
+    _check_hover_logit(net_cfg, run.cfg)
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     return Learner(
         net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
@@ -329,7 +330,9 @@ def _learner_from(run: Run, source: Path) -> Learner:
             f"{unread}, which its network has no weights for; train that policy from scratch, or use a scenario "
             "without those fields."
         )
-    net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None)
+    hover_logit = start.net.cfg.hover_logit or args.hover_logit  # an untrained switch keeps every weight
+    net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None, hover_logit=hover_logit)
+    _check_hover_logit(net_cfg, run.cfg)
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     weights = start.net.state_dict()
     critic_reads = _critic_input(start.net.cfg.critic_state_dim, trained_on)
@@ -359,6 +362,15 @@ def _learner_from(run: Run, source: Path) -> Learner:
         normalizer=start.normalizer if args.norm_obs else None,
         scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None, reference=reference,
     )  # fmt: skip
+
+
+def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
+    """ConfigError when the network takes the hover action (``NetConfig.hover_logit``) but the run's env has none."""
+    if net_cfg.hover_logit and not cfg.hover_action:
+        raise ConfigError(
+            "--hover-logit makes the network take the hover action (16), which this run's env lacks: train on a "
+            "scenario with EnvConfig.hover_action (a *_fleet preset), or drop --hover-logit."
+        )
 
 
 def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
