@@ -478,6 +478,9 @@ PRETRAINED: dict[str, str] = {
     # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi; any number of
     # requests through .for_fleet(n, passenger_window=24), its 24 trained slots (docs/rules.md "Passenger window")
     "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
+    "berlin_fleet_hover": "berlin_fleet_hover.pt",  # berlin_fleet fine-tuned on a mixture of 2-8 taxis, light and
+    # loaded, under the shield, waiting with the true hover action (NetConfig.hover_logit; fly it with hover_action=True
+    # and .for_fleet(n, passenger_window=24)); docs/results/fleet_hover_finetune.md
 }
 """The policies shipped in ``uamfleet/data/pretrained`` (``uamfleet.pretrained(name)``): name -> file."""
 
