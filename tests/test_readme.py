@@ -329,10 +329,10 @@ MEASURED = {
     "3": "3 min 38 s for the generalist section, measured for this README in the same hour",
     "38": "ditto",
     "2026-12-01": "the date of earlier measurements the README quotes",
-    "41": "the main job from a fresh clone on the idle machine after it became fine-tuning (2 min 41 s, set-up "
-    "included), measured for this README",
-    "63": "ditto: its training's seconds",
-    "43": "ditto: its generalist section's seconds",
+    "57": "the main job from a fresh clone on the idle machine after the two-move policy was shipped (2 min 57 s, "
+    "set-up included), measured for this README",
+    "72": "ditto: its training's seconds",
+    "48": "ditto: its generalist section's seconds",
 }
 SETUP = {
     # the set-up the figures were taken under, not results: scenario, budgets, counts of runs and instances
