@@ -27,18 +27,27 @@ def _expected_lookahead(env: VectorEnv, e: int, scratch: VectorEnv) -> tuple[np.
         target[:] = source[e : e + 1]
     obs, _, terminated, truncated, info = scratch.step(np.arange(NUM_HEADINGS)[:, None])
     assert not truncated.any(), "the test's flight must end before the time limit"
-    side, step = env.cfg.side_m, env.cfg.step_m
-    cost = np.empty(NUM_HEADINGS)
-    for h in range(NUM_HEADINGS):
-        paths = obs["stop_paths"][h, 0]
-        offered = paths[:, STOP_PATH_TO_STOP] > 0
-        tour = 0.0 if terminated[h] or not offered.any() else float(paths[offered, STOP_TOUR_VIA_STOP].min()) * side
-        cost[h] = step * info["events"].moved[h, 0] + tour
-    allowed = env.state.action_mask[e, 0].astype(bool)
+    cost = env.cfg.step_m * info["events"].moved[:, 0] + _observed_tour_m(obs, terminated, env.cfg.side_m)
+    served = bool(info["events"].picked_up.any() or info["events"].dropped_off.any())
+    return _excess_moves(cost, env.state.action_mask[e, 0].astype(bool), env.cfg.step_m), served
+
+
+def _observed_tour_m(obs: dict[str, np.ndarray], ended: np.ndarray, side: float) -> np.ndarray:
+    """[N] the shortest tour each env of a copy observes after its flight (metres; 0 once its episode ended or no
+    stop is left)."""
+    paths = obs["stop_paths"][:, 0]
+    offered = paths[..., STOP_PATH_TO_STOP] > 0
+    tour = np.where(offered, paths[..., STOP_TOUR_VIA_STOP], np.inf).min(-1) * side
+    return np.where(offered.any(-1) & ~ended, tour, 0.0)
+
+
+def _excess_moves(cost: np.ndarray, allowed: np.ndarray, step: float) -> np.ndarray:
+    """[16] the field's value from each heading's cost: above the least allowed one, in moves, clipped; the clip
+    where a heading is not allowed or costs inf."""
+    allowed = allowed & np.isfinite(cost)
     out = np.full(NUM_HEADINGS, LOOKAHEAD_CLIP)
     out[allowed] = np.minimum((cost[allowed] - cost[allowed].min()) / step, LOOKAHEAD_CLIP)
-    served = bool(info["events"].picked_up.any() or info["events"].dropped_off.any())
-    return out, served
+    return out
 
 
 def test_lookahead_is_the_move_plus_the_tour_the_step_leaves() -> None:
@@ -79,18 +88,12 @@ def _expected_two_move_lookahead(env: VectorEnv, e: int, scratch: VectorEnv) -> 
     second_allowed = obs1["action_mask"][np.arange(first.size), 0, second] > 0
     obs2, _, done2, truncated, info2 = scratch.step(second[:, None])
     assert not truncated.any(), "the test's flight must end before the time limit"
-    side, step = env.cfg.side_m, env.cfg.step_m
-    paths = obs2["stop_paths"][:, 0]
-    offered = paths[..., STOP_PATH_TO_STOP] > 0
-    tour = np.where(offered, paths[..., STOP_TOUR_VIA_STOP], np.inf).min(-1) * side
-    tour = np.where(offered.any(-1) & ~done2, tour, 0.0)
+    step = env.cfg.step_m
+    tour = _observed_tour_m(obs2, done2, env.cfg.side_m)
     moved1, moved2 = info1["events"].moved[:, 0], info2["events"].moved[:, 0]
     cost = np.where(second_allowed, (moved1 + moved2) * step + tour, np.inf)
     cost = np.where(done1, moved1 * step, cost).reshape(NUM_HEADINGS, NUM_HEADINGS).min(1)
-    allowed = env.state.action_mask[e, 0].astype(bool) & np.isfinite(cost)
-    out = np.full(NUM_HEADINGS, LOOKAHEAD_CLIP)
-    out[allowed] = np.minimum((cost[allowed] - cost[allowed].min()) / step, LOOKAHEAD_CLIP)
-    return out
+    return _excess_moves(cost, env.state.action_mask[e, 0].astype(bool), step)
 
 
 @pytest.mark.parametrize("feasibility", ["endpoint_block", "segment_raster"])

@@ -223,3 +223,17 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: boo
         imitate(args)
     with pytest.raises(ConfigError, match="pass --lookahead"):
         ImitationArgs(train="lookahead")
+
+
+def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_two(tmp_path) -> None:
+    """``--lookahead-depth`` without ``--lookahead`` is refused when parsed; a depth other than 1 or 2 by the run's
+    EnvConfig, before the run folder is made."""
+    from uamfleet.config import ConfigError
+    from uamfleet.rl.imitation import imitate
+
+    with pytest.raises(ConfigError, match="--lookahead-depth=2 is the look-ahead's depth: pass --lookahead"):
+        ImitationArgs(lookahead_depth=2)
+    args = ImitationArgs(lookahead=True, train="lookahead", lookahead_depth=3, run_dir=tmp_path, run_name="deep")
+    with pytest.raises(ConfigError, match="lookahead_depth=3 must be 1"):
+        imitate(args)
+    assert not (tmp_path / "deep").exists()

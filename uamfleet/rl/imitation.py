@@ -109,10 +109,8 @@ class ImitationArgs:
         self.run_dir = Path(self.run_dir)
         if self.train == "lookahead" and not self.lookahead:
             raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
-        if self.lookahead_depth not in (1, 2) or (self.lookahead_depth != 1 and not self.lookahead):
-            raise ConfigError(
-                f"--lookahead-depth={self.lookahead_depth}: use 1 or 2, and a depth other than 1 with --lookahead."
-            )
+        if self.lookahead_depth != 1 and not self.lookahead:  # its value is checked by EnvConfig, as every run's
+            raise ConfigError(f"--lookahead-depth={self.lookahead_depth} is the look-ahead's depth: pass --lookahead.")
 
     def beta(self, round_index: int) -> float:
         """Probability that a step of round ``round_index`` flies the expert's heading."""
