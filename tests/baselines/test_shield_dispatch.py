@@ -10,7 +10,8 @@ import pytest
 from conftest import small_config
 
 from uamfleet.baselines import make_policy
-from uamfleet.baselines.fleet_dispatch import DISPATCHERS, _passes_within
+from uamfleet.baselines.fleet_dispatch import DISPATCHERS
+from uamfleet.env.motion import passes_within
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
@@ -117,12 +118,12 @@ def test_without_the_shield_the_idle_taxi_keeps_hovering(name):
 
 def test_passes_within_is_the_shields_conflict_test_against_a_taxi_staying_put():
     start, end = np.array([0.0, 0.0]), np.array([100.0, 0.0])
-    assert _passes_within(start, end, np.array([50.0, 40.0]), 50.0)  # passes 40 m from it mid-move
-    assert not _passes_within(start, end, np.array([50.0, 60.0]), 50.0)  # 60 m at the closest
-    assert _passes_within(start, end, np.array([130.0, 0.0]), 50.0)  # ends 30 m from it
-    assert not _passes_within(start, end, np.array([-60.0, 0.0]), 50.0)  # flies away from 60 m
+    assert passes_within(start, end, np.array([50.0, 40.0]), 50.0)  # passes 40 m from it mid-move
+    assert not passes_within(start, end, np.array([50.0, 60.0]), 50.0)  # 60 m at the closest
+    assert passes_within(start, end, np.array([130.0, 0.0]), 50.0)  # ends 30 m from it
+    assert not passes_within(start, end, np.array([-60.0, 0.0]), 50.0)  # flies away from 60 m
     # a pair that starts closer needs only a clear end (the shield's rule): 30 m at the start, 104 m at the end
-    assert not _passes_within(start, end, np.array([0.0, 30.0]), 50.0)
+    assert not passes_within(start, end, np.array([0.0, 30.0]), 50.0)
 
 
 @pytest.mark.slow

@@ -42,6 +42,7 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
 from uamfleet.config import heading_vectors
+from uamfleet.env.motion import passes_within
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
 from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
@@ -112,8 +113,9 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
     hovering in a passage a taxi with a rider must fly through held that taxi back until the time limit (Berlin
     8 x 96: ``batch_assignment`` test seeds 2000056 and 2000088, ``greedy`` 2000049, each one rider short). An
     idle taxi that the next move of a busy taxi would come within ``min_separation_m`` of, with the shield's own
-    test (:func:`_passes_within`), instead flies the allowed heading that ends farthest from where those busy
-    taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about where it ends up.
+    test (:func:`uamfleet.env.motion.passes_within`), instead flies the allowed heading that ends farthest from
+    where those busy taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about
+    where it ends up.
     Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without
     shield interventions flies as before."""
     s = env.state
@@ -124,7 +126,7 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
         (pos[b], pos[b] + moves[k]) for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]
     ]
     for a in np.flatnonzero(idle):
-        headed_to = [end for start, end in busy_moves if _passes_within(start, end, pos[a], radius)]
+        headed_to = [end for start, end in busy_moves if passes_within(start, end, pos[a], radius)]
         headings = np.flatnonzero(allowed[a, :NUM_HEADINGS])
         if not headed_to or not headings.size:
             continue
@@ -132,18 +134,6 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
         clearance = np.linalg.norm(ends[:, None] - np.asarray(headed_to)[None], axis=-1).min(axis=1)
         actions[a] = headings[int(np.argmax(clearance))]
         idle_at[a] = None
-
-
-def _passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, radius: float) -> bool:
-    """The shield's conflict test of a straight move ``start`` -> ``end`` against a taxi staying at ``point``:
-    the end closer than ``radius``, or, when the move starts at least that far away, its closest approach."""
-    if np.linalg.norm(end - point) < radius:
-        return True
-    if np.linalg.norm(start - point) < radius:
-        return False  # pairs that start closer need only a clear end (as the shield)
-    d = end - start
-    t = float(np.clip(np.dot(point - start, d) / max(float(np.dot(d, d)), 1e-12), 0.0, 1.0))
-    return bool(np.linalg.norm(start + t * d - point) < radius)
 
 
 class ScheduleFleetPolicy:

@@ -79,6 +79,17 @@ def _conflict(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray
 
 
 @njit(cache=True)
+def passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, min_separation_m: float) -> bool:
+    """The shield's own conflict test (:func:`_conflict`) of one straight move ``start`` -> ``end`` against a taxi
+    staying at ``point``: the end closer than ``min_separation_m``, or, when the move starts at least that far
+    away, its closest approach. For planners that keep out of the shield's way (``fleet_dispatch.make_way``)."""
+    pos, ends = np.empty((2, 2)), np.empty((2, 2))
+    pos[0], pos[1], ends[1] = start, point, point
+    none = np.zeros(2, np.bool_)
+    return _conflict(0, end[0], end[1], ends, none, none, pos, min_separation_m) != CLEAR
+
+
+@njit(cache=True)
 def stayed_steps(pos: np.ndarray, history: np.ndarray) -> np.ndarray:
     """[A] int64: the steps each taxi has stayed where it is (history rows, most recent first, equal to its
     position), at most the history's length: the shield's first priority."""
