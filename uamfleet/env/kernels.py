@@ -381,7 +381,7 @@ def _nearest_rests(
                 dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], t)
                 if math.isnan(dist[i, j]):
                     return False
-    todo = np.empty(m, np.int8)
+    todo = np.empty(m, np.int64)  # scratch of the tours (:func:`_nearest_stop_tour`)
     seats = s.free_seats[e, a]
     for k in range(m):
         if pending[k] and (stops[k] % 2 == 1 or seats > 0):  # an offered stop (row_stop)

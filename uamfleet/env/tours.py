@@ -139,10 +139,15 @@ def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: i
             origins |= 1 << k
         elif origin_of[k] >= 0:
             after[k] = 1 << origin_of[k]
+    nexts = np.empty(n, np.int64)  # the stops that may come first from set R ...
+    after_next = np.empty(n)  # ... and the rest after each: shared by every stop i before R
     for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
         if ((remaining & origins) << 1) & ~remaining:
             continue  # an origin pending without its destination: no tour gets here
-        nexts = _next_stops(remaining, ids, after, n, seats)
+        count = _next_stops(remaining, ids, after, n, seats, nexts)
+        for q in range(count):
+            j = nexts[q]
+            after_next[q] = rest[remaining ^ (1 << j), j]
         for i in range(n):
             if (remaining >> i) & 1:
                 continue
@@ -152,26 +157,26 @@ def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: i
                 rest[remaining, i] = 0.0
                 continue
             best = math.inf
-            for j in range(n):
-                if (nexts >> j) & 1:
-                    best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
+            for q in range(count):  # the next stops in ascending order, as the sums were always taken
+                best = min(best, dist[i, nexts[q]] + after_next[q])
             rest[remaining, i] = best
     return rest
 
 
 @njit(cache=True, inline="always")
-def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int) -> int:
-    """The bits of the stops of set R that may come next (:func:`_subset_rests`): a drop-off whose pick-up is
-    done, a pick-up while a seat is free once the stops outside R are visited."""
+def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int, out: np.ndarray) -> int:
+    """The stops of set R that may come next (:func:`_subset_rests`), ascending, into ``out``; their number: a
+    drop-off whose pick-up is done, a pick-up while a seat is free once the stops outside R are visited."""
     free = seats
     for k in range(n):
         if not (remaining >> k) & 1:
             free += 1 if ids[k] % 2 else -1
-    nexts = 0
+    count = 0
     for j in range(n):
         if (remaining >> j) & 1 and not remaining & after[j] and (ids[j] % 2 == 1 or free > 0):
-            nexts |= 1 << j
-    return nexts
+            out[count] = j
+            count += 1
+    return count
 
 
 @njit(cache=True)
@@ -182,31 +187,39 @@ def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray,
     passenger's destination right after her origin; ``dist`` [m, m] between them; ``pending`` [m] 1 for the stops
     to visit from the start, 0 for the destinations of passengers not aboard yet; ``seats`` free at the start).
     Pick-up before drop-off, an origin only while a seat is free; ties go to the lowest stop point. ``todo`` [m]
-    is scratch."""
+    is scratch: the local stops still to visit, in no order (each leg scans only those, and a visited one is
+    swapped out), so a tie is decided by the index, not by the scan's order."""
     m = stops.size
-    todo[:m] = pending[:m]
+    live = 0
+    for i in range(m):
+        if pending[i] and i != first:
+            todo[live] = i
+            live += 1
     if stops[first] % 2 == 0:  # boarding: her destination joins the tour
-        todo[first], todo[first + 1] = 0, 1
+        todo[live] = first + 1
+        live += 1
         seats -= 1
     else:
-        todo[first] = 0
         seats += 1
     total, here = 0.0, first
     while True:
-        best, best_d = -1, math.inf
-        for i in range(m):
-            if todo[i] == 0 or (stops[i] % 2 == 0 and seats <= 0):
+        best, best_d, slot = -1, math.inf, -1
+        for k in range(live):
+            i = todo[k]
+            if stops[i] % 2 == 0 and seats <= 0:
                 continue
             d = dist[here, i]
-            if d < best_d:
-                best, best_d = i, d
+            if d < best_d or (d == best_d and i < best):
+                best, best_d, slot = i, d, k
         if best < 0:
             return total
         total += best_d
         here = best
-        todo[best] = 0
+        live -= 1
+        todo[slot] = todo[live]
         if stops[best] % 2 == 0:
-            todo[best + 1] = 1
+            todo[live] = best + 1
+            live += 1
             seats -= 1
         else:
             seats += 1
