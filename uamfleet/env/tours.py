@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import TableArrays, corner_distance, new_corners, prepare_corners, table_distance
 from uamfleet.types import DELIVERED, ON_BOARD, WAITING, FleetState
 
 
@@ -22,6 +22,35 @@ def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, t: TableAr
         d = table_distance(t, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
         memo[i, j] = d
     return d
+
+
+@njit(cache=True)
+def _stop_distances(memo: np.ndarray, pts: np.ndarray, stops: np.ndarray, m: int, t: TableArrays,
+                    dist: np.ndarray) -> bool:  # fmt: skip
+    """dist[i, j] = :func:`_stop_distance` from stop point ``stops[i]`` to ``stops[j]`` (0 on the diagonal) for the
+    first m stops; False when a table row is missing. The pairs not in the memo yet (a new request's, with every
+    other stop) are looked up with each point's corners prepared once (:func:`corner_distance`: the same numbers
+    as :func:`table_distance`) and kept in the memo."""
+    corners = new_corners(m)
+    prepared = False
+    for i in range(m):
+        for j in range(m):
+            if i == j:
+                dist[i, j] = 0.0
+                continue
+            d = memo[stops[i], stops[j]]
+            if math.isnan(d):
+                if not prepared:
+                    for k in range(m):
+                        prepare_corners(t, pts[stops[k], 0], pts[stops[k], 1], corners, k)
+                    prepared = True
+                a, b = pts[stops[i]], pts[stops[j]]
+                d = corner_distance(t, corners, i, corners, j, a[0], a[1], b[0], b[1])
+                memo[stops[i], stops[j]] = d
+                if math.isnan(d):
+                    return False
+            dist[i, j] = d
+    return True
 
 
 MAX_EXACT_STOPS = 12
@@ -88,12 +117,8 @@ def _shortest_rests(
     if n < 0:
         return -1
     dist = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            d = _stop_distance(memo, pts, ids[i], ids[j], t) if i != j else 0.0
-            if math.isnan(d):
-                return 0
-            dist[i, j] = d
+    if not _stop_distances(memo, pts, ids, n, t, dist):
+        return 0
     rest = _subset_rests(dist, ids, origin_of, n, s.free_seats[e, a])
     full = (1 << n) - 1
     for i in range(n):
