@@ -300,9 +300,11 @@ def _stop_rows(
         status = rows.statuses[p]
         if not rows.exists[p] or status == HIDDEN or status == DELIVERED:
             continue
-        trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
+        trip = memo[2 * p, 2 * p + 1]  # kept per episode: read in place, a call costs more than the read
         if math.isnan(trip):
-            return False
+            trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)
+            if math.isnan(trip):
+                return False
         o_paths[p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
         point = stop_of(status, rows.carriers[p], rows.free_seats[a], a, p)
         if point < 0:
