@@ -446,3 +446,24 @@ def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) 
     many = [tours._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0
             for e in range(2) for a in range(num_taxis)]  # fmt: skip
     assert kept_steps > 50 and any(many)  # rests were kept, some of them nearest-stop tours
+
+
+def test_stop_distances_fill_the_memo_with_the_plain_lookups_and_stop_at_a_missing_row() -> None:
+    """_stop_distances (prepared corners for the pairs not in the memo) gives table_distance's numbers bit for bit,
+    keeps them, reads a kept pair from the memo as it is, and answers False at the first row not computed yet."""
+    env = VectorEnv(make_config("berlin_random", stop_features=True), num_envs=1)
+    table = table_for(env.world)
+    rng = np.random.default_rng(7)
+    pts = rng.uniform(0.0, env.world.side_m, (10, 2))
+    table.ensure(pts)
+    stops = np.array([0, 3, 4, 7, 9], np.int64)
+    memo = np.full((10, 10), np.nan)
+    memo[3, 4] = 123.0  # a kept pair is read, not looked up again
+    dist = np.empty((5, 5))
+    assert tours._stop_distances(memo, pts, stops, 5, table.arrays, dist)
+    want = np.array([[0.0 if i == j else table_distance(table.arrays, *pts[i], *pts[j]) for j in stops] for i in stops])
+    want[1, 2] = 123.0
+    np.testing.assert_array_equal(dist, want)
+    np.testing.assert_array_equal(memo[np.ix_(stops, stops)][~np.eye(5, dtype=bool)], want[~np.eye(5, dtype=bool)])
+    none_yet = table.arrays._replace(distance_m=np.full_like(table.arrays.distance_m, np.nan))  # no row computed
+    assert not tours._stop_distances(np.full((10, 10), np.nan), pts, stops, 5, none_yet, dist)

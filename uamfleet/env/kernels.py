@@ -22,7 +22,14 @@ from numba import njit
 
 from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
 from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
-from uamfleet.env.tours import MAX_EXACT_STOPS, _nearest_stop_tour, _pending_key, _shortest_rests, _stop_distance
+from uamfleet.env.tours import (
+    MAX_EXACT_STOPS,
+    _nearest_stop_tour,
+    _pending_key,
+    _shortest_rests,
+    _stop_distance,
+    _stop_distances,
+)
 from uamfleet.paths.distance_table import (
     Corners,
     TableArrays,
@@ -271,7 +278,7 @@ def stop_features(
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _stop_rows(
     rows: StopRows, moves: MoveGeometry, side: float, a: int, pos: np.ndarray, allowed: np.ndarray, memo: np.ndarray,
     pts: np.ndarray, t: TableArrays, o_paths: np.ndarray, o_heading: np.ndarray, taxi: Corners, stop: Corners,
@@ -293,9 +300,11 @@ def _stop_rows(
         status = rows.statuses[p]
         if not rows.exists[p] or status == HIDDEN or status == DELIVERED:
             continue
-        trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)  # kept per episode
+        trip = memo[2 * p, 2 * p + 1]  # kept per episode: read in place, a call costs more than the read
         if math.isnan(trip):
-            return False
+            trip = _stop_distance(memo, pts, 2 * p, 2 * p + 1, t)
+            if math.isnan(trip):
+                return False
         o_paths[p, STOP_RIDE_PATH] = min(trip / side, STOP_PATH_CLIP)
         point = stop_of(status, rows.carriers[p], rows.free_seats[a], a, p)
         if point < 0:
@@ -374,14 +383,10 @@ def _nearest_rests(
         elif s.pax_status[e, p] == ON_BOARD and s.pax_exists[e, p] and s.pax_taxi[e, p] == a:
             stops[m], pending[m] = 2 * p + 1, 1
             m += 1
-    dist = np.zeros((m, m))
-    for i in range(m):
-        for j in range(m):
-            if i != j:
-                dist[i, j] = _stop_distance(memo, pts, stops[i], stops[j], t)
-                if math.isnan(dist[i, j]):
-                    return False
-    todo = np.empty(m, np.int8)
+    dist = np.empty((m, m))
+    if not _stop_distances(memo, pts, stops, m, t, dist):
+        return False
+    todo = np.empty(m, np.int64)  # scratch of the tours (:func:`_nearest_stop_tour`)
     seats = s.free_seats[e, a]
     for k in range(m):
         if pending[k] and (stops[k] % 2 == 1 or seats > 0):  # an offered stop (row_stop)

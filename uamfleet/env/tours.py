@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import TableArrays, corner_distance, new_corners, prepare_corners, table_distance
 from uamfleet.types import DELIVERED, ON_BOARD, WAITING, FleetState
 
 
@@ -22,6 +22,35 @@ def _stop_distance(memo: np.ndarray, pts: np.ndarray, i: int, j: int, t: TableAr
         d = table_distance(t, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1])
         memo[i, j] = d
     return d
+
+
+@njit(cache=True)
+def _stop_distances(memo: np.ndarray, pts: np.ndarray, stops: np.ndarray, m: int, t: TableArrays,
+                    dist: np.ndarray) -> bool:  # fmt: skip
+    """dist[i, j] = :func:`_stop_distance` from stop point ``stops[i]`` to ``stops[j]`` (0 on the diagonal) for the
+    first m stops; False when a table row is missing. The pairs not in the memo yet (a new request's, with every
+    other stop) are looked up with each point's corners prepared once (:func:`corner_distance`: the same numbers
+    as :func:`table_distance`) and kept in the memo."""
+    corners = new_corners(m)
+    prepared = False
+    for i in range(m):
+        for j in range(m):
+            if i == j:
+                dist[i, j] = 0.0
+                continue
+            d = memo[stops[i], stops[j]]
+            if math.isnan(d):
+                if not prepared:
+                    for k in range(m):
+                        prepare_corners(t, pts[stops[k], 0], pts[stops[k], 1], corners, k)
+                    prepared = True
+                a, b = pts[stops[i]], pts[stops[j]]
+                d = corner_distance(t, corners, i, corners, j, a[0], a[1], b[0], b[1])
+                memo[stops[i], stops[j]] = d
+                if math.isnan(d):
+                    return False
+            dist[i, j] = d
+    return True
 
 
 MAX_EXACT_STOPS = 12
@@ -88,12 +117,8 @@ def _shortest_rests(
     if n < 0:
         return -1
     dist = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            d = _stop_distance(memo, pts, ids[i], ids[j], t) if i != j else 0.0
-            if math.isnan(d):
-                return 0
-            dist[i, j] = d
+    if not _stop_distances(memo, pts, ids, n, t, dist):
+        return 0
     rest = _subset_rests(dist, ids, origin_of, n, s.free_seats[e, a])
     full = (1 << n) - 1
     for i in range(n):
@@ -139,10 +164,15 @@ def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: i
             origins |= 1 << k
         elif origin_of[k] >= 0:
             after[k] = 1 << origin_of[k]
+    nexts = np.empty(n, np.int64)  # the stops that may come first from set R ...
+    after_next = np.empty(n)  # ... and the rest after each: shared by every stop i before R
     for remaining in range(1 << n):  # R \ {j} < R: every rest needed is computed before it is read
         if ((remaining & origins) << 1) & ~remaining:
             continue  # an origin pending without its destination: no tour gets here
-        nexts = _next_stops(remaining, ids, after, n, seats)
+        count = _next_stops(remaining, ids, after, n, seats, nexts)
+        for q in range(count):
+            j = nexts[q]
+            after_next[q] = rest[remaining ^ (1 << j), j]
         for i in range(n):
             if (remaining >> i) & 1:
                 continue
@@ -152,26 +182,26 @@ def _subset_rests(dist: np.ndarray, ids: np.ndarray, origin_of: np.ndarray, n: i
                 rest[remaining, i] = 0.0
                 continue
             best = math.inf
-            for j in range(n):
-                if (nexts >> j) & 1:
-                    best = min(best, dist[i, j] + rest[remaining ^ (1 << j), j])
+            for q in range(count):  # the next stops in ascending order, as the sums were always taken
+                best = min(best, dist[i, nexts[q]] + after_next[q])
             rest[remaining, i] = best
     return rest
 
 
 @njit(cache=True, inline="always")
-def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int) -> int:
-    """The bits of the stops of set R that may come next (:func:`_subset_rests`): a drop-off whose pick-up is
-    done, a pick-up while a seat is free once the stops outside R are visited."""
+def _next_stops(remaining: int, ids: np.ndarray, after: np.ndarray, n: int, seats: int, out: np.ndarray) -> int:
+    """The stops of set R that may come next (:func:`_subset_rests`), ascending, into ``out``; their number: a
+    drop-off whose pick-up is done, a pick-up while a seat is free once the stops outside R are visited."""
     free = seats
     for k in range(n):
         if not (remaining >> k) & 1:
             free += 1 if ids[k] % 2 else -1
-    nexts = 0
+    count = 0
     for j in range(n):
         if (remaining >> j) & 1 and not remaining & after[j] and (ids[j] % 2 == 1 or free > 0):
-            nexts |= 1 << j
-    return nexts
+            out[count] = j
+            count += 1
+    return count
 
 
 @njit(cache=True)
@@ -182,31 +212,39 @@ def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray,
     passenger's destination right after her origin; ``dist`` [m, m] between them; ``pending`` [m] 1 for the stops
     to visit from the start, 0 for the destinations of passengers not aboard yet; ``seats`` free at the start).
     Pick-up before drop-off, an origin only while a seat is free; ties go to the lowest stop point. ``todo`` [m]
-    is scratch."""
+    is scratch: the local stops still to visit, in no order (each leg scans only those, and a visited one is
+    swapped out), so a tie is decided by the index, not by the scan's order."""
     m = stops.size
-    todo[:m] = pending[:m]
+    live = 0
+    for i in range(m):
+        if pending[i] and i != first:
+            todo[live] = i
+            live += 1
     if stops[first] % 2 == 0:  # boarding: her destination joins the tour
-        todo[first], todo[first + 1] = 0, 1
+        todo[live] = first + 1
+        live += 1
         seats -= 1
     else:
-        todo[first] = 0
         seats += 1
     total, here = 0.0, first
     while True:
-        best, best_d = -1, math.inf
-        for i in range(m):
-            if todo[i] == 0 or (stops[i] % 2 == 0 and seats <= 0):
+        best, best_d, slot = -1, math.inf, -1
+        for k in range(live):
+            i = todo[k]
+            if stops[i] % 2 == 0 and seats <= 0:
                 continue
             d = dist[here, i]
-            if d < best_d:
-                best, best_d = i, d
+            if d < best_d or (d == best_d and i < best):
+                best, best_d, slot = i, d, k
         if best < 0:
             return total
         total += best_d
         here = best
-        todo[best] = 0
+        live -= 1
+        todo[slot] = todo[live]
         if stops[best] % 2 == 0:
-            todo[best + 1] = 1
+            todo[live] = best + 1
+            live += 1
             seats -= 1
         else:
             seats += 1

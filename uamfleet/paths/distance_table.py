@@ -404,10 +404,10 @@ def corner_distance(
     total = 0.0
     weight = 0.0
     for cb in range(b.used[j]):
-        row = table[b.cells[j, cb]]
+        row = b.cells[j, cb]  # a 2-D read below, not a row view: a view costs a reference count per call
         wb = b.weights[j, cb]
         for ca in range(a.used[i]):
-            d = row[a.cells[i, ca]]
+            d = table[row, a.cells[i, ca]]
             if math.isnan(d):
                 return math.nan  # a row not computed yet: the caller ensures it and asks again
             if d < math.inf:
