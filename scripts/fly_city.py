@@ -11,8 +11,9 @@ and the scenario ``<map name>_random`` (``berlin_random`` with ``radio=`` the ma
 generalist is ``uamfleet.pretrained("berlin")``'s checkpoint, never trained on this map. Workers are forked (not
 spawned as in uamfleet-benchmark) so that they inherit the registered family.
 
-``--fleet 4x24`` flies the fleet dispatchers and the shipped fleet policy (``uamfleet.pretrained("berlin_fleet")``,
-zero-shot) on fleet instances of that setting instead (:func:`uamfleet.instances.make_fleet_instance`), with
+``--fleet 4x24`` flies the fleet dispatchers and the first shipped fleet policy
+(``uamfleet.pretrained("berlin_fleet_v1")``, zero-shot, as its recorded rows were flown) on fleet instances of that
+setting instead (:func:`uamfleet.instances.make_fleet_instance`), with
 :func:`uamfleet.cli.fleet_benchmark.run_episode_set` and its table.
 """
 
@@ -61,7 +62,7 @@ def main(argv: list[str]) -> int:
     family = register_city(args.map)
     seeds = instances.split_seeds("test", args.count)
     if args.fleet is not None:
-        policies = () if args.no_generalist else (pretrained_path("berlin_fleet"),)
+        policies = () if args.no_generalist else (pretrained_path("berlin_fleet_v1"),)  # as recorded: no hover action
         jobs: list[tuple] = [
             (family, args.fleet, seed, fleet_benchmark.DISPATCHERS, policies, "none") for seed in seeds
         ]

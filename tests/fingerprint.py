@@ -51,10 +51,17 @@ CASES: dict[str, Case] = {
     "pretrained_berlin": Case("berlin_instances", policy="berlin", steps=150),
     "pretrained_berlin_p4": Case("berlin_p4", policy="berlin", num_envs=1, steps=150),
     "pretrained_berlin_fleet_4taxis": Case(
-        "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet", steps=100
+        "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet", fleet=4, steps=100
     ),
     "pretrained_berlin_fleet_2taxis": Case(
         "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet", fleet=2, steps=50
+    ),
+    # the fleet policy shipped as "berlin_fleet" until 2026-12-02: these hashed as the two cases above did then
+    "pretrained_berlin_fleet_v1_4taxis": Case(
+        "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet_v1", steps=100
+    ),
+    "pretrained_berlin_fleet_v1_2taxis": Case(
+        "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet_v1", fleet=2, steps=50
     ),
     "pretrained_berlin_fleet4": Case(
         "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet4", steps=40

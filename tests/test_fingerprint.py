@@ -9,7 +9,12 @@ import pytest
 from fingerprint import CASES, FIXTURE, rollout_hashes
 
 EXPECTED: dict[str, dict[str, str]] = json.loads(FIXTURE.read_text())
-LONG = {"pretrained_berlin", "pretrained_berlin_p4", "pretrained_berlin_fleet_4taxis"}  # 5-20 s each under load
+LONG = {
+    "pretrained_berlin",
+    "pretrained_berlin_p4",
+    "pretrained_berlin_fleet_4taxis",
+    "pretrained_berlin_fleet_v1_4taxis",
+}  # 5-20 s each under load
 
 
 def test_the_fixture_covers_every_case() -> None:

@@ -62,10 +62,24 @@ def test_the_berlin_fleet_policy_serves_a_fleet_instance() -> None:
         fleet.layout(uamfleet.make_config("berlin_fleet", num_taxis=2))
 
 
-def test_the_shipped_fleet_policy_serves_its_own_and_other_fleet_sizes() -> None:
+def test_the_shipped_fleet_policy_serves_any_fleet_size_and_asks_for_the_hover_action() -> None:
     from uamfleet.instances import make_fleet_instance
 
     fleet = uamfleet.pretrained("berlin_fleet")
+    assert fleet.passenger_window == 24 and fleet.net.cfg.hover_logit  # the window comes with the checkpoint
+    for taxis, requests in ((8, 16), (2, 30)):  # 30 > its 24 rows: the window reads the nearest
+        policy = fleet.for_fleet(taxis)
+        cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=taxis, num_requests=requests, hover_action=True)
+        m = episode_metrics(policy.fly(cfg), cfg.radio)
+        assert m.num_requests == requests and m.pr_pct == 100.0
+    with pytest.raises(ValueError, match=r"hover_action=True"):
+        fleet.for_fleet(2).layout(make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4))
+
+
+def test_the_first_shipped_fleet_policy_serves_its_own_and_other_fleet_sizes() -> None:
+    from uamfleet.instances import make_fleet_instance
+
+    fleet = uamfleet.pretrained("berlin_fleet_v1")
     assert fleet.num_taxis == 4
     for taxis, requests in ((4, 8), (2, 4)):
         policy = fleet.for_fleet(taxis)

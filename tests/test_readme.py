@@ -221,6 +221,72 @@ def test_the_shipped_fleet_policy():
                  f"{violations['greedy']:.1f}")  # fmt: skip
 
 
+HOVER, FIRST = "learned:berlin_fleet_hover+window24", "learned:berlin_fleet+window24"  # berlin_fleet, berlin_fleet_v1
+
+
+def paired_interval(diff: np.ndarray) -> tuple[float, float]:
+    """The mean of per-episode differences and its 95 % half-width (1.96 standard errors)."""
+    return float(diff.mean()), float(1.96 * diff.std(ddof=1) / np.sqrt(len(diff)))
+
+
+def per_episode(table: list[dict[str, str]], setting: str, dispatcher: str, column: str) -> np.ndarray:
+    """``column`` of ``dispatcher``'s episodes of ``setting`` on the first 100 test seeds, in seed order (so two
+    dispatchers' arrays pair episode by episode)."""
+    mine = sorted((int(float(r["seed"])), float(r[column])) for r in table
+                  if r["setting"] == setting and r["dispatcher"] == dispatcher)  # fmt: skip
+    assert [seed for seed, _ in mine] == list(range(2_000_000, 2_000_100))
+    return np.array([v for _, v in mine])
+
+
+def test_the_shipped_hover_fleet_against_the_first_one():
+    light = rows("fleet_hover_light100.csv")
+    loaded = rows("fleet_hover_loaded100.csv") + rows("fleet_hover_detroit100.csv")
+    assert all(float(r["service_pct"]) == 100.0 and int(float(r["separation_violations"])) == 0 for r in light + loaded)
+    says(GLANCE, "it delivers everyone with no loss of separation")
+    cuts = {}
+    for name, table, settings in (("light", light, ("1x6", "2x12", "4x24", "8x48")),
+                                  ("loaded", loaded, ("4x48", "8x96", "4x24"))):  # fmt: skip
+        ratios = []
+        for setting in settings:
+            td_ = [per_episode(table, setting, d, "td_per_delivered_m") for d in (HOVER, FIRST)]
+            ratios.append(td_[0].mean() / td_[1].mean())
+            for column in ("wait_p50_s", "wait_p95_s"):  # "waits the same within noise"
+                mean, half = paired_interval(per_episode(table, setting, HOVER, column)
+                                             - per_episode(table, setting, FIRST, column))  # fmt: skip
+                assert abs(mean) <= half, (setting, column)
+        cuts[name] = f"{100 * (1 - max(ratios)):.0f}–{100 * (1 - min(ratios)):.0f} %"
+    says(GLANCE, f"flying {cuts['light']} less per delivered passenger in the light settings")
+    says(GLANCE, f"and {cuts['loaded']} less in the loaded ones")
+    trained = re.search(r"Fine-tuned on the mixture with the option \(([\d.]+) min", RESULTS_MD)
+    assert trained
+    says(GLANCE, f"fine-tuned {trained[1]} min on a mixture")
+
+
+def test_the_shipped_hover_fleet_against_the_loaded_target():
+    hover = rows("fleet_hover_loaded100.csv")
+    dispatchers = rows("fleet_shield_loaded_makeway100.csv")
+    detroit, detroit_dispatchers = rows("fleet_hover_detroit100.csv"), rows("fleet_detroit_shield100.csv")
+
+    def mean(table: list[dict[str, str]], setting: str, dispatcher: str, column: str) -> float:
+        return float(per_episode(table, setting, dispatcher, column).mean())
+
+    berlin = ("4x48", "8x96")
+    p50 = [mean(hover, s, HOVER, "wait_p50_s") - mean(dispatchers, s, "greedy", "wait_p50_s") for s in berlin]
+    assert max(p50) <= 0
+    says(GLANCE, "waits at the median no longer than `greedy`")
+    td_ = [mean(hover, s, HOVER, "td_per_delivered_m") / mean(dispatchers, s, "batch_assignment", "td_per_delivered_m")
+           for s in berlin]  # fmt: skip
+    p95 = [mean(hover, s, HOVER, "wait_p95_s") / mean(dispatchers, s, "insertion", "wait_p95_s") for s in berlin]
+    says(GLANCE, f"flies {pct(min(td_))}–{pct(max(td_))} % more per delivered passenger than `batch_assignment`")
+    says(GLANCE, f"p95 wait is {100 * (min(p95) - 1):.0f}–{100 * (max(p95) - 1):.0f} % above `insertion`'s")
+    waits = (("wait_p50_s", "greedy"), ("wait_p95_s", "insertion"))
+    assert all(mean(detroit, "4x24", HOVER, c) <= mean(detroit_dispatchers, "4x24", d, c) for c, d in waits)
+    ratio = mean(detroit, "4x24", HOVER, "td_per_delivered_m") / mean(
+        detroit_dispatchers, "4x24", "batch_assignment", "td_per_delivered_m"
+    )
+    says(GLANCE, f"4 × 24 it meets both waits and misses distance by {pct(ratio)} %")
+
+
 # ---- training times and speed, as the documents record them ----
 
 

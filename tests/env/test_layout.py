@@ -110,9 +110,12 @@ def test_shipped_fleet_policy_resizes_without_building_an_env(monkeypatch: pytes
         raise AssertionError("built a VectorEnv to learn shapes")
 
     monkeypatch.setattr("uamfleet.env.vector_env.VectorEnv.__init__", refuse)
-    policy = uamfleet.pretrained("berlin_fleet").for_fleet(2)
+    policy = uamfleet.pretrained("berlin_fleet_v1").for_fleet(2)  # 6 requests per taxi: 12 rows for 2 taxis
     assert policy.obs_shapes is not None
     assert policy.obs_shapes["others"] == (1, 3) and policy.obs_shapes["stop_claims"] == (12, 2)
+    windowed = uamfleet.pretrained("berlin_fleet").for_fleet(2)  # its 24-row window, whatever the fleet size
+    assert windowed.obs_shapes is not None
+    assert windowed.obs_shapes["others"] == (1, 3) and windowed.obs_shapes["stop_claims"] == (24, 2)
 
 
 # ---- kinds, and the normaliser that reads them ---------------------------------------------------------------

@@ -168,7 +168,7 @@ def test_non_finite_weights_and_statistics_are_refused(tmp_path, bad):
 
 
 def test_the_shipped_policies_still_load():
-    for name in ("berlin", "berlin_fleet", "berlin_fleet4"):
+    for name in ("berlin", "berlin_fleet", "berlin_fleet_v1", "berlin_fleet4"):
         policy, _ = load_policy(pretrained_path(name))
         assert policy.net is not None
 

@@ -77,7 +77,7 @@ def test_padding_leaves_the_shipped_fleet_policy_s_decisions_unchanged() -> None
     mix = MixtureVectorEnv(cfgs, num_envs=2)
     obs, _ = mix.reset(seed=3)
     lone, _ = VectorEnv(cfgs[0], num_envs=1).reset(seed=3)
-    shipped = pretrained("berlin_fleet")
+    shipped = pretrained("berlin_fleet_v1")
     for_three, for_one = shipped.for_fleet(3, passenger_window=24), shipped.for_fleet(1, passenger_window=24)
     padded = for_three.logits_of(for_three.network_input({k: v[:1] for k, v in obs.items()}))[0]
     unpadded = for_one.logits_of(for_one.network_input(lone))[0]
@@ -88,7 +88,7 @@ def _mixture_args(tmp_path: Path, **overrides: object) -> TrainArgs:
     """One tiny iteration per call from the shipped fleet policy (4 taxis, 24 requests, no window, MAPPO critic)
     on a mixture of 1 taxi x 6 requests and 2 taxis x 24 requests under a window of 24 (12-step episodes)."""
     base: dict[str, object] = dict(
-        scenario="berlin_fleet", sinr_min_db=-5.0, init_from="berlin_fleet", passenger_window=24,
+        scenario="berlin_fleet", sinr_min_db=-5.0, init_from="berlin_fleet_v1", passenger_window=24,
         fleet_mixture=("1x6", "2x24"), num_requests=24, reinit_critic=True, centralised_critic=False,
         kl_to_init=0.5, total_timesteps=48, num_envs=2, num_steps=16, num_minibatches=2, update_epochs=1,
         eval_every=1, checkpoint_every=1, time_limit_steps=12, fill_tables=False, run_dir=tmp_path, run_name="mix",
@@ -110,7 +110,7 @@ def test_a_fine_tune_of_the_shipped_fleet_on_a_mixture_starts_from_its_actor_and
     assert result.global_step == 16 * 3
     # best.pt of iteration 0 (the start's evaluation) holds the shipped actor and torso, tensor for tensor; the
     # critic alone is new (the shipped one read a 4-taxi global state, this one each taxi's own features)
-    start = Checkpoint.load(pretrained_path("berlin_fleet")).model
+    start = Checkpoint.load(pretrained_path("berlin_fleet_v1")).model
     at_start = torch.load(tmp_path / "mix" / "best.pt", weights_only=True)["model"]
     assert at_start.keys() == start.keys()
     for name, tensor in start.items():
@@ -154,13 +154,13 @@ def test_what_cannot_start_from_the_shipped_fleet_is_refused_with_the_fix(tmp_pa
 def test_a_run_with_its_own_window_keeps_its_own_requests_and_time_limit() -> None:
     """From a start without a window, a run with --passenger-window reads the window and keeps its own load and
     episode length; without one it takes the start's 24 passenger slots, which 48 requests do not fit."""
-    windowed = TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet", passenger_window=24, num_requests=48,
+    windowed = TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet_v1", passenger_window=24, num_requests=48,
                          time_limit_steps=700)  # fmt: skip
     cfg = run_config(windowed, training=True)
     assert (cfg.passenger_window, cfg.num_passengers, cfg.demand.max_requests) == (24, 48, 48)
     assert cfg.time_limit_steps == 700 and cfg.observed_passengers == 24
     with pytest.raises(ConfigError, match="max_passengers=24 is smaller than the 48 requests"):
-        run_config(TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet", num_requests=48))
+        run_config(TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet_v1", num_requests=48))
 
 
 @pytest.mark.parametrize(

@@ -37,7 +37,7 @@ def _switched(policy: GreedyPolicy) -> GreedyPolicy:
 @pytest.fixture(scope="module")
 def flown() -> tuple[GreedyPolicy, dict[str, np.ndarray]]:
     """The shipped fleet policy at 4 taxis with window 24, and the network inputs of 40 steps of its own flight."""
-    policy = uamfleet.pretrained("berlin_fleet").for_fleet(4, passenger_window=24)
+    policy = uamfleet.pretrained("berlin_fleet_v1").for_fleet(4, passenger_window=24)
     cfg = policy.layout(make_fleet_instance("berlin", 0, 4, 48, separation="shield", hover_action=True))
     env = uamfleet.VectorEnv(cfg, num_envs=1)
     obs, _ = env.reset(seed=0)
@@ -54,7 +54,7 @@ def _logp(policy: GreedyPolicy, inputs: dict[str, np.ndarray]) -> torch.Tensor:
 
 def test_the_option_is_off_by_default_and_needs_the_hover_component() -> None:
     assert NetConfig().hover_logit is False
-    assert uamfleet.pretrained("berlin_fleet").net.cfg.hover_logit is False
+    assert uamfleet.pretrained("berlin_fleet_v1").net.cfg.hover_logit is False
     with pytest.raises(ValueError, match=r"hover_logit=True .* needs stop_hover=True"):
         NetConfig(action_head="stops", stop_inputs=True, hover_logit=True)
 
@@ -137,7 +137,7 @@ def test_action_16_is_never_masked_and_ppo_reads_17_actions(flown) -> None:
 def test_a_checkpoint_records_the_option_and_loads_with_it(tmp_path: Path) -> None:
     from uamfleet.zoo import pretrained_path
 
-    ckpt = Checkpoint.load(pretrained_path("berlin_fleet"), map_location="cpu")
+    ckpt = Checkpoint.load(pretrained_path("berlin_fleet_v1"), map_location="cpu")
     ckpt.net_config = {**ckpt.net_config, "hover_logit": True}
     path = tmp_path / "switched.pt"
     ckpt.save(path)
@@ -148,7 +148,7 @@ def test_a_checkpoint_records_the_option_and_loads_with_it(tmp_path: Path) -> No
 def test_training_refuses_the_option_without_the_hover_action() -> None:
     from uamfleet.rl.trainer import _check_hover_logit
 
-    cfg = uamfleet.pretrained("berlin_fleet").net.cfg
+    cfg = uamfleet.pretrained("berlin_fleet_v1").net.cfg
     on = dataclasses.replace(cfg, hover_logit=True)
     with pytest.raises(ConfigError, match="drop --hover-logit"):
         _check_hover_logit(on, make_fleet_instance("berlin", 0, 4, 48, hover_action=False))
@@ -161,7 +161,7 @@ def test_a_fine_tune_with_the_option_trains_17_logits_and_its_checkpoint_records
     from uamfleet.rl.trainer import TrainArgs, train
 
     args = TrainArgs(
-        scenario="berlin_fleet", init_from="berlin_fleet", hover_logit=True, passenger_window=24, num_taxis=4,
+        scenario="berlin_fleet", init_from="berlin_fleet_v1", hover_logit=True, passenger_window=24, num_taxis=4,
         num_requests=24, reinit_critic=True, centralised_critic=False, total_timesteps=256, num_envs=2, num_steps=32,
         num_minibatches=2, update_epochs=1, eval_every=1, eval_instances=1, checkpoint_every=1, run_dir=tmp_path,
         run_name="hover", progress=False, tensorboard=False, threads=1, shaping=0.0, time_limit_steps=200,

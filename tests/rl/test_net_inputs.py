@@ -86,7 +86,7 @@ def test_observed_inputs_follow_the_spec_of_the_env_flags():
 def test_the_shipped_checkpoints_predate_the_flags_and_get_them_from_their_shapes():
     expected = {
         "berlin_stops": (True, False, False, False),  # one taxi: stop paths only
-        "berlin_fleet": (True, True, True, True),  # rivals, claims and the hover component
+        "berlin_fleet_v1": (True, True, True, True),  # rivals, claims and the hover component
         "berlin_fleet4": (True, True, False, False),  # rivals, no claims
     }
     for name, flags in expected.items():
@@ -97,14 +97,14 @@ def test_the_shipped_checkpoints_predate_the_flags_and_get_them_from_their_shape
 
 
 def _with_layout(tmp_path: Path, name: str, layout: dict) -> Path:
-    ckpt = Checkpoint.load(pretrained_path("berlin_fleet"))
+    ckpt = Checkpoint.load(pretrained_path("berlin_fleet_v1"))
     path = tmp_path / name
     dataclasses.replace(ckpt, obs_layout=layout).save(path)
     return path
 
 
 def _fleet_layout() -> dict:
-    _, args = load_policy(pretrained_path("berlin_fleet"))
+    _, args = load_policy(pretrained_path("berlin_fleet_v1"))
     return layout_to_dict(observation_layout(make_env_config(args.scenario, args, training=False)))
 
 

@@ -17,7 +17,7 @@ from uamfleet.zoo import pretrained, pretrained_path
 
 @pytest.fixture(scope="module")
 def fleet_policy():
-    return pretrained("berlin_fleet")
+    return pretrained("berlin_fleet_v1")
 
 
 @pytest.mark.parametrize("size", [0, -1, 2.5, True, "4", 10**6])
@@ -58,7 +58,8 @@ def test_pretrained_warns_once_outside_its_training_thresholds():
 
 
 def test_a_fleet_sized_policy_keeps_the_threshold_range(fleet_policy):
-    assert fleet_policy.for_fleet(2).thresholds_db == fleet_policy.thresholds_db == trained_thresholds("berlin_fleet")
+    trained = trained_thresholds("berlin_fleet_v1")
+    assert fleet_policy.for_fleet(2).thresholds_db == fleet_policy.thresholds_db == trained
 
 
 def test_minibatches_that_do_not_divide_the_batch_are_refused_before_a_run_starts(tmp_path: Path):

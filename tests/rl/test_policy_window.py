@@ -17,7 +17,7 @@ from uamfleet.rl.policy import GreedyPolicy
 
 @pytest.fixture(scope="module")
 def shipped() -> GreedyPolicy:
-    return uamfleet.pretrained("berlin_fleet")
+    return uamfleet.pretrained("berlin_fleet_v1")
 
 
 def test_a_windowed_policy_reads_k_rows_and_keeps_the_instances_requests_and_time_limit(shipped: GreedyPolicy) -> None:

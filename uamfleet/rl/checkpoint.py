@@ -474,13 +474,19 @@ PRETRAINED: dict[str, str] = {
     # 2026-12-01 ... 2026-12-02), for its results
     "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
     # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
-    "berlin_fleet": "berlin_fleet.pt",  # a fleet sharing one policy on the Berlin map (trained with 4 taxis, any
-    # size through .for_fleet(n)): nearest-first claims, hovering when idle, 6 requests per taxi; any number of
-    # requests through .for_fleet(n, passenger_window=24), its 24 trained slots (docs/rules.md "Passenger window")
+    # The fleet names point at files by what the policy is, not by file name: every committed fleet command names
+    # the file (--checkpoints uamfleet/data/pretrained/berlin_fleet.pt), so berlin_fleet.pt keeps the first
+    # berlin_fleet's weights and those commands fly what they flew.
+    "berlin_fleet": "berlin_fleet_hover.pt",  # a fleet sharing one policy on the Berlin map, any size through
+    # .for_fleet(n), any number of requests (it reads a 24-row passenger window, docs/rules.md "Passenger window"):
+    # berlin_fleet_v1 fine-tuned on a mixture of 2-8 taxis, light and loaded, under the shield, waiting with the true
+    # hover action (NetConfig.hover_logit; fly it with EnvConfig.hover_action=True, on in the *_fleet presets);
+    # docs/results/fleet_hover_finetune.md; since 2026-12-02 (docs/results.md "The hover fleet at 100 loaded")
+    "berlin_fleet_hover": "berlin_fleet_hover.pt",  # the same policy under the name its results were measured by
+    "berlin_fleet_v1": "berlin_fleet.pt",  # the fleet policy shipped as "berlin_fleet" until 2026-12-02 (trained
+    # with 4 taxis): nearest-first claims, zig-zagging when idle, 6 requests per taxi; any number of requests through
+    # .for_fleet(n, passenger_window=24), its 24 trained slots; for its results
     "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
-    "berlin_fleet_hover": "berlin_fleet_hover.pt",  # berlin_fleet fine-tuned on a mixture of 2-8 taxis, light and
-    # loaded, under the shield, waiting with the true hover action (NetConfig.hover_logit; fly it with hover_action=True
-    # and .for_fleet(n, passenger_window=24)); docs/results/fleet_hover_finetune.md
 }
 """The policies shipped in ``uamfleet/data/pretrained`` (``uamfleet.pretrained(name)``): name -> file."""
 
