@@ -14,7 +14,7 @@ from uamfleet.config import Request, heading_vectors, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.imitation import NO_LABEL, Group, ImitationArgs, ReplanExpert, collect, fit, with_heading_residual
-from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
+from uamfleet.rl.networks import LOOKAHEAD_RULE, PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 from uamfleet.types import HIDDEN, NUM_HEADINGS
 
@@ -209,7 +209,8 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: boo
 
     args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=2, rounds=1, steps_per_round=8, eval_instances=2,
                          epochs=1, minibatch=16, run_dir=tmp_path, run_name="tiny", lookahead=lookahead,
-                         train="lookahead" if lookahead else "residual")  # fmt: skip
+                         train="lookahead" if lookahead else "residual",
+                         lookahead_rule=LOOKAHEAD_RULE if lookahead else 0.0)  # fmt: skip
     best = imitate(args)
     assert best["val_pr_pct"] == 100.0
     rows = (tmp_path / "tiny" / "progress.csv").read_text().splitlines()
@@ -218,11 +219,16 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: boo
         policy, _ = load_policy(tmp_path / "tiny" / name)
         assert policy.net.cfg.heading_residual
         assert policy.net.cfg.lookahead_inputs == lookahead
+        assert policy.net.cfg.lookahead_rule == (LOOKAHEAD_RULE if lookahead else 0.0)
         assert policy.trained_on is not None and policy.trained_on.heading_lookahead == lookahead
     with pytest.raises(ConfigError, match="--overwrite"):
         imitate(args)
     with pytest.raises(ConfigError, match="pass --lookahead"):
         ImitationArgs(train="lookahead")
+    with pytest.raises(ConfigError, match=r"--lookahead-rule=100\.0 weighs the look-ahead: pass --lookahead"):
+        ImitationArgs(lookahead_rule=100.0)
+    with pytest.raises(ConfigError, match="--lookahead-rule"):
+        ImitationArgs(lookahead=True, lookahead_rule=-1.0)
 
 
 def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_two(tmp_path) -> None:

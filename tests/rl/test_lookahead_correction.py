@@ -1,14 +1,28 @@
 """The stop head's look-ahead correction (``NetConfig.lookahead_inputs``): at zero it flies exactly as the prior;
-set to prefer headings of least look-ahead, it flies one of them wherever the prior's heading is worse."""
+set to prefer headings of least look-ahead, it flies one of them wherever the prior's heading is worse. The rule
+term (``NetConfig.lookahead_rule``) makes the untrained head fly the least look-ahead heading."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
+import pytest
 import torch
+from gymnasium import spaces
 
 from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.rl.networks import LOOKAHEAD_GAIN, PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
+from uamfleet.rl.networks import (
+    LOOKAHEAD_GAIN,
+    LOOKAHEAD_RULE,
+    PRIOR_FLOOR,
+    MSHAActorCritic,
+    NetConfig,
+    obs_to_torch,
+    observed_inputs,
+)
 
 
 def _lookahead_nets() -> tuple[MSHAActorCritic, MSHAActorCritic, dict[str, torch.Tensor]]:
@@ -66,3 +80,39 @@ def test_a_lookahead_correction_can_fly_the_best_lookahead_heading() -> None:
         flown = with_look.masked_logits({**obs, "heading_lookahead": drawn}).argmax(-1)
     assert torch.all(drawn[rows, flown] == 0.0) and torch.all(flown != prior_choice)
     assert LOOKAHEAD_GAIN * 1.5 > -PRIOR_FLOOR  # the setting above outweighs the floor by construction
+
+
+def test_the_rule_term_flies_the_least_lookahead_heading_and_leaves_near_ties_to_the_prior() -> None:
+    """``NetConfig.lookahead_rule``: with zero corrections the policy flies a heading of least look-ahead (within
+    the 0.12 move at which the rule outweighs the prior's whole range), and where several headings tie exactly,
+    the prior's choice among them."""
+    prior, with_look, obs = _lookahead_nets()
+    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in with_look.shapes.items()})
+    ruled = MSHAActorCritic(space, dataclasses.replace(with_look.cfg, lookahead_rule=LOOKAHEAD_RULE))
+    ruled.load_state_dict(with_look.state_dict())
+    look, allowed = obs["heading_lookahead"], obs["action_mask"] > 0.5
+    rows = torch.arange(len(look))
+    with torch.no_grad():
+        prior_choice = prior.masked_logits(obs).argmax(-1)
+        flown = ruled.masked_logits(obs).argmax(-1)
+        best = torch.where(allowed, look, torch.inf).amin(-1)
+        assert torch.all(look[rows, flown] <= best + 0.12)
+        # every allowed heading ties: the prior decides; one other heading a fifth of a move better: it wins
+        tied = torch.where(allowed, 0.5, look)
+        assert torch.equal(ruled.masked_logits({**obs, "heading_lookahead": tied}).argmax(-1), prior_choice)
+        drawn = tied.clone()
+        for b in range(len(look)):
+            other = next(h for h in torch.nonzero(allowed[b])[:, 0].tolist() if h != int(prior_choice[b]))
+            drawn[b, other] = 0.3
+        chosen = ruled.masked_logits({**obs, "heading_lookahead": drawn}).argmax(-1)
+    assert torch.all(drawn[rows, chosen] == 0.3) and torch.all(chosen != prior_choice)
+
+
+@pytest.mark.parametrize("rule, lookahead, message", [(-1.0, True, ">= 0"), (math.inf, True, "finite"),
+                                                      (10.0, False, "needs lookahead_inputs=True")])  # fmt: skip
+def test_a_rule_term_out_of_range_or_without_the_lookahead_is_refused(
+    rule: float, lookahead: bool, message: str
+) -> None:
+    with pytest.raises(ValueError, match=message):
+        NetConfig(variant="de_msfea", d_model=32, action_head="stops", stop_inputs=True, lookahead_inputs=lookahead,
+                  lookahead_rule=rule)  # fmt: skip

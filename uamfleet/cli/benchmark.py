@@ -3,6 +3,7 @@
     uamfleet-benchmark --count 200 --jobs 2                  # 200 Berlin test instances
     uamfleet-benchmark --fixed --count 0 --jobs 2             # Berlin P4 / Detroit P5 only
     uamfleet-benchmark --count 20 --checkpoint runs/x/best.pt # a learned policy beside them
+    uamfleet-benchmark --count 50 --methods replan_futures   # replan scored on sampled futures (minutes each)
 
 Instances come from :func:`uamfleet.instances.make_instance` (``--split test`` by default: never tune on it).
 Every policy is flown through the same env and scored by :mod:`uamfleet.metrics`. Per set it writes PR, TD,
@@ -42,6 +43,7 @@ from uamfleet.cli._common import (
     fmt,
     run,
 )
+from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
 from uamfleet.baselines.step_planner import (
     STEP_PLANNERS,
@@ -58,6 +60,10 @@ from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
+"""The methods flown by default."""
+SLOW_METHODS: tuple[str, ...] = ("replan_futures",)
+"""Methods flown only when named (seconds per release): ``replan_futures``, the online search that scores its
+plans on futures sampled from the instance family's demand (uamfleet/baselines/anticipation.py)."""
 FIXED: tuple[tuple[str, tuple[float, ...]], ...] = (
     ("berlin_p4", (-7.0, -6.0, -5.0, -4.0, -3.0)),
     ("detroit_p5", (-17.0,)),
@@ -85,6 +91,7 @@ class Args:
     fixed_thresholds: tuple[float, ...] = ()
     """only these thresholds of the fixed scenarios (empty: all)"""
     methods: tuple[str, ...] = METHODS
+    """planners to fly (default: every one but the slow ``replan_futures``, which flies only when named)"""
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
     guided: bool = False
@@ -133,8 +140,10 @@ def _config(task: Task) -> EnvConfig:
 
 def _policy(
     method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
-    guided: tuple[int, int, float, int],
+    guided: tuple[int, int, float, int], task: Task, cfg: EnvConfig,
 ) -> Any:  # fmt: skip
+    if method == "replan_futures":  # the family's demand model: instances only (the fixed scenarios have none)
+        return AnticipatingReplan(DemandPrior.of_family(task[1], cfg))
     if method in PLANNERS:
         return PlannerPolicy(method)
     if method == "best_known":
@@ -188,9 +197,12 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     bound = instance_lower_bound_m(cfg)
     rows = []
     for method in methods:
+        if method == "replan_futures" and label == "fixed":
+            print(f"replan_futures skipped on {name}: a fixed scenario has no demand model to sample", flush=True)
+            continue
         overrides = planner_env_overrides(method) if method in PLANNERS else {}
         run_cfg = cfg.replace(**overrides) if overrides else cfg
-        policy = _policy(method, checkpoint, beams, replan_beam, guided)
+        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg)
         if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
             windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
             if not windowed and run_cfg.num_passengers > policy.passenger_slots:
@@ -386,9 +398,9 @@ def check_args(args: Args) -> list[Task]:
     if args.from_csv is not None:
         return []
     check_jobs(args.jobs)
-    unknown = [m for m in args.methods if m not in METHODS]
+    unknown = [m for m in args.methods if m not in METHODS + SLOW_METHODS]
     if unknown:
-        raise ValueError(f"unknown --methods {unknown}; choose from {METHODS}.")
+        raise ValueError(f"unknown --methods {unknown}; choose from {METHODS + SLOW_METHODS}.")
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     check_guided(args)

@@ -78,6 +78,10 @@ class ImitationArgs:
     lookahead_depth: int = 1
     """with --lookahead: its depth (``EnvConfig.lookahead_depth``; 2: each heading's move, the best second move and
     the tour after both)"""
+    lookahead_rule: float = 0.0
+    """with --lookahead: fixed logits per move of look-ahead taken from each heading (``NetConfig.lookahead_rule``;
+    100 makes the untrained policy fly the least look-ahead heading, the prior breaking near-ties, so DAgger fits
+    corrections of that rule rather than of the prior)"""
     correction_weight: float = 1.0
     """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
@@ -109,6 +113,9 @@ class ImitationArgs:
         self.run_dir = Path(self.run_dir)
         if self.train == "lookahead" and not self.lookahead:
             raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
+        self.lookahead_rule = check_number("--lookahead-rule", self.lookahead_rule, minimum=0.0)
+        if self.lookahead_rule > 0 and not self.lookahead:
+            raise ConfigError(f"--lookahead-rule={self.lookahead_rule} weighs the look-ahead: pass --lookahead too.")
         if self.lookahead_depth != 1 and not self.lookahead:  # its value is checked by EnvConfig, as every run's
             raise ConfigError(f"--lookahead-depth={self.lookahead_depth} is the look-ahead's depth: pass --lookahead.")
 
@@ -241,15 +248,17 @@ def _released_count(venv: VectorEnv) -> np.ndarray:
     return ((s.pax_status != HIDDEN) & s.pax_exists).sum(-1)  # [E]
 
 
-def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False) -> GreedyPolicy:
+def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False, lookahead_rule: float = 0.0) -> GreedyPolicy:
     """The policy with a zero heading residual added to its stop head (it still flies exactly as before); with
-    ``lookahead``, also a zero correction from the ``heading_lookahead`` field, which it then observes."""
+    ``lookahead``, also a zero correction from the ``heading_lookahead`` field, which it then observes, and the rule
+    term ``lookahead_rule`` (``NetConfig.lookahead_rule``; with it the policy flies the least look-ahead heading)."""
     net = policy.net
     shapes = dict(net.shapes)
     if lookahead:
         shapes["heading_lookahead"] = (NUM_HEADINGS,)
     space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in shapes.items()})
-    new = MSHAActorCritic(space, dataclasses.replace(net.cfg, heading_residual=True, lookahead_inputs=lookahead))
+    cfg = dataclasses.replace(net.cfg, heading_residual=True, lookahead_inputs=lookahead, lookahead_rule=lookahead_rule)
+    new = MSHAActorCritic(space, cfg)
     missing, unexpected = new.load_state_dict(net.state_dict(), strict=False)
     if unexpected or any(not k.startswith("stop_head.residual_") for k in missing):
         raise ValueError(f"the initial network does not carry over: missing {missing}, unexpected {unexpected}.")
@@ -342,7 +351,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     if args.lookahead:
         source_args = dataclasses.replace(source_args, heading_lookahead=True, lookahead_depth=args.lookahead_depth)
     prior, _ = load_policy(init)
-    policy = with_heading_residual(prior, lookahead=args.lookahead)
+    policy = with_heading_residual(prior, lookahead=args.lookahead, lookahead_rule=args.lookahead_rule)
     family = family_of(source_args.scenario)
     eval_like = run_config(source_args, training=False)
     groups = _groups(args, run_config(source_args, training=True))

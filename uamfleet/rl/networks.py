@@ -105,6 +105,9 @@ class NetConfig:
     # the logit of action 16 (HOVER_ACTION, stay in place) instead of mass on the hover heading: 17 logits
     hover_logit: bool = False
     lookahead_inputs: bool = False  # "stops": a learned correction from each heading's look-ahead (zero at first)
+    # "stops" with lookahead_inputs: logits taken from each heading per move of its look-ahead excess, a fixed term
+    # (not learned) that makes the untrained head fly the least look-ahead heading (:data:`LOOKAHEAD_RULE`); 0: none
+    lookahead_rule: float = 0.0
 
     def __post_init__(self) -> None:
         self._check_head()
@@ -165,6 +168,16 @@ class NetConfig:
             raise ValueError(
                 "lookahead_inputs=True corrects the stop head's flight: it needs action_head='stops' (the 'headings' "
                 "head reads no look-ahead)."
+            )
+        if not (math.isfinite(self.lookahead_rule) and self.lookahead_rule >= 0):
+            raise ValueError(
+                f"lookahead_rule={self.lookahead_rule} is logits per move of look-ahead: use a finite value >= 0 "
+                f"(0: no rule term; {LOOKAHEAD_RULE:g}: the least look-ahead heading decides)."
+            )
+        if self.lookahead_rule > 0 and not self.lookahead_inputs:
+            raise ValueError(
+                f"lookahead_rule={self.lookahead_rule} weighs each heading's look-ahead: it needs "
+                "lookahead_inputs=True (an env with EnvConfig(heading_lookahead=True))."
             )
 
     def _check_attention(self) -> None:
@@ -350,6 +363,10 @@ LOOKAHEAD_GAIN = -PRIOR_FLOOR
 """Logits per unit of the look-ahead correction's output: a correction of about 1 outweighs the prior's lead over
 the floor, so a few hundred gradient steps can teach a heading the prior rules out (at a unit gain the output layer
 had to grow a dozen-fold, and DAgger's rounds stopped far short of it)."""
+LOOKAHEAD_RULE = 100.0
+"""A :attr:`NetConfig.lookahead_rule` at which the least look-ahead heading decides: a heading 0.12 move (12 m)
+worse than the best loses by more than the prior's whole range (:data:`PRIOR_FLOOR`), so the prior only breaks
+near-ties, and a learned correction must grow to a dozen logits to turn the taxi off the rule's heading."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -397,6 +414,9 @@ class StopHead(nn.Module):
     (``heading_lookahead``: its move plus the shortest tour after it, in moves above the best heading's) to the
     floored log-probabilities: one small network shared by the 16 headings, zero at first. It can learn to enter a
     stop's pick-up radius on the side of the next stop, which the prior leaves to heading order.
+    ``lookahead_rule`` (``NetConfig.lookahead_rule``) also takes that many logits per move of look-ahead from each
+    heading, a fixed term: at :data:`LOOKAHEAD_RULE` the untrained head flies the least look-ahead heading (the rule
+    of ``benchmarks/lookahead_rule.py``), the prior breaking near-ties, and what is learned corrects the rule.
 
     Why each part is there (the runs without it): ``docs/results.md``, "What fell short, what was tried" (the
     prior, the free move) and "A learned fleet" (claims, hover).
@@ -405,9 +425,10 @@ class StopHead(nn.Module):
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
         claims: bool = False, hover: bool = False, residual: bool = False, lookahead: bool = False,
-        hover_logit: bool = False,
+        hover_logit: bool = False, lookahead_rule: float = 0.0,
     ) -> None:  # fmt: skip
         super().__init__()
+        self.lookahead_rule = lookahead_rule  # fixed logits per move of look-ahead (NetConfig.lookahead_rule)
         self.free_move, self.claims, self.hovers, self.residual = free_move, claims, hover, residual
         self.hover_logit = hover_logit  # the hover component is action 16's logit (no parameters of its own)
         self.lookahead = lookahead
@@ -488,7 +509,7 @@ class StopHead(nn.Module):
                     "this stop head reads the look-ahead: pass lookahead [B, 16] (obs 'heading_lookahead')."
                 )
             correction = self.residual_lookahead(lookahead.unsqueeze(-1)).squeeze(-1)  # [B, 16]
-            headings = headings + LOOKAHEAD_GAIN * correction
+            headings = headings + LOOKAHEAD_GAIN * correction - self.lookahead_rule * lookahead
         return torch.cat([headings, logits[:, NUM_HEADINGS:]], dim=-1)  # [B, 16 (+ 1)]
 
 
@@ -514,7 +535,7 @@ class MSHAActorCritic(nn.Module):
             self.stop_head = StopHead(
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
                 hover=cfg.stop_hover, residual=cfg.heading_residual, lookahead=cfg.lookahead_inputs,
-                hover_logit=cfg.hover_logit,
+                hover_logit=cfg.hover_logit, lookahead_rule=cfg.lookahead_rule,
             )  # fmt: skip
 
     @property
