@@ -14,7 +14,9 @@ Bent & Van Hentenryck, Operations Research 2004):
 3. Each candidate is scored on :attr:`AnticipatingReplan.scored` *fresh* futures (not those that made the
    candidates, which would favour each one's own): its moves until that future's next release, flown in a scratch
    core, plus the moves of a clairvoyant search from there over everything that future holds. The candidate of
-   least mean is flown until the next real release, when it all starts again.
+   least mean is flown until the next real release, when it all starts again; a future's plan only until the step
+   its future expected the next release (past it, that plan serves requests that may never come: the first try
+   flew it on, and flew imagined trips), when the decision is made again with what is known then.
 
 It reads only released requests (never a hidden row of the env), the clock, and the family's demand model. It is a
 yardstick, not a real-time method: each release costs one search per candidate and one per candidate and scored
@@ -144,6 +146,7 @@ class AnticipatingReplan:
         self.rng = np.random.default_rng(self.seed)
         self.plans = []
         self._seen = env.state.pax_status[0] != HIDDEN
+        self.redecide = False  # whether the queue is a future's plan cut at that future's next release
         self.queue = self._decide()
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -151,6 +154,8 @@ class AnticipatingReplan:
         newly = (s.pax_status[0] != HIDDEN) & ~self._seen
         if newly.any():
             self._seen |= newly
+            self.queue = self._decide()
+        elif not self.queue and self.redecide:  # a future's plan ran to its expected release, and none came
             self.queue = self._decide()
         if self.queue:
             return np.array([[self.queue.pop(0)]])
@@ -179,12 +184,15 @@ class AnticipatingReplan:
             base = self.search.solve(known, wider)
         if base is None:
             return []
+        self.redecide = False
         candidates: list[StepPlan] = [base]
+        horizons = [len(base.actions)]  # how far each candidate is flown before deciding again
         makers = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.futures)) if f is not None]
         for future in makers:
             plan = self.search.solve(future, self.future_settings)
             if plan is not None:
                 candidates.append(plan)
+                horizons.append(_next_release(future) - t)
         if len(candidates) == 1:
             self.plans.append((t, 1, 0, float(base.moves), time.perf_counter() - start))
             return list(base.actions)
@@ -194,12 +202,12 @@ class AnticipatingReplan:
         means = np.array([np.mean([self._score(c.actions, f, t) for f in scored]) for c in candidates])
         best = int(np.argmin(means))  # ties to the lowest index: replan's plan first
         self.plans.append((t, len(candidates), best, float(means[best]), time.perf_counter() - start))
-        return list(candidates[best].actions)
+        self.redecide = best > 0
+        return list(candidates[best].actions[: horizons[best]])
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""
-        coming = future.pax_exists[0] & (future.pax_status[0] == HIDDEN)
-        horizon = int(future.pax_release[0, coming].min()) - t if coming.any() else len(actions)
+        horizon = _next_release(future) - t if _next_release(future) >= 0 else len(actions)
         for name in SEARCH_STATE_FIELDS:
             getattr(self.scratch.state, name)[:] = getattr(future, name)[:1]
         moves = 0
@@ -213,6 +221,12 @@ class AnticipatingReplan:
 
 
 _MINUS_ONE = ("pax_taxi", "pax_pickup_step", "pax_dropoff_step")
+
+
+def _next_release(future: FleetState) -> int:
+    """The release step of env 0's next hidden request, -1 when none is hidden."""
+    coming = future.pax_exists[0] & (future.pax_status[0] == HIDDEN)
+    return int(future.pax_release[0, coming].min()) if coming.any() else -1
 
 
 __all__ = ["AnticipatingReplan", "DemandPrior"]
