@@ -116,9 +116,9 @@ REPLAN_FUTURES_SEARCH = SearchSettings(beam=64, rank_slack=0.5)
 
 
 class AnticipatingReplan:
-    """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (release
-    step, number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, wall seconds) of
-    every decision. The defaults are those of the first try (docs/results.md), not tuned."""
+    """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (step,
+    number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, actions committed to,
+    wall seconds) of every decision. The defaults are those of the first try (docs/results.md), not tuned."""
 
     def __init__(
         self, prior: DemandPrior, futures: int = 4, scored: int = 8, replan: SearchSettings = REPLAN_FUTURES_SEARCH,
@@ -131,7 +131,7 @@ class AnticipatingReplan:
         self.replan_settings = (replan,)
         self.future_settings = (SearchSettings(future_beam, replan.cell_m, replan.rank_slack),)
         self.score_settings = (SearchSettings(score_beam, replan.cell_m, replan.rank_slack),)
-        self.plans: list[tuple[int, int, int, float, float]] = []
+        self.plans: list[tuple[int, int, int, float, int, float]] = []
 
     def reset(self, env: VectorEnv) -> None:
         require_one_taxi_env(env, "replan_futures", type(self).__name__)
@@ -194,16 +194,17 @@ class AnticipatingReplan:
                 candidates.append(plan)
                 horizons.append(_next_release(future) - t)
         if len(candidates) == 1:
-            self.plans.append((t, 1, 0, float(base.moves), time.perf_counter() - start))
+            self.plans.append((t, 1, 0, float(base.moves), len(base.actions), time.perf_counter() - start))
             return list(base.actions)
         scored = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.scored)) if f is not None]
         if not scored:
             scored = makers
         means = np.array([np.mean([self._score(c.actions, f, t) for f in scored]) for c in candidates])
         best = int(np.argmin(means))  # ties to the lowest index: replan's plan first
-        self.plans.append((t, len(candidates), best, float(means[best]), time.perf_counter() - start))
+        committed = list(candidates[best].actions[: horizons[best]])
+        self.plans.append((t, len(candidates), best, float(means[best]), len(committed), time.perf_counter() - start))
         self.redecide = best > 0
-        return list(candidates[best].actions[: horizons[best]])
+        return committed
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""
