@@ -120,9 +120,11 @@ def test_a_futures_plan_is_flown_only_until_its_future_expected_a_release() -> N
     steps = [p[0] for p in policy.plans]
     chose_a_future = [p for p in policy.plans if p[2] > 0]
     assert chose_a_future, "no future's plan was chosen: the test would not see the cut"
+    for t, _, _, _, committed, _ in chose_a_future:
+        assert 1 <= committed <= 6 - t
     for (t, _, best, _, committed, _), later in zip(policy.plans, steps[1:], strict=False):
         if best > 0:
-            assert 1 <= committed <= 6 - t and later == t + committed
+            assert later == t + committed
     assert all(p[1] == 1 for p in policy.plans if p[0] >= 6)  # after the window: replan's plan alone
 
 
