@@ -103,9 +103,29 @@ def test_it_never_reads_a_hidden_request() -> None:
         policy = AnticipatingReplan(_prior(cfg, window_steps=10, max_requests=3), futures=2, scored=2, seed=3)
         trajectory = fly(cfg, policy)
         assert trajectory.terminated  # everyone delivered
-        flights.append((trajectory.stacked("moved")[:5, 0].tolist(), policy.plans[0][:3]))
+        flights.append((trajectory.stacked("moved")[:5, 0].tolist(), policy.plans[0][:5]))
     assert flights[0] == flights[1]
     assert flights[0][1][1] > 1  # futures were sampled: the test is not replan's alone
+
+
+def test_a_futures_plan_is_flown_only_until_its_future_expected_a_release() -> None:
+    """One request and nothing more to come, but a prior that expects more within 6 steps: whenever a future's plan
+    is chosen, it is cut at that future's next release (at most 6 steps on) and the decision is made again there,
+    without a real release; past the window only replan's plan is left, and the rider is delivered."""
+    cfg = small_config(OPEN_7, starts_m=((50.0, 50.0),), requests=(Request(0, (650.0, 650.0), (50.0, 650.0)),),
+                       time_limit_steps=60)  # fmt: skip
+    policy = AnticipatingReplan(_prior(cfg, min_requests=1, max_requests=3, window_steps=6), seed=0)
+    trajectory = fly(cfg, policy)
+    assert trajectory.terminated
+    steps = [p[0] for p in policy.plans]
+    chose_a_future = [p for p in policy.plans if p[2] > 0]
+    assert chose_a_future, "no future's plan was chosen: the test would not see the cut"
+    for t, _, _, _, committed, _ in chose_a_future:
+        assert 1 <= committed <= 6 - t
+    for (t, _, best, _, committed, _), later in zip(policy.plans, steps[1:], strict=False):
+        if best > 0:
+            assert later == t + committed
+    assert all(p[1] == 1 for p in policy.plans if p[0] >= 6)  # after the window: replan's plan alone
 
 
 def test_bad_settings_are_refused() -> None:

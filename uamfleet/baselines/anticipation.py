@@ -14,7 +14,9 @@ Bent & Van Hentenryck, Operations Research 2004):
 3. Each candidate is scored on :attr:`AnticipatingReplan.scored` *fresh* futures (not those that made the
    candidates, which would favour each one's own): its moves until that future's next release, flown in a scratch
    core, plus the moves of a clairvoyant search from there over everything that future holds. The candidate of
-   least mean is flown until the next real release, when it all starts again.
+   least mean is flown until the next real release, when it all starts again; a future's plan only until the step
+   its future expected the next release (past it, that plan serves requests that may never come: the first try
+   flew it on, and flew imagined trips), when the decision is made again with what is known then.
 
 It reads only released requests (never a hidden row of the env), the clock, and the family's demand model. It is a
 yardstick, not a real-time method: each release costs one search per candidate and one per candidate and scored
@@ -114,9 +116,9 @@ REPLAN_FUTURES_SEARCH = SearchSettings(beam=64, rank_slack=0.5)
 
 
 class AnticipatingReplan:
-    """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (release
-    step, number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, wall seconds) of
-    every decision. The defaults are those of the first try (docs/results.md), not tuned."""
+    """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (step,
+    number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, actions committed to,
+    wall seconds) of every decision. The defaults are those of the first try (docs/results.md), not tuned."""
 
     def __init__(
         self, prior: DemandPrior, futures: int = 4, scored: int = 8, replan: SearchSettings = REPLAN_FUTURES_SEARCH,
@@ -129,7 +131,7 @@ class AnticipatingReplan:
         self.replan_settings = (replan,)
         self.future_settings = (SearchSettings(future_beam, replan.cell_m, replan.rank_slack),)
         self.score_settings = (SearchSettings(score_beam, replan.cell_m, replan.rank_slack),)
-        self.plans: list[tuple[int, int, int, float, float]] = []
+        self.plans: list[tuple[int, int, int, float, int, float]] = []
 
     def reset(self, env: VectorEnv) -> None:
         require_one_taxi_env(env, "replan_futures", type(self).__name__)
@@ -144,6 +146,7 @@ class AnticipatingReplan:
         self.rng = np.random.default_rng(self.seed)
         self.plans = []
         self._seen = env.state.pax_status[0] != HIDDEN
+        self.redecide = False  # whether the queue is a future's plan cut at that future's next release
         self.queue = self._decide()
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -151,6 +154,8 @@ class AnticipatingReplan:
         newly = (s.pax_status[0] != HIDDEN) & ~self._seen
         if newly.any():
             self._seen |= newly
+            self.queue = self._decide()
+        elif not self.queue and self.redecide:  # a future's plan ran to its expected release, and none came
             self.queue = self._decide()
         if self.queue:
             return np.array([[self.queue.pop(0)]])
@@ -179,27 +184,31 @@ class AnticipatingReplan:
             base = self.search.solve(known, wider)
         if base is None:
             return []
+        self.redecide = False
         candidates: list[StepPlan] = [base]
+        horizons = [len(base.actions)]  # how far each candidate is flown before deciding again
         makers = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.futures)) if f is not None]
         for future in makers:
             plan = self.search.solve(future, self.future_settings)
             if plan is not None:
                 candidates.append(plan)
+                horizons.append(_next_release(future) - t)
         if len(candidates) == 1:
-            self.plans.append((t, 1, 0, float(base.moves), time.perf_counter() - start))
+            self.plans.append((t, 1, 0, float(base.moves), len(base.actions), time.perf_counter() - start))
             return list(base.actions)
         scored = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.scored)) if f is not None]
         if not scored:
             scored = makers
         means = np.array([np.mean([self._score(c.actions, f, t) for f in scored]) for c in candidates])
         best = int(np.argmin(means))  # ties to the lowest index: replan's plan first
-        self.plans.append((t, len(candidates), best, float(means[best]), time.perf_counter() - start))
-        return list(candidates[best].actions)
+        committed = list(candidates[best].actions[: horizons[best]])
+        self.plans.append((t, len(candidates), best, float(means[best]), len(committed), time.perf_counter() - start))
+        self.redecide = best > 0
+        return committed
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""
-        coming = future.pax_exists[0] & (future.pax_status[0] == HIDDEN)
-        horizon = int(future.pax_release[0, coming].min()) - t if coming.any() else len(actions)
+        horizon = _next_release(future) - t if _next_release(future) >= 0 else len(actions)
         for name in SEARCH_STATE_FIELDS:
             getattr(self.scratch.state, name)[:] = getattr(future, name)[:1]
         moves = 0
@@ -213,6 +222,12 @@ class AnticipatingReplan:
 
 
 _MINUS_ONE = ("pax_taxi", "pax_pickup_step", "pax_dropoff_step")
+
+
+def _next_release(future: FleetState) -> int:
+    """The release step of env 0's next hidden request, -1 when none is hidden."""
+    coming = future.pax_exists[0] & (future.pax_status[0] == HIDDEN)
+    return int(future.pax_release[0, coming].min()) if coming.any() else -1
 
 
 __all__ = ["AnticipatingReplan", "DemandPrior"]

@@ -91,7 +91,7 @@ class Args:
     fixed_thresholds: tuple[float, ...] = ()
     """only these thresholds of the fixed scenarios (empty: all)"""
     methods: tuple[str, ...] = METHODS
-    """planners to fly (default: every one but the slow ``replan_futures``, which flies only when named)"""
+    """planners to fly: every one but the slow ``replan_futures`` unless named"""
     checkpoint: Path | None = None
     """a learned policy (runs/<name>/best.pt) flown beside the planners"""
     guided: bool = False
