@@ -140,9 +140,11 @@ class AnticipatingReplan:
         rows = max(env.cfg.num_passengers, self.prior.max_requests)
         self.padded = env.cfg.replace(max_passengers=rows) if rows > env.cfg.num_passengers else env.cfg
         self.search = StepSearch(self.padded)
-        self.known = allocate_state(World(self.padded), 1)
         self.scratch = VectorEnv(self.search.scratch_cfg, 1, autoreset=True)
         self.scratch.reset(seed=0)
+        # the known requests, on the padded axis (the search reads only SEARCH_STATE_FIELDS): rows past the env's
+        # own stay as allocated, empty, for the sampled requests of each future's copy
+        self.known = allocate_state(self.scratch.world, 1)
         self.rng = np.random.default_rng(self.seed)
         self.plans = []
         self._seen = env.state.pax_status[0] != HIDDEN
@@ -169,13 +171,13 @@ class AnticipatingReplan:
             target, source = getattr(self.known, name), getattr(known, name)
             if name.startswith("pax_"):
                 target[:, :P] = source[:1]
-                target[:, P:] = False if name == "pax_exists" else (-1 if name in _MINUS_ONE else 0)
             else:
                 target[:] = source[:1]
         return self.known.copy()
 
     def _decide(self) -> list[int]:
         start = time.perf_counter()
+        self.redecide = False  # until a future's cut plan is chosen below
         known = self._known_state()
         t = int(known.t[0])
         base = self.search.solve(known, self.replan_settings)
@@ -184,7 +186,6 @@ class AnticipatingReplan:
             base = self.search.solve(known, wider)
         if base is None:
             return []
-        self.redecide = False
         candidates: list[StepPlan] = [base]
         horizons = [len(base.actions)]  # how far each candidate is flown before deciding again
         makers = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.futures)) if f is not None]
@@ -208,7 +209,8 @@ class AnticipatingReplan:
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""
-        horizon = _next_release(future) - t if _next_release(future) >= 0 else len(actions)
+        release = _next_release(future)
+        horizon = release - t if release >= 0 else len(actions)
         for name in SEARCH_STATE_FIELDS:
             getattr(self.scratch.state, name)[:] = getattr(future, name)[:1]
         moves = 0
@@ -219,9 +221,6 @@ class AnticipatingReplan:
                 return float(moves)
         plan = self.search.solve(self.scratch.state, self.score_settings)
         return float(moves + (plan.moves if plan is not None else self.padded.time_limit_steps))
-
-
-_MINUS_ONE = ("pax_taxi", "pax_pickup_step", "pax_dropoff_step")
 
 
 def _next_release(future: FleetState) -> int:
