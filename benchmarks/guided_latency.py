@@ -1,8 +1,10 @@
 """Latency of guided search at decision time (uamfleet/rl/guided.py) beside the greedy decision it starts from.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --family detroit3gpp --count 20 --horizon 60
 
-Flies the shipped Berlin generalist with guided search on the first ``--count`` test instances and prints, per search
+Flies a shipped policy (``--policy``, the generalist ``berlin`` by default) with guided search on the first ``--count``
+test instances of ``--family`` and prints, per search
 (at the start and at each release), the wall-clock and the thread CPU seconds: on a machine shared with other jobs the
 CPU time is the figure that says what one idle core would take. Torch runs on one thread.
 """
@@ -25,13 +27,17 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--top-k", type=int, default=8)
     parser.add_argument("--samples", type=int, default=24)
+    parser.add_argument("--family", default="berlin", help="instance family (berlin, detroit3gpp, munich)")
+    parser.add_argument("--split", default="test", help="instance split (validation, test)")
+    parser.add_argument("--policy", default="berlin", help="a name of uamfleet.pretrained")
+    parser.add_argument("--horizon", type=int, default=None, help="GuidedSearchPolicy(horizon=...); none: full")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    policy = uamfleet.pretrained("berlin")
-    guided = GuidedSearchPolicy(policy, top_k=args.top_k, samples=args.samples)
+    policy = uamfleet.pretrained(args.policy)
+    guided = GuidedSearchPolicy(policy, top_k=args.top_k, samples=args.samples, horizon=args.horizon)
     wall, cpu, greedy_cpu = [], [], []
-    for seed in split_seeds("test", args.count):
-        cfg = policy.layout(make_instance("berlin", seed))
+    for seed in split_seeds(args.split, args.count):
+        cfg = policy.layout(make_instance(args.family, seed))
         guided.fly(cfg)
         wall += [p[3] for p in guided.plans]
         cpu += [p[4] for p in guided.plans]
@@ -40,9 +46,9 @@ def main() -> None:
         greedy_cpu.append((time.thread_time() - start) / max(steps, 1))
     pct = [50, 95, 100]
     print(
-        f"guided search, {len(cpu)} searches on {args.count} test instances (top-k {args.top_k}, samples "
-        f"{args.samples}): CPU s p50/p95/max {np.percentile(cpu, pct).round(3).tolist()}, wall s "
-        f"{np.percentile(wall, pct).round(3).tolist()}"
+        f"guided search, {len(cpu)} searches on {args.count} {args.family} {args.split} instances (top-k {args.top_k}, "
+        f"samples {args.samples}, horizon {args.horizon}): CPU s p50/p95/max "
+        f"{np.percentile(cpu, pct).round(3).tolist()}, wall s {np.percentile(wall, pct).round(3).tolist()}"
     )
     print(
         f"greedy decoding: CPU ms per step (episode mean, incl. the env step) p50/max "

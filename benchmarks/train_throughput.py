@@ -57,6 +57,8 @@ class Args:
     thresholds: tuple[float, ...] = ()
     """a mixture over SINR thresholds (dB), as train/ppo.py --thresholds"""
     num_minibatches: int = 16
+    update_epochs: int = 4
+    """PPO epochs over each iteration's batch"""
     time_limit_steps: int = 200
     shaping: float = 50.0
     """0 turns the shaping term, and its path look-ups in every step, off"""
@@ -70,8 +72,8 @@ def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None
         total_timesteps=args.iterations * args.num_envs * args.num_steps * (taxis or 1), num_envs=args.num_envs,
         num_steps=args.num_steps, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="bench",
         progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
-        thresholds=args.thresholds, num_minibatches=args.num_minibatches, time_limit_steps=args.time_limit_steps,
-        shaping=args.shaping, heading_lookahead=args.heading_lookahead,
+        thresholds=args.thresholds, num_minibatches=args.num_minibatches, update_epochs=args.update_epochs,
+        time_limit_steps=args.time_limit_steps, shaping=args.shaping, heading_lookahead=args.heading_lookahead,
     )  # fmt: skip
 
 
@@ -100,9 +102,8 @@ def measure(args: Args, variant: str, ranks: int, taxis: int | None = None) -> t
 
 
 def header(args: Args, batch_note: str, thread_note: str) -> str:
-    defaults = TrainArgs()
     return (f"{args.scenario}, {args.num_envs} envs x {args.num_steps} steps per iteration {batch_note}, "
-            f"{defaults.update_epochs} epochs x {args.num_minibatches} minibatches, device {args.device}, "
+            f"{args.update_epochs} epochs x {args.num_minibatches} minibatches, device {args.device}, "
             f"{args.threads} thread(s) {thread_note}, {args.iterations - 1} timed iterations")  # fmt: skip
 
 

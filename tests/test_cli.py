@@ -48,6 +48,7 @@ BAD_VALUES = [
     (benchmark.cli, ["--methods", "ppo", "--count", "1"], "unknown --methods ['ppo']"),
     (render.cli, ["--checkpoint", "/nonexistent.pt"], "checkpoint /nonexistent.pt does not exist; train one with"),
     (benchmark.cli, ["--from-csv", "/nonexistent.csv"], "No such file or directory: '/nonexistent.csv'"),
+    (benchmark.cli, ["--checkpoint", "x.pt", "--guided", "--guided-horizon", "-1"], "--guided-horizon >= 0 (0: to"),
 ]
 
 

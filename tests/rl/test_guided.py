@@ -3,6 +3,8 @@ requests are all known at the start, plans again at a release, and refuses a fle
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -15,6 +17,7 @@ from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.guided import GuidedSearchPolicy
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
+from uamfleet.types import ON_BOARD
 
 WALLED_7 = "\n".join(["......."] * 3 + ["..###.."] + ["......."] * 3)
 
@@ -100,3 +103,68 @@ def test_with_the_search_as_a_candidate_it_is_never_longer_than_either(start, re
     if g.pr_pct == 100.0:
         assert h.td_m <= g.td_m
     assert len(hybrid.search_won) == 1
+
+
+OPEN_7 = "\n".join(["......."] * 7)
+
+
+def test_tour_bound_of_a_cut_candidate_is_the_tour_by_hand() -> None:
+    """On an open map the tour left is the straight legs: taxi -> origin -> destination, in moves of 100 m."""
+    requests = (Request(0, (550.0, 150.0), (550.0, 550.0)),)
+    cfg = small_config(OPEN_7, starts_m=((150.0, 150.0),), requests=requests, time_limit_steps=40,
+                       stop_features=True, max_passengers=3)  # fmt: skip
+    guided = GuidedSearchPolicy(_policy(cfg, 0), top_k=2, samples=0, horizon=1)
+    env = VectorEnv(guided.layout(cfg), 1)
+    env.reset(seed=0)
+    guided.reset(env)
+    for target, source in zip(guided.scratch.state, env.state, strict=True):
+        target[:] = source  # the scratch rows back at the root (the search at reset flew them)
+    obs = guided.scratch.observer.observe(guided.scratch.state)
+    np.testing.assert_allclose(guided._tour_moves(obs), [4.0 + 4.0, 4.0 + 4.0], atol=1e-4)
+
+
+@pytest.mark.parametrize(("start", "requests"), INSTANCES)
+def test_a_horizon_past_the_time_limit_searches_as_without_one(start, requests) -> None:
+    cfg = small_config(WALLED_7, starts_m=(start,), requests=requests, time_limit_steps=60, stop_features=True,
+                       max_passengers=3)  # fmt: skip
+    full = GuidedSearchPolicy(_policy(cfg, 1), top_k=3, samples=6, seed=1)
+    cut = GuidedSearchPolicy(_policy(cfg, 1), top_k=3, samples=6, seed=1, horizon=60)
+    a, b = full.fly(cfg), cut.fly(cfg)
+    assert [e.actions.tolist() for e in a.events] == [e.actions.tolist() for e in b.events]
+    assert [p[:3] for p in full.plans] == [p[:3] for p in cut.plans]
+
+
+@pytest.mark.parametrize(("start", "requests"), INSTANCES)
+def test_a_short_horizon_searches_again_each_time_its_plan_is_flown(start, requests) -> None:
+    cfg = small_config(WALLED_7, starts_m=(start,), requests=requests, time_limit_steps=60, stop_features=True,
+                       max_passengers=3)  # fmt: skip
+    guided = GuidedSearchPolicy(_policy(cfg, 0), top_k=3, samples=6, horizon=3)
+    traj = guided.fly(cfg)
+    starts = [p[0] for p in guided.plans]
+    assert starts[:2] == [0, 3] and all(b - a == 3 for a, b in itertools.pairwise(starts))
+    assert len(traj.events) > starts[-1]
+
+
+def test_a_cut_candidate_is_ranked_by_moves_plus_its_tour_bound() -> None:
+    """Horizon 1 on an open map: every first heading costs one move, so the heading chosen is the one whose tour
+    left is shortest: toward the origin (east), not away from it."""
+    requests = (Request(0, (550.0, 150.0), (550.0, 550.0)),)
+    cfg = small_config(OPEN_7, starts_m=((150.0, 150.0),), requests=requests, time_limit_steps=40,
+                       stop_features=True, max_passengers=3)  # fmt: skip
+    guided = GuidedSearchPolicy(_policy(cfg, 2), top_k=16, samples=0, horizon=1)
+    env = VectorEnv(guided.layout(cfg), 1)
+    env.reset(seed=0)
+    guided.reset(env)
+    assert len(guided.queue) == 1
+    by_hand = {}  # heading -> 1 move + straight legs from its end: to the origin (unless within reach) and on
+    for heading in np.flatnonzero(env.observer.observe(env.state)["action_mask"][0, 0]):
+        probe = VectorEnv(guided.layout(cfg), 1)
+        probe.reset(seed=0)
+        probe.step(np.array([[heading]]))
+        q = probe.state.pos_m[0, 0]
+        picked = probe.state.pax_status[0, 0] == ON_BOARD
+        leg = 0.0 if picked else np.hypot(*(q - (550.0, 150.0))) + 400.0
+        by_hand[int(heading)] = 1.0 + (np.hypot(*(q - (550.0, 550.0))) if picked else leg) / 100.0
+    least = min(by_hand.values())
+    assert by_hand[guided.queue[0]] == pytest.approx(least, abs=1e-6)
+    assert guided.plans[0][2] == round(least)

@@ -104,6 +104,9 @@ class Args:
     """softmax temperature of the sampled flights (the defaults were chosen on 25 validation instances)"""
     guided_expert_beam: int = 0
     """> 0: replan's beam search of this width over the known requests is one more candidate of guided search"""
+    guided_horizon: int = 0
+    """> 0: guided search rolls each candidate at most this many steps, ranks it by its moves plus its tour bound,
+    flies that many steps and searches again (a rolling horizon: bounded latency on large maps); 0: to the end"""
     best_known_beams: tuple[int, ...] = (256,)
     """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
     replan_beam: int = 64
@@ -140,7 +143,7 @@ def _config(task: Task) -> EnvConfig:
 
 def _policy(
     method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
-    guided: tuple[int, int, float, int], task: Task, cfg: EnvConfig,
+    guided: tuple[int, int, float, int, int], task: Task, cfg: EnvConfig,
 ) -> Any:  # fmt: skip
     if method == "replan_futures":  # the family's demand model: instances only (the fixed scenarios have none)
         return AnticipatingReplan(DemandPrior.of_family(task[1], cfg))
@@ -155,9 +158,14 @@ def _policy(
     if method == "learned_guided":
         from uamfleet.rl.guided import GuidedSearchPolicy
 
-        top_k, samples, temperature, expert_beam = guided
+        top_k, samples, temperature, expert_beam, horizon = guided
         return GuidedSearchPolicy(
-            learned_policy(checkpoint), top_k=top_k, samples=samples, temperature=temperature, expert_beam=expert_beam
+            learned_policy(checkpoint),
+            top_k=top_k,
+            samples=samples,
+            temperature=temperature,
+            expert_beam=expert_beam,
+            horizon=horizon or None,
         )
     return learned_policy(checkpoint)
 
@@ -180,7 +188,7 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int]]
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int]]
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
@@ -384,11 +392,12 @@ def check_guided(args: Args) -> None:
     if args.guided and args.checkpoint is None:
         raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
     if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
-            and 0 <= args.guided_expert_beam <= 4096):  # fmt: skip
+            and 0 <= args.guided_expert_beam <= 4096 and args.guided_horizon >= 0):  # fmt: skip
         raise UsageError(
             f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
-            f"{args.guided_temperature}: need 1 <= top-k <= 16, 0 <= samples <= 1024 and a temperature > 0 "
-            "(e.g. 8, 24 and 2), and 0 <= --guided-expert-beam <= 4096."
+            f"{args.guided_temperature} / --guided-horizon {args.guided_horizon}: need 1 <= top-k <= 16, "
+            "0 <= samples <= 1024, a temperature > 0 (e.g. 8, 24 and 2), 0 <= --guided-expert-beam <= 4096 and "
+            "--guided-horizon >= 0 (0: to the end)."
         )
 
 
@@ -427,7 +436,8 @@ def main(args: Args) -> list[dict[str, Any]]:
         return earlier
     learned = ("learned", "learned_guided") if args.guided else ("learned",)
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
-    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam)
+    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam,
+              args.guided_horizon)  # fmt: skip
     jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
     start = time.perf_counter()
     rows = fly_all(args, jobs)
@@ -475,7 +485,8 @@ def guided_flags(args: Args) -> str:
         return ""
     flags = (f" --guided --guided-top-k {args.guided_top_k} --guided-samples {args.guided_samples} "
              f"--guided-temperature {args.guided_temperature:g}")  # fmt: skip
-    return flags + (f" --guided-expert-beam {args.guided_expert_beam}" if args.guided_expert_beam else "")
+    flags += f" --guided-expert-beam {args.guided_expert_beam}" if args.guided_expert_beam else ""
+    return flags + (f" --guided-horizon {args.guided_horizon}" if args.guided_horizon else "")
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:

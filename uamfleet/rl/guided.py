@@ -12,6 +12,14 @@ release, when it plans again. Between releases a decision costs a list pop. Beca
 candidate and the scratch core reproduces the env exactly until a release, on an instance whose requests are all
 known at the start it never flies longer than greedy decoding.
 
+With ``horizon`` (an option for large maps, where a full rollout of every candidate takes seconds) each candidate is
+rolled at most ``horizon`` steps and ranked by its moves plus the shortest tour through every known stop still to
+serve from where it stands (``tour_via_stop`` of its observation; exact for the stops the tour DP covers, and in
+centre-to-centre moves, so it counts no pick-up radius); a candidate that delivers everyone within the horizon
+counts its moves alone. The chosen candidate is flown for its ``horizon`` steps and the search runs again (a
+rolling horizon), so the cost of one search is bounded by ``(top_k + samples) x horizon`` steps on any map, and
+the guarantee above holds only where the horizon reaches the end of every candidate.
+
 With ``expert_beam`` > 0 the plan of ``replan``'s beam search of that width over the same known requests is one more
 candidate (the policy's flights win ties): the search alone is then the yardstick the learned candidates must beat.
 """
@@ -35,20 +43,26 @@ class GuidedSearchPolicy:
     """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
     (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock seconds, thread CPU
     seconds) of every search. The defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four
-    settings on 25 validation instances (docs/results.md, "Learning from the search")."""
+    settings on 25 validation instances (docs/results.md, "Learning from the search"). ``horizon`` (None: every
+    candidate to its end) bounds a search's rollouts (module docstring)."""
 
     def __init__(
         self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
-        expert_beam: int = 0,
+        expert_beam: int = 0, horizon: int | None = None,
     ) -> None:  # fmt: skip
-        if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0 and expert_beam >= 0):
+        if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0 and expert_beam >= 0) or (
+            horizon is not None and horizon < 1
+        ):
             raise ValueError(
                 f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}, expert_beam="
-                f"{expert_beam}): need 1 <= top_k <= 16, samples >= 0, temperature > 0 and expert_beam >= 0 (e.g. "
-                "top_k=8, samples=24, temperature=2, expert_beam=0)."
+                f"{expert_beam}, horizon={horizon}): need 1 <= top_k <= 16, samples >= 0, temperature > 0, "
+                "expert_beam >= 0 and horizon None or >= 1 (e.g. top_k=8, samples=24, temperature=2, expert_beam=0, "
+                "horizon=None)."
             )
         self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
         self.expert_beam = expert_beam  # > 0: replan's beam search of this width is one more candidate
+        self.horizon = horizon  # None: candidates rolled to their end; else at most this many steps, then the tour
+        self._replan_when_flown = False  # with a horizon: the plan ran out before the episode's end
         self.search: StepSearch | None = None
         self.search_won: list[bool] = []  # per search: the step-level search's plan was shorter than every flight
         self.rng = np.random.default_rng(seed)
@@ -95,17 +109,21 @@ class GuidedSearchPolicy:
         assert self.env is not None and self.scratch is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
         scratch = self.scratch
+        self._replan_when_flown = False
         root = released_only(self.env.state)  # the future is unknown
         if not root.pax_exists.any():
             return []
         for target, source in zip(scratch.state, root, strict=True):
             target[:] = source  # every scratch env starts as the env does, over the known requests
-        chosen_plan, best_key = self._rollouts(int(self.env.cfg.time_limit_steps - self.env.state.t[0]))
+        limit = int(self.env.cfg.time_limit_steps - self.env.state.t[0])
+        span = limit if self.horizon is None else min(limit, self.horizon)
+        chosen_plan, best_key = self._rollouts(span, cut=span < limit)  # uncut: every candidate runs to its end
         search_won = False
         if self.search is not None:  # the search's own plan competes; the policy's flight wins ties
             plan = self.search.solve(root, [SearchSettings(beam=self.expert_beam, rank_slack=0.5)])
             if plan is not None and (best_key is None or (plan.moves, plan.steps) < best_key):
                 chosen_plan, best_key, search_won = list(plan.actions), (plan.moves, plan.steps), True
+                self._replan_when_flown = False  # the search's plan runs to the end
         self.search_won.append(search_won)
         wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
         self.plans.append((int(self.env.state.t[0]), scratch.num_envs, best_key[0] if best_key else -1, wall, cpu))
@@ -122,10 +140,12 @@ class GuidedSearchPolicy:
             chosen[self.top_k :] = [self.rng.choice(16, p=p / p.sum()) for p in probs]
         return chosen
 
-    def _rollouts(self, limit: int) -> tuple[list[int], tuple[int, int] | None]:
+    def _rollouts(self, limit: int, cut: bool = False) -> tuple[list[int], tuple[int, int] | None]:
         """Every candidate flown in the scratch core (set to the root) for at most ``limit`` steps; the actions of
-        the one that delivers every known passenger in the fewest moves (then steps), and its (moves, steps)."""
-        assert self.scratch is not None
+        the one that delivers every known passenger in the fewest moves (then steps), and its (moves, steps). With
+        ``cut`` (``limit`` is the horizon), a candidate still flying at ``limit`` counts its moves plus its tour
+        bound (:meth:`_tour_moves`), rounded to whole moves in the returned key."""
+        assert self.scratch is not None and self.env is not None
         scratch, K = self.scratch, self.scratch.num_envs
         obs = scratch.observer.observe(scratch.state)
         actions: list[list[int]] = [[] for _ in range(K)]
@@ -142,17 +162,40 @@ class GuidedSearchPolicy:
             finished |= ended
             if finished.all():
                 break
+        self._replan_when_flown = False
+        if cut and not finished.all():
+            flying = ~finished  # cut at the horizon: ranked by moves + the tour still to fly
+            estimate = moves.astype(float)
+            estimate[flying] += self._tour_moves(obs)[flying]
+            estimate[finished & (steps < 0)] = np.inf  # cut by the time limit: never chosen over one that delivers
+            steps[flying] = depth + 1
+            best = int(np.lexsort((steps, estimate))[0])
+            self._replan_when_flown = bool(flying[best])
+            return actions[best], (round(float(estimate[best])), int(steps[best]))
         done = np.flatnonzero(steps >= 0)
         if not len(done):
             return [], None
         best = int(done[np.lexsort((steps[done], moves[done]))[0]])
         return actions[best], (int(moves[best]), int(steps[best]))
 
+    def _tour_moves(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """[K] the shortest tour through every known stop left, from each scratch taxi's position, in moves: the
+        least ``tour_via_stop`` over its actionable stops (0 where it has none)."""
+        assert self.env is not None
+        cfg = self.env.cfg
+        tours = obs["stop_paths"][:, 0, :, 2].astype(float)  # [K, P] map sides
+        actionable = obs["stop_heading_mask"][:, 0].any(-1)  # [K, P]
+        least = np.where(actionable, tours, np.inf).min(-1)
+        side_m = self.env.world.side_m
+        return np.where(np.isfinite(least), least * side_m / cfg.step_m, 0.0)
+
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
         released = self._released_rows()
         if (released & ~self._released).any():
             self._released = released
+            self.queue = self._search()
+        elif not self.queue and self._replan_when_flown:  # a horizon's plan flown: search from here
             self.queue = self._search()
         if self.queue:
             return np.array([[self.queue.pop(0)]])
