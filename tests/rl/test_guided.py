@@ -108,15 +108,22 @@ def test_with_the_search_as_a_candidate_it_is_never_longer_than_either(start, re
 OPEN_7 = "\n".join(["......."] * 7)
 
 
-def test_tour_bound_of_a_cut_candidate_is_the_tour_by_hand() -> None:
-    """On an open map the tour left is the straight legs: taxi -> origin -> destination, in moves of 100 m."""
+def _open_search(policy_seed: int, top_k: int):
+    """Horizon-1 guided search after its first search on an open 7 x 7 map: a taxi at (150, 150) and one request
+    from (550, 150) to (550, 550); (config, search, env)."""
     requests = (Request(0, (550.0, 150.0), (550.0, 550.0)),)
     cfg = small_config(OPEN_7, starts_m=((150.0, 150.0),), requests=requests, time_limit_steps=40,
                        stop_features=True, max_passengers=3)  # fmt: skip
-    guided = GuidedSearchPolicy(_policy(cfg, 0), top_k=2, samples=0, horizon=1)
+    guided = GuidedSearchPolicy(_policy(cfg, policy_seed), top_k=top_k, samples=0, horizon=1)
     env = VectorEnv(guided.layout(cfg), 1)
     env.reset(seed=0)
     guided.reset(env)
+    return cfg, guided, env
+
+
+def test_tour_bound_of_a_cut_candidate_is_the_tour_by_hand() -> None:
+    """On an open map the tour left is the straight legs: taxi -> origin -> destination, in moves of 100 m."""
+    _, guided, env = _open_search(0, top_k=2)
     for target, source in zip(guided.scratch.state, env.state, strict=True):
         target[:] = source  # the scratch rows back at the root (the search at reset flew them)
     obs = guided.scratch.observer.observe(guided.scratch.state)
@@ -148,13 +155,7 @@ def test_a_short_horizon_searches_again_each_time_its_plan_is_flown(start, reque
 def test_a_cut_candidate_is_ranked_by_moves_plus_its_tour_bound() -> None:
     """Horizon 1 on an open map: every first heading costs one move, so the heading chosen is the one whose tour
     left is shortest: toward the origin (east), not away from it."""
-    requests = (Request(0, (550.0, 150.0), (550.0, 550.0)),)
-    cfg = small_config(OPEN_7, starts_m=((150.0, 150.0),), requests=requests, time_limit_steps=40,
-                       stop_features=True, max_passengers=3)  # fmt: skip
-    guided = GuidedSearchPolicy(_policy(cfg, 2), top_k=16, samples=0, horizon=1)
-    env = VectorEnv(guided.layout(cfg), 1)
-    env.reset(seed=0)
-    guided.reset(env)
+    cfg, guided, env = _open_search(2, top_k=16)
     assert len(guided.queue) == 1
     by_hand = {}  # heading -> 1 move + straight legs from its end: to the origin (unless within reach) and on
     for heading in np.flatnonzero(env.observer.observe(env.state)["action_mask"][0, 0]):
