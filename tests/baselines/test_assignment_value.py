@@ -14,6 +14,7 @@ from conftest import small_config
 from uamfleet.baselines import make_policy
 from uamfleet.baselines.assignment_value import (
     FEATURES,
+    INCREASING,
     LinearValue,
     SiteRemoteness,
     discounted_future_pickups,
@@ -53,11 +54,11 @@ def _value(weights, price_s=100.0):
 
 
 def test_post_state_features_by_hand():
-    # window 600 s, decided at 120 s; free at 300 s and at 700 s (after the window), remoteness 0.8 and 1.5
-    feats = post_state_features(np.array([300.0, 700.0]), 120.0, np.array([0.8, 1.5]), 600.0)
-    assert FEATURES == ("bias", "open_share", "open_share_sq", "busy_windows", "remoteness", "remoteness_x_open_share")
-    np.testing.assert_allclose(feats[0], [1.0, 0.5, 0.25, 0.3, 0.8, 0.4])
-    np.testing.assert_allclose(feats[1], [1.0, 0.0, 0.0, 580.0 / 600.0, 1.5, 0.0])
+    # window 600 s; free at 300 s and at 700 s (after the window), remoteness 0.8 and 1.5
+    feats = post_state_features(np.array([300.0, 700.0]), np.array([0.8, 1.5]), 600.0)
+    assert FEATURES == ("bias", "open_share", "open_share_sq", "remoteness_x_open_share", "remoteness")
+    np.testing.assert_allclose(feats[0], [1.0, 0.5, 0.25, 0.4, 0.8])
+    np.testing.assert_allclose(feats[1], [1.0, 0.0, 0.0, 0.0, 1.5])
 
 
 def test_site_remoteness_by_hand():
@@ -86,10 +87,27 @@ def test_least_squares_fit_on_a_two_state_chain():
     g_b = discounted_future_pickups(10.0, [], pickups, horizon)
     assert g_a == pytest.approx(math.exp(-1.0) + math.exp(-2.0)) and g_b == pytest.approx(math.exp(-1.0))
     feats = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])  # A seen twice (returns g_a and g_a + 1), B once
-    w = fit_linear_value(feats, np.array([g_a, g_b, g_a + 1.0]), ridge=0.0)
+    w = fit_linear_value(feats, np.array([g_a, g_b, g_a + 1.0]), ridge=0.0, nonnegative=())
     np.testing.assert_allclose(w, [g_a + 0.5, g_b])
     with pytest.raises(ValueError, match="finite"):
         fit_linear_value(feats, np.array([g_a, math.nan, 1.0]))
+
+
+def test_the_fit_keeps_the_open_share_weights_non_negative():
+    # returns fall with the open share (2 when closed, 1 when open): unconstrained, the slope is -1; kept >= 0 it
+    # is 0, and the bias is the mean return 1.5
+    feats = np.array([[1.0, 0.0], [1.0, 1.0], [1.0, 0.0], [1.0, 1.0]])
+    returns = np.array([2.0, 1.0, 2.0, 1.0])
+    np.testing.assert_allclose(fit_linear_value(feats, returns, ridge=0.0, nonnegative=()), [2.0, -1.0], atol=1e-9)
+    np.testing.assert_allclose(fit_linear_value(feats, returns, ridge=0.0, nonnegative=(1,)), [1.5, 0.0], atol=1e-9)
+    # so a fitted value never grows with the time the taxi is free, at any place
+    rng = np.random.default_rng(0)
+    x = post_state_features(rng.uniform(0, 900, 400), rng.uniform(0.5, 2.0, 400), 600.0)
+    w = fit_linear_value(x, -x[:, 1] + rng.normal(0, 0.1, 400))  # data that would reward being free later
+    assert (w[list(INCREASING)] >= 0).all()
+    free = np.linspace(0, 900, 50)
+    for far in (0.5, 1.0, 2.0):
+        assert (np.diff(post_state_features(free, np.full(50, far), 600.0) @ w) <= 1e-12).all()
 
 
 def _routes_every_step(policy, env):
@@ -108,7 +126,7 @@ def _routes_every_step(policy, env):
 
 @pytest.mark.parametrize(
     "value",
-    [_value(np.zeros(len(FEATURES)), price_s=500.0), _value([3.0, -2.0, 1.0, 5.0, -4.0, 2.0], price_s=0.0)],
+    [_value(np.zeros(len(FEATURES)), price_s=500.0), _value([3.0, 2.0, 1.0, 5.0, -4.0], price_s=0.0)],
     ids=["zero-weights", "zero-price"],
 )
 def test_a_zero_value_decides_exactly_as_batch_assignment(value):
@@ -122,14 +140,14 @@ def test_a_zero_value_decides_exactly_as_batch_assignment(value):
 def test_a_value_changes_decisions_somewhere():
     """A test that a priced value is not silently ignored: a strong pull toward ending far from the sites."""
     plain, _ = _routes_every_step(BatchAssignmentPolicy(), _env())
-    valued, traj = _routes_every_step(BatchAssignmentPolicy(value=_value([0, 0, 0, 0, 50.0, 0], 500.0)), _env())
+    valued, traj = _routes_every_step(BatchAssignmentPolicy(value=_value([0, 0, 0, 0, 50.0], 500.0)), _env())
     assert valued != plain
     assert traj.episode["delivered"] == len(REQUESTS)  # everyone is still served: the penalty dominates
 
 
 @pytest.mark.parametrize(
     ("weights", "price_s"),
-    [([0.3, 2.0, -1.5, -3.0, -0.7, 1.1], 100.0), ([0, 0, 0, 0, -2.0, 0], 100.0), ([0, 0, 0, 3.0, 0, 0], 300.0)],
+    [([0.3, 2.0, 1.5, 0.4, -0.7], 100.0), ([0, 0, 0, 0, -2.0], 100.0), ([0, 3.0, 0, 0, 0], 300.0)],
 )
 def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
     env = _env()
@@ -152,8 +170,7 @@ def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
     def v(free, point):
         far = np.linalg.norm(sites - point, axis=-1).mean() / scale
         open_share = min(max((value.arrival_window_s - free) / value.arrival_window_s, 0.0), 1.0)
-        busy = max(free - 0.0, 0.0) / value.arrival_window_s
-        return float(np.dot(weights, [1, open_share, open_share**2, busy, far, far * open_share]))
+        return float(np.dot(weights, [1, open_share, open_share**2, far * open_share, far]))
 
     def left_in(taxi, k):
         if k is None:
@@ -206,7 +223,7 @@ def test_value_files_round_trip_and_refuse_what_they_cannot_read(tmp_path):
     path.write_text(json.dumps(body))
     with pytest.raises(ValueError, match="refit"):
         load_value(path)
-    with pytest.raises(ValueError, match="weights must have 6"):
+    with pytest.raises(ValueError, match="weights must have 5"):
         LinearValue(np.zeros(3))
 
 
@@ -214,7 +231,7 @@ def test_the_fleet_benchmark_flies_the_value_dispatcher_through_the_same_rows(tm
     from uamfleet.cli.fleet_benchmark import Args, main, run_episode_set
 
     path = tmp_path / "value.json"
-    save_value(path, LinearValue(np.array([0.5, 1.0, -1.0, -2.0, -0.5, 0.5]), 60.0, 300.0, 600.0))
+    save_value(path, LinearValue(np.array([0.5, 1.0, 0.5, 0.5, -0.5]), 60.0, 300.0, 600.0))
     names = ("batch_assignment", "batch_assignment_value:0", "batch_assignment_value")
     rows = run_episode_set(("berlin", "2x12", 2000000, names, (), "shield", True, None, 600.0, path))
     assert [r["dispatcher"] for r in rows] == list(names)

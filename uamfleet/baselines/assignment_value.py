@@ -20,12 +20,13 @@ validation episodes.
 
 **The approximator** is linear in a few dimensionless features (:func:`post_state_features`): the share of the
 arrival window (the operator's service period, known to a dispatcher) still open when the taxi is free, its square,
-the time until it is free in arrival windows, and the mean distance from where it ends to the map's flyable sites
-(where requests are drawn) in units of the mean distance between two sites, alone and times the open share.
-The weights are fitted by least squares to the Monte-Carlo returns of the dispatcher's own episodes
-(:func:`fit_linear_value`, i.e. LSTD(1) with a ridge). A TD(0) fit needs a reward that depends only on a transition,
-and this one does not: whether a pick-up is new depends on the plans at both ends, which later re-assignments
-change. Files are JSON (:func:`save_value`, :func:`load_value`).
+and the mean distance from where it ends to the map's flyable sites (where requests are drawn) in units of the mean
+distance between two sites, alone and times the open share. The weights are fitted by least squares to the
+Monte-Carlo returns of the dispatcher's own episodes (:func:`fit_linear_value`, i.e. LSTD(1) with a ridge), those
+of the open-share columns kept >= 0 so that the value never grows with the time the taxi is free
+(:data:`INCREASING`). A TD(0) fit needs a reward that depends only on a transition, and this one does not: whether a
+pick-up is new depends on the plans at both ends, which later re-assignments change. Files are JSON
+(:func:`save_value`, :func:`load_value`).
 """
 
 from __future__ import annotations
@@ -39,18 +40,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from uamfleet.io import write_text_atomic
 
-FEATURES: tuple[str, ...] = (
-    "bias",
-    "open_share",
-    "open_share_sq",
-    "busy_windows",
-    "remoteness",
-    "remoteness_x_open_share",
-)
+FEATURES: tuple[str, ...] = ("bias", "open_share", "open_share_sq", "remoteness_x_open_share", "remoteness")
 """The names of :func:`post_state_features`' columns, in order."""
+
+INCREASING: tuple[int, ...] = (1, 2, 3)
+"""The columns whose weights the fit keeps >= 0. Each grows with the open share (remoteness is positive), so a
+taxi's value never grows with the time it is free at the same place: a taxi free earlier can always hover until
+the later time. A first fit without this rule, with a column of the time until the taxi is free, rewarded longer
+routes: priced at 400 s, riders waited until the time limit (docs/results.md, "A learned value inside
+batch_assignment")."""
 
 VALUE_DISPATCHER = "batch_assignment_value"
 """The dispatcher name of ``batch_assignment`` with a learned value; ``batch_assignment_value:<price_s>`` prices it
@@ -86,16 +88,13 @@ class SiteRemoteness:
         return np.linalg.norm(pts[:, None] - self.sites_m[None], axis=-1).mean(axis=1) / self.scale_m
 
 
-def post_state_features(
-    free_s: np.ndarray, now_s: float | np.ndarray, remoteness: np.ndarray, arrival_window_s: float
-) -> np.ndarray:
-    """[N, len(FEATURES)] features of N post-decision states (module docstring): free at ``free_s`` [N] seconds,
-    decided at ``now_s`` (one time or [N]), ending at points of ``remoteness`` [N]."""
+def post_state_features(free_s: np.ndarray, remoteness: np.ndarray, arrival_window_s: float) -> np.ndarray:
+    """[N, len(FEATURES)] features of N post-decision states (module docstring): free at ``free_s`` [N] seconds
+    (episode time), ending at points of ``remoteness`` [N]."""
     free = np.asarray(free_s, dtype=float)
     far = np.asarray(remoteness, dtype=float)
     open_share = np.clip((arrival_window_s - free) / arrival_window_s, 0.0, 1.0)
-    busy = np.maximum(free - now_s, 0.0) / arrival_window_s
-    return np.stack([np.ones_like(free), open_share, open_share**2, busy, far, far * open_share], axis=1)
+    return np.stack([np.ones_like(free), open_share, open_share**2, far * open_share, far], axis=1)
 
 
 @dataclass
@@ -122,9 +121,9 @@ class LinearValue:
     def with_price(self, price_s: float) -> LinearValue:
         return LinearValue(self.weights, price_s, self.horizon_s, self.arrival_window_s, self.meta)
 
-    def values(self, free_s: np.ndarray, now_s: float, remoteness: np.ndarray) -> np.ndarray:
+    def values(self, free_s: np.ndarray, remoteness: np.ndarray) -> np.ndarray:
         """[N] V of N post-decision states."""
-        return post_state_features(free_s, now_s, remoteness, self.arrival_window_s) @ self.weights
+        return post_state_features(free_s, remoteness, self.arrival_window_s) @ self.weights
 
 
 def discounted_future_pickups(
@@ -138,16 +137,21 @@ def discounted_future_pickups(
     )
 
 
-def fit_linear_value(features: np.ndarray, returns: np.ndarray, ridge: float = 1e-3) -> np.ndarray:
-    """Weights w minimising |features · w - returns|² + ridge · n · |w|² (ridge scaled by the sample count n, the
-    bias included so that the solve is always well posed)."""
+def fit_linear_value(
+    features: np.ndarray, returns: np.ndarray, ridge: float = 1e-3, nonnegative: Sequence[int] = INCREASING
+) -> np.ndarray:
+    """Weights w minimising |features · w - returns|² + ridge · n · |w|² with w[i] >= 0 for i in ``nonnegative``
+    (ridge scaled by the sample count n; ``scipy.optimize.lsq_linear`` on the stacked system)."""
     x, y = np.asarray(features, dtype=float), np.asarray(returns, dtype=float)
     if x.ndim != 2 or y.shape != (len(x),) or not len(x):
         raise ValueError(f"features [N, F] and returns [N] with N >= 1 expected, got {x.shape} and {y.shape}.")
     if not (np.isfinite(x).all() and np.isfinite(y).all()):
         raise ValueError("features and returns must be finite; a NaN or inf came from the recorded episodes.")
-    a = x.T @ x + ridge * len(x) * np.eye(x.shape[1])
-    return np.linalg.solve(a, x.T @ y)
+    lower = np.full(x.shape[1], -np.inf)
+    lower[list(nonnegative)] = 0.0
+    a = np.vstack([x, math.sqrt(ridge * len(x)) * np.eye(x.shape[1])])
+    b = np.concatenate([y, np.zeros(x.shape[1])])
+    return np.asarray(lsq_linear(a, b, bounds=(lower, np.inf), method="bvls", tol=1e-12).x)
 
 
 def save_value(path: Path, value: LinearValue) -> None:
@@ -206,6 +210,7 @@ def value_for_dispatcher(
 
 __all__ = [
     "FEATURES",
+    "INCREASING",
     "VALUE_DISPATCHER",
     "LinearValue",
     "PostState",

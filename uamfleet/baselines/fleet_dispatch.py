@@ -497,11 +497,10 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
     ) -> list[tuple[int, tuple[int, ...], float]]:
         """The trips with cost - price_s * (V(after the trip) - V(after no new trip)) (assignment_value)."""
         assert self.value is not None
-        now = self.now_s()
         far = np.array([self.remoteness_after(a, route) for (a, _, _), route in zip(trips, routes, strict=True)])
-        after = self.value.values(np.asarray(free_s), now, far)
+        after = self.value.values(np.asarray(free_s), far)
         idle_far = np.array([self.remoteness_after(a, self.routes[a]) for a in range(self.num_taxis)])
-        idle = self.value.values(np.asarray(idle_free_s), now, idle_far)
+        idle = self.value.values(np.asarray(idle_free_s), idle_far)
         price = self.value.price_s
         return [(a, reqs, cost - price * float(after[k] - idle[a])) for k, (a, reqs, cost) in enumerate(trips)]
 

@@ -112,8 +112,8 @@ def episode_samples(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(features, Monte-Carlo returns) of one recorded episode, one row per (taxi, assignment)."""
     rows = policy.decisions
-    columns = np.array([r[1:4] for r in rows], dtype=float).reshape(-1, 3)  # now, free, far
-    feats = post_state_features(columns[:, 1], columns[:, 0], columns[:, 2], arrival_window_s)
+    columns = np.array([r[2:4] for r in rows], dtype=float).reshape(-1, 2)  # free, far
+    feats = post_state_features(columns[:, 0], columns[:, 1], arrival_window_s)
     by_taxi: dict[int, list[tuple[int, float]]] = {}
     for p, taxi, t in policy.pickups:
         by_taxi.setdefault(taxi, []).append((p, t))
