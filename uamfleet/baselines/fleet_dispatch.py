@@ -18,7 +18,9 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
   feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
   taxi's schedule cost when the trip joins its passengers on board. An integer programme
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
-  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch).
+  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch). With a learned
+  ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
+  by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
 
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
 ``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
