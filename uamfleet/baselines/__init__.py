@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.fleet_dispatch import DISPATCHERS, BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
@@ -14,9 +16,16 @@ POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", *DISPATCHERS, 
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
 
 
-def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
+def make_policy(
+    name: str,
+    seed: int = 0,
+    num_taxis: int = 1,
+    assignment_value: Path | None = None,
+    arrival_window_s: float | None = None,
+) -> Any:
     """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), a fleet dispatcher
-    (``greedy``, ``insertion``, ``batch_assignment``), or random.
+    (``greedy``, ``insertion``, ``batch_assignment``; ``batch_assignment_value[:<price_s>]`` with the learned value
+    of ``assignment_value``, default the shipped file, for a service of ``arrival_window_s``), or random.
 
     Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
     straight line) and score it against the ``scored`` one."""
@@ -33,6 +42,8 @@ def make_policy(name: str, seed: int = 0, num_taxis: int = 1) -> Any:
         return InsertionPolicy()
     if name == "batch_assignment":
         return BatchAssignmentPolicy()
+    if (value := value_for_dispatcher(name, assignment_value, arrival_window_s)) is not None:
+        return BatchAssignmentPolicy(value=value)
     if name == "random":
         return RandomPolicy(seed=seed)
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
@@ -43,6 +54,7 @@ __all__ = [
     "PLANNERS",
     "POLICIES",
     "STEP_PLANNERS",
+    "VALUE_DISPATCHER",
     "BatchAssignmentPolicy",
     "GreedyFleetPolicy",
     "InsertionPolicy",

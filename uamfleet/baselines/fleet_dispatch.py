@@ -18,7 +18,9 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
   feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
   taxi's schedule cost when the trip joins its passengers on board. An integer programme
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
-  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch).
+  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch). With a learned
+  ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
+  by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
 
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
 ``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
@@ -40,8 +42,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
+from uamfleet.baselines.assignment_value import LinearValue, SiteRemoteness
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
 from uamfleet.config import heading_vectors
+from uamfleet.env.generator import flyable_sites
 from uamfleet.env.motion import passes_within
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
@@ -407,9 +411,15 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
     exact (taxi, trip) assignment (module docstring; Alonso-Mora et al., PNAS 2017)."""
 
     def __init__(
-        self, period: int = 3, max_requests_per_taxi: int = 6, penalty_s: float = 1e6, exact_limit: int = 6
+        self,
+        period: int = 3,
+        max_requests_per_taxi: int = 6,
+        penalty_s: float = 1e6,
+        exact_limit: int = 6,
+        value: LinearValue | None = None,
     ) -> None:
         super().__init__(exact_limit)
+        self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
         if period < 1 or max_requests_per_taxi < 1 or penalty_s <= 0:
             raise ValueError(
                 f"period={period}, max_requests_per_taxi={max_requests_per_taxi} must be >= 1 and "
@@ -425,30 +435,39 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
             return
         s = self.env.state
         waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]
-        trips, routes = self.candidate_trips(waiting)
+        trips, routes, free_s = self.candidate_trips(waiting)
+        idle_free_s = [0.0] * self.num_taxis  # when each taxi is free if it takes no new trip
         for a in range(self.num_taxis):
-            self.routes[a] = self.sequence(a, [])[1] if self.on_board(a) else []
+            plan, self.routes[a] = self.sequence(a, []) if self.on_board(a) else (None, [])
+            idle_free_s[a] = plan.finish_s if plan is not None else self.now_s()
         if not waiting:
             return
+        if self.value is not None:
+            trips = self.valued_trips(trips, routes, free_s, idle_free_s)
         for k in assign_trips(trips, self.num_taxis, waiting, self.penalty_s):
             self.routes[trips[k][0]] = routes[k]
         self.stats["assignments"] += 1
 
-    def candidate_trips(self, waiting: list[int]) -> tuple[list[tuple[int, tuple[int, ...], float]], list[list[Stop]]]:
-        """Every taxi's feasible trips of up to ``seats`` waiting requests, with their cost increase and route."""
+    def candidate_trips(
+        self, waiting: list[int]
+    ) -> tuple[list[tuple[int, tuple[int, ...], float]], list[list[Stop]], list[float]]:
+        """Every taxi's feasible trips of up to ``seats`` waiting requests, with their cost increase, route and the
+        time (s) the route ends."""
         trips: list[tuple[int, tuple[int, ...], float]] = []
         routes: list[list[Stop]] = []
+        free_s: list[float] = []
         for a in range(self.num_taxis):
             base = self.sequence(a, [])[0].total_ride_s if self.on_board(a) else 0.0
             singles = []
             for r in waiting:
                 plan, route = self.sequence(a, [r])
-                singles.append((plan.total_ride_s - base, r, route))
-            singles.sort()
-            chosen = sorted(r for _, r, _ in singles[: self.max_requests_per_taxi])
-            for cost, r, route in singles[: self.max_requests_per_taxi]:
+                singles.append((plan.total_ride_s - base, r, route, plan.finish_s))
+            singles.sort(key=lambda single: single[:2])
+            chosen = sorted(r for _, r, _, _ in singles[: self.max_requests_per_taxi])
+            for cost, r, route, finish_s in singles[: self.max_requests_per_taxi]:
                 trips.append((a, (r,), cost))
                 routes.append(route)
+                free_s.append(finish_s)
             for size in range(2, self.seats + 1):
                 if len(self.on_board(a)) + size > self.exact_limit:
                     break
@@ -456,7 +475,42 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
                     plan, route = self.sequence(a, list(combo))
                     trips.append((a, combo, plan.total_ride_s - base))
                     routes.append(route)
-        return trips, routes
+                    free_s.append(plan.finish_s)
+        return trips, routes, free_s
+
+    def now_s(self) -> float:
+        assert self.env is not None
+        return float(self.env.state.t[0]) * self.env.cfg.slot_s
+
+    def remoteness_after(self, taxi: int, route: Sequence[Stop]) -> float:
+        """:class:`~uamfleet.baselines.assignment_value.SiteRemoteness` of where ``route`` leaves the taxi: its last
+        stop (a drop-off), or where the taxi is when the route is empty."""
+        assert self.env is not None
+        if route:
+            return float(self._dest_remoteness[route[-1][0]])
+        return float(self._remoteness(self.env.state.pos_m[0, taxi])[0])
+
+    def valued_trips(
+        self,
+        trips: list[tuple[int, tuple[int, ...], float]],
+        routes: list[list[Stop]],
+        free_s: list[float],
+        idle_free_s: list[float],
+    ) -> list[tuple[int, tuple[int, ...], float]]:
+        """The trips with cost - price_s * (V(after the trip) - V(after no new trip)) (assignment_value)."""
+        assert self.value is not None
+        far = np.array([self.remoteness_after(a, route) for (a, _, _), route in zip(trips, routes, strict=True)])
+        after = self.value.values(np.asarray(free_s), far)
+        idle_far = np.array([self.remoteness_after(a, self.routes[a]) for a in range(self.num_taxis)])
+        idle = self.value.values(np.asarray(idle_free_s), idle_far)
+        price = self.value.price_s
+        return [(a, reqs, cost - price * float(after[k] - idle[a])) for k, (a, reqs, cost) in enumerate(trips)]
+
+    def reset(self, env: VectorEnv) -> None:
+        super().reset(env)
+        if self.value is not None:
+            self._remoteness = SiteRemoteness(flyable_sites(env.world))
+            self._dest_remoteness = self._remoteness(self.dest_m)
 
 
 __all__ = [

@@ -40,6 +40,7 @@ import numpy as np
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.checks import check_number
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.env.vector_env import VectorEnv
@@ -68,6 +69,9 @@ class Args:
     first: int = 0
     """index of the first seed in the split"""
     dispatchers: tuple[str, ...] = DISPATCHERS
+    assignment_value: Path | None = None
+    """the value file of the dispatchers batch_assignment_value[:<price_s>] (default: the shipped one,
+    uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value)"""
     checkpoints: tuple[Path, ...] = ()
     """learned fleet policies (runs/<name>/best.pt), each flown on the settings of its fleet size as
     "learned:<run name>" ("learned:<file stem>" for other file names; its passenger axis padded to the instance)"""
@@ -97,8 +101,9 @@ class Args:
     """replace an existing --out-csv or --section of --out-md (else the command refuses before flying)"""
 
 
-Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool, int | None, float]  # (family, setting,
-# seed, dispatchers, checkpoints, separation, hover_action, passenger_window, arrival_window_s)
+Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool, int | None, float, Path | None]  # (family,
+# setting, seed, dispatchers, checkpoints, separation, hover_action, passenger_window, arrival_window_s,
+# assignment_value)
 
 
 def setting_size(setting: str) -> tuple[int, int]:
@@ -138,7 +143,8 @@ def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
     """Every dispatcher (and learned policy of this fleet size) on one fleet instance (one worker process)."""
     family, setting, seed, dispatchers, checkpoints, separation, hover_action = job[:7]
-    window, arrival_s = job[7:] or (None, FLEET_ARRIVAL_WINDOW_S)  # a 7-field job: no window, the default arrivals
+    window, arrival_s = job[7:9] or (None, FLEET_ARRIVAL_WINDOW_S)  # a 7-field job: no window, the default arrivals
+    value_path = job[9] if len(job) > 9 else None  # a 9-field job: the shipped value
     taxis, requests = setting_size(setting)
     cfg = make_fleet_instance(family, seed, taxis, requests, arrival_window_s=arrival_s, separation=separation,
                               hover_action=hover_action)  # fmt: skip
@@ -149,7 +155,10 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
         shared_fields(env, warm=True)  # (a learned policy reads the env's distance table instead)
     fields_s = time.perf_counter() - start
     rows = []
-    flights = [(name, cfg, make_policy(name, num_taxis=taxis)) for name in dispatchers]
+    flights = [
+        (name, cfg, make_policy(name, num_taxis=taxis, assignment_value=value_path, arrival_window_s=arrival_s))
+        for name in dispatchers
+    ]
     for checkpoint in checkpoints:
         policy = _learned(checkpoint, taxis, requests, window)
         if policy is not None:
@@ -222,6 +231,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
+        + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
         + (f" --separation {args.separation}" if args.separation != "none" else "")
         + (" --hover-action" if args.hover_action else "")
@@ -271,6 +281,7 @@ def check_args(args: Args) -> list[Job]:
             args.hover_action,
             args.passenger_window,
             args.arrival_window_s,
+            args.assignment_value,
         )
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
@@ -281,9 +292,11 @@ def _check_names(args: Args) -> None:
     """Every setting and dispatcher named is known."""
     for setting in args.settings:
         setting_size(setting)
-    unknown = [d for d in args.dispatchers if d not in POLICIES]
+    unknown = [d for d in args.dispatchers if d not in POLICIES and d.partition(":")[0] != VALUE_DISPATCHER]
     if unknown:
-        raise ValueError(f"unknown --dispatchers {unknown}; choose from {DISPATCHERS}.")
+        raise ValueError(f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)}.")
+    for name in args.dispatchers:  # a value dispatcher's file and price are read now, before anything flies
+        value_for_dispatcher(name, args.assignment_value, args.arrival_window_s)
 
 
 def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:
