@@ -232,16 +232,22 @@ def _check_sites(flyable: np.ndarray, family: str, seed: int, threshold: float, 
             )
 
 
+def draw_trip(rng: np.random.Generator, sites: np.ndarray, min_trip_m: float) -> tuple[int, int | None]:
+    """(origin, destination) site indices of one trip as the families draw it: a uniform origin, then a uniform
+    destination among the sites at least ``min_trip_m`` from it (None, and no second draw, where there is none)."""
+    o = int(rng.integers(len(sites)))
+    far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= min_trip_m)
+    return o, (int(far[rng.integers(len(far))]) if len(far) else None)
+
+
 def _draw_trips(rng: np.random.Generator, sites: np.ndarray, release: np.ndarray, min_trip_m: float) -> list[Request]:
-    """One request per release step: a random origin site and a destination at least ``min_trip_m`` from it;
-    stops early (fewer requests) at an origin with no site that far."""
+    """One request per release step (:func:`draw_trip`); stops early (fewer requests) at an origin with no site
+    that far."""
     requests = []
     for step in release:
-        o = int(rng.integers(len(sites)))
-        far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= min_trip_m)
-        if not len(far):
+        o, d = draw_trip(rng, sites, min_trip_m)
+        if d is None:
             break
-        d = int(far[rng.integers(len(far))])
         requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
     return requests
 
@@ -325,6 +331,7 @@ __all__ = [
     "TRAIN_SEEDS",
     "VALIDATION_SEEDS",
     "InstanceFamily",
+    "draw_trip",
     "family_of",
     "fly_instances",
     "instance_for_policy",

@@ -45,7 +45,7 @@ from uamfleet.config import EnvConfig
 from uamfleet.env.generator import allocate_state, flyable_sites
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
-from uamfleet.instances import FAMILIES, check_family
+from uamfleet.instances import FAMILIES, check_family, draw_trip
 from uamfleet.types import HIDDEN, FleetState
 
 
@@ -97,9 +97,9 @@ class DemandPrior:
                              f"with max_passengers >= {self.max_requests}.")  # fmt: skip
         future = known.copy()
         for row in free[:more]:
-            origin = int(rng.integers(len(self.sites)))
-            far = np.flatnonzero(np.linalg.norm(self.sites - self.sites[origin], axis=-1) >= self.min_trip_m)
-            dest = int(far[rng.integers(len(far))]) if len(far) else (origin + 1) % len(self.sites)
+            origin, dest = draw_trip(rng, self.sites, self.min_trip_m)
+            if dest is None:  # no site that far from this origin: the next one
+                dest = (origin + 1) % len(self.sites)
             future.pax_exists[0, row] = True
             future.pax_release[0, row] = int(rng.integers(t + 1, self.window_steps + 1))
             future.pax_origin_m[0, row] = self.sites[origin]
