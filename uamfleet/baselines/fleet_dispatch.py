@@ -509,8 +509,14 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
     def reset(self, env: VectorEnv) -> None:
         super().reset(env)
         if self.value is not None:
-            self._remoteness = SiteRemoteness(flyable_sites(env.world))
-            self._dest_remoteness = self._remoteness(self.dest_m)
+            self.prepare_remoteness()
+
+    def prepare_remoteness(self) -> None:
+        """The site remoteness :meth:`remoteness_after` reads (the map's flyable sites; every destination's), for
+        this episode: made at reset where a value prices the trips, or by a subclass that records it."""
+        assert self.env is not None
+        self._remoteness = SiteRemoteness(flyable_sites(self.env.world))
+        self._dest_remoteness = self._remoteness(self.dest_m)
 
 
 __all__ = [

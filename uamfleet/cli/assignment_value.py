@@ -28,7 +28,6 @@ import numpy as np
 from uamfleet.baselines.assignment_value import (
     FEATURES,
     LinearValue,
-    SiteRemoteness,
     discounted_future_pickups,
     fit_linear_value,
     load_value,
@@ -39,7 +38,6 @@ from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy, shared_fiel
 from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_outputs, run
 from uamfleet.cli.fleet_benchmark import setting_size
-from uamfleet.env.generator import flyable_sites
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
 from uamfleet.rollout import run_episode
@@ -74,8 +72,7 @@ class RecordingAssignment(BatchAssignmentPolicy):
 
     def reset(self, env: VectorEnv) -> None:
         super().reset(env)
-        self.record_remoteness = SiteRemoteness(flyable_sites(env.world))
-        self.record_dest_remoteness = self.record_remoteness(self.dest_m)
+        self.prepare_remoteness()  # recorded with or without a value
         self.decisions: list[tuple[int, float, float, float, tuple[int, ...]]] = []  # taxi, now, free, far, plan
         self.pickups: list[tuple[int, int, float]] = []  # passenger, taxi, time
         self._was_on_board = np.zeros(len(env.state.pax_status[0]), dtype=bool)
@@ -99,12 +96,7 @@ class RecordingAssignment(BatchAssignmentPolicy):
             plan = tuple(sorted({p for p, _ in self.routes[a]} | set(self.on_board(a))))
             route = self.routes[a]
             free = self.sequence(a, self.waiting_of(a))[0].finish_s if route else now
-            far = (
-                float(self.record_dest_remoteness[route[-1][0]])
-                if route
-                else float(self.record_remoteness(self.env.state.pos_m[0, a])[0])
-            )
-            self.decisions.append((a, now, free, far, plan))
+            self.decisions.append((a, now, free, self.remoteness_after(a, route), plan))
 
 
 def episode_samples(
