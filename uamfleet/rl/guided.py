@@ -162,7 +162,6 @@ class GuidedSearchPolicy:
             finished |= ended
             if finished.all():
                 break
-        self._replan_when_flown = False
         if cut and not finished.all():
             flying = ~finished  # cut at the horizon: ranked by moves + the tour still to fly
             estimate = moves.astype(float)
