@@ -45,9 +45,10 @@ def brute_force_pdp(
     done: Sequence[bool] | None = None,
     start_s: float = 0.0,
     objective: str = "makespan",
+    wait_weight: float = 0.0,
 ) -> Plan:
     """Same contract as :func:`solve_pdp` by enumerating every feasible sequence (a check; fine up to N = 5)."""
-    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective)
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective, wait_weight)
     best_key: tuple[object, ...] | None = None
     best: tuple[int, ...] = ()
     for seq in _sequences(pb):
@@ -59,6 +60,21 @@ def brute_force_pdp(
         if best_key is None or key < best_key:
             best_key, best = key, seq
     return _plan(pb, best)
+
+
+def every_plan(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    *,
+    capacity: int = 2,
+    on_board: Sequence[bool] | None = None,
+    done: Sequence[bool] | None = None,
+    start_s: float = 0.0,
+) -> list[Plan]:
+    """The plan of every feasible sequence (its plain totals: time, distance, ride, wait)."""
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, "makespan")
+    return [_plan(pb, seq) for seq in _sequences(pb)]
 
 
 def count_feasible_sequences(n: int, capacity: int) -> int:

@@ -10,7 +10,13 @@ import pytest
 
 from conftest import small_config
 from uamfleet.baselines import POLICIES, make_policy
-from uamfleet.baselines.fleet_dispatch import DISPATCHERS, BatchAssignmentPolicy, InsertionPolicy, assign_trips
+from uamfleet.baselines.fleet_dispatch import (
+    DISPATCHERS,
+    BatchAssignmentPolicy,
+    InsertionPolicy,
+    assign_trips,
+    split_wait_weight,
+)
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rollout import run_episode
@@ -180,3 +186,14 @@ def test_a_taxi_that_boards_passengers_early_or_unplanned_drops_them_before_its_
     assert policy.routes[1] == []
     assert sorted(policy.routes[0][:2]) == [(0, "dropoff"), (1, "dropoff")]  # both seats freed before pick-up 2
     policy.schedule_cost(0, policy.routes[0])  # a feasible route: no capacity error
+
+
+def test_wait_weight_in_a_dispatcher_name() -> None:
+    assert split_wait_weight("batch_assignment") == ("batch_assignment", 0.0)
+    assert split_wait_weight("batch_assignment_value:100+wait=1.5") == ("batch_assignment_value:100", 1.5)
+    assert make_policy("insertion+wait=2", num_taxis=2).wait_weight == 2.0
+    policy = make_policy("batch_assignment_value:100+wait=1", num_taxis=2)
+    assert (policy.wait_weight, policy.value is not None, policy.value.price_s) == (1.0, True, 100.0)
+    for bad in ("batch_assignment+wait=-1", "insertion+wait=x", "greedy+wait=1", "cptsp+wait=1"):
+        with pytest.raises(ValueError, match=r"\+wait="):
+            make_policy(bad, num_taxis=2)

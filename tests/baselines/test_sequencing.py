@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pdp_oracle import brute_force_pdp, count_feasible_sequences
+from pdp_oracle import brute_force_pdp, count_feasible_sequences, every_plan
 
 from uamfleet.baselines.sequencing import Plan, solve_in_order, solve_pdp
 
@@ -82,6 +82,46 @@ def test_dp_matches_brute_force(n: int, objective: str) -> None:
             capacity=kwargs["capacity"],
         )
         assert again == dp
+
+
+@pytest.mark.parametrize("wait_weight", [0.5, 1.0, 4.0])
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_wait_weight_minimises_ride_plus_weighted_wait(n: int, wait_weight: float) -> None:
+    """The DP against the brute force with the same weight, and its cost against the least ride + β · wait over
+    every feasible plan's plain totals (an independent sum: the oracle's plans never see the weight)."""
+    rng = np.random.default_rng(1000 * n + int(10 * wait_weight))
+    moved = 0
+    for trial in range(12):
+        kwargs = _random_instance(rng, n, ties=trial % 2 == 1)
+        dp = solve_pdp(**kwargs, objective="ride", wait_weight=wait_weight)
+        assert dp == brute_force_pdp(**kwargs, objective="ride", wait_weight=wait_weight), kwargs
+        _check_feasible(dp, kwargs)
+        least = min(p.total_ride_s + wait_weight * p.total_wait_s for p in every_plan(**kwargs))
+        assert dp.total_ride_s + wait_weight * dp.total_wait_s == pytest.approx(least, abs=1e-6)
+        plain = solve_pdp(**kwargs, objective="ride")
+        assert dp.total_wait_s <= plain.total_wait_s + 1e-6  # weighing waits never lengthens them
+        moved += dp.nodes != plain.nodes
+    assert moved > 0 or n == 2  # the weight changed some plans (n = 2: see the hand-solved line below)
+
+
+def test_wait_weight_trades_ride_for_wait() -> None:
+    dist = _line([0, 4, 2, 5, 10])  # start 0; P0 4 -> 2; P1 5 -> 10; both requested at 0
+    # P0 first: 0 -> 4 (t 4) -> 2 (t 6) -> 5 (t 9) -> 10 (t 14): rides 6 + 14 = 20, waits 4 + 9 = 13.
+    # Pool, P0 dropped first: 0 -> 4 (4) -> 5 (5) -> 2 (8) -> 10 (16): rides 8 + 16 = 24, waits 4 + 5 = 9.
+    # P1 first: 0 -> 5 (5) -> 10 (10) -> 4 (16) -> 2 (18): rides 18 + 10 = 28, waits 16 + 5 = 21.
+    plain = solve_pdp(dist, 1.0, [0.0, 0.0], objective="ride")
+    assert plain.nodes == (1, 2, 3, 4) and (plain.total_ride_s, plain.total_wait_s) == (20.0, 13.0)
+    # With β = 2 the costs are 20 + 26 = 46 against 24 + 18 = 42 for the pool: the pool wins.
+    weighted = solve_pdp(dist, 1.0, [0.0, 0.0], objective="ride", wait_weight=2.0)
+    assert weighted.nodes == (1, 3, 2, 4) and (weighted.total_ride_s, weighted.total_wait_s) == (24.0, 9.0)
+    # At β = 0.5: 20 + 6.5 = 26.5 against 24 + 4.5 = 28.5: still P0 first.
+    assert solve_pdp(dist, 1.0, [0.0, 0.0], objective="ride", wait_weight=0.5).nodes == (1, 2, 3, 4)
+
+
+@pytest.mark.parametrize(("objective", "wait_weight"), [("ride", -1.0), ("ride", float("nan")), ("distance", 1.0)])
+def test_bad_wait_weight_is_refused(objective: str, wait_weight: float) -> None:
+    with pytest.raises(ValueError, match="wait_weight"):
+        solve_pdp(_line([0, 1, 2]), 1.0, [0.0], objective=objective, wait_weight=wait_weight)
 
 
 def test_capacity_one_never_carries_two() -> None:

@@ -6,7 +6,13 @@ from pathlib import Path
 from typing import Any
 
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
-from uamfleet.baselines.fleet_dispatch import DISPATCHERS, BatchAssignmentPolicy, InsertionPolicy
+from uamfleet.baselines.fleet_dispatch import (
+    DISPATCHERS,
+    WAIT_WEIGHT_SUFFIX,
+    BatchAssignmentPolicy,
+    InsertionPolicy,
+    split_wait_weight,
+)
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
 from uamfleet.baselines.random_policy import RandomPolicy
@@ -25,7 +31,8 @@ def make_policy(
 ) -> Any:
     """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), a fleet dispatcher
     (``greedy``, ``insertion``, ``batch_assignment``; ``batch_assignment_value[:<price_s>]`` with the learned value
-    of ``assignment_value``, default the shipped file, for a service of ``arrival_window_s``), or random.
+    of ``assignment_value``, default the shipped file, for a service of ``arrival_window_s``; each of these three
+    with an optional ``+wait=<β>``: schedules cost ride time + β · wait), or random.
 
     Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
     straight line) and score it against the ``scored`` one."""
@@ -36,14 +43,20 @@ def make_policy(
                 f"dispatcher (greedy, {', '.join(DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
             )
         return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
+    base, wait_weight = split_wait_weight(name)
+    if base != name and base not in DISPATCHERS and base.partition(":")[0] != VALUE_DISPATCHER:
+        raise ValueError(
+            f"--policy {name!r}: {WAIT_WEIGHT_SUFFIX}<β> weighs waits in a schedule dispatcher's costs; "
+            f"{base!r} has none: use it with {', '.join(DISPATCHERS)} or {VALUE_DISPATCHER}[:<price_s>]."
+        )
     if name == "greedy":
         return GreedyFleetPolicy()
-    if name == "insertion":
-        return InsertionPolicy()
-    if name == "batch_assignment":
-        return BatchAssignmentPolicy()
-    if (value := value_for_dispatcher(name, assignment_value, arrival_window_s)) is not None:
-        return BatchAssignmentPolicy(value=value)
+    if base == "insertion":
+        return InsertionPolicy(wait_weight=wait_weight)
+    if base == "batch_assignment":
+        return BatchAssignmentPolicy(wait_weight=wait_weight)
+    if (value := value_for_dispatcher(base, assignment_value, arrival_window_s)) is not None:
+        return BatchAssignmentPolicy(value=value, wait_weight=wait_weight)
     if name == "random":
         return RandomPolicy(seed=seed)
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
@@ -55,6 +68,7 @@ __all__ = [
     "POLICIES",
     "STEP_PLANNERS",
     "VALUE_DISPATCHER",
+    "WAIT_WEIGHT_SUFFIX",
     "BatchAssignmentPolicy",
     "GreedyFleetPolicy",
     "InsertionPolicy",

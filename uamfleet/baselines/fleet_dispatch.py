@@ -54,6 +54,28 @@ from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
 
+WAIT_WEIGHT_SUFFIX = "+wait="
+"""A schedule dispatcher's name may end in ``+wait=<β>`` (``insertion+wait=1``, ``batch_assignment_value:100+wait=1``):
+its schedules then cost the total ride time plus β times the total wait (pick-up − request)."""
+
+
+def split_wait_weight(name: str) -> tuple[str, float]:
+    """(dispatcher name without the suffix, β) of a name that may end in :data:`WAIT_WEIGHT_SUFFIX` (β 0 without)."""
+    head, sep, weight = name.partition(WAIT_WEIGHT_SUFFIX)
+    if not sep:
+        return name, 0.0
+    try:
+        beta = float(weight)
+    except ValueError:
+        beta = float("nan")
+    if not (np.isfinite(beta) and beta >= 0):
+        raise ValueError(
+            f"dispatcher {name!r}: {WAIT_WEIGHT_SUFFIX}<β> takes a finite number >= 0 (seconds of ride time per "
+            f"second of wait), e.g. {head}{WAIT_WEIGHT_SUFFIX}1"
+        )
+    return head, beta
+
+
 # The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
 # fleet benchmark) share its per-stop Dijkstra fields instead of recomputing them. One entry, so memory stays flat.
 _LAST_FIELDS: dict[tuple[int, bytes], DistanceFields] = {}
@@ -147,10 +169,13 @@ class ScheduleFleetPolicy:
     ``stats`` counts the DP solves, heuristic insertions and assignment programmes of the episode.
     """
 
-    def __init__(self, exact_limit: int = 6) -> None:
+    def __init__(self, exact_limit: int = 6, wait_weight: float = 0.0) -> None:
         if not 1 <= exact_limit <= MAX_PASSENGERS:
             raise ValueError(f"exact_limit={exact_limit} must lie in [1, {MAX_PASSENGERS}] (solve_pdp's limit).")
+        if not (np.isfinite(wait_weight) and wait_weight >= 0):
+            raise ValueError(f"wait_weight={wait_weight} must be a finite number >= 0 (0: plain total ride time).")
         self.exact_limit = exact_limit
+        self.wait_weight = float(wait_weight)  # β: a schedule costs its total ride time + β · its total wait
         self.env: VectorEnv | None = None
 
     # ---- episode start -------------------------------------------------------------------------------
@@ -209,8 +234,12 @@ class ScheduleFleetPolicy:
         """Waiting passengers whose pick-up is on the taxi's schedule."""
         return [p for p, kind in self.routes[taxi] if kind == PICKUP]
 
+    def plan_cost(self, plan: Plan) -> float:
+        """A schedule's cost (s): its total ride time, plus ``wait_weight`` times its total wait."""
+        return plan.total_ride_s + self.wait_weight * plan.total_wait_s if self.wait_weight else plan.total_ride_s
+
     def sequence(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
-        """The exact best schedule (least total ride time) of the taxi's passengers on board plus ``waiting``."""
+        """The exact best schedule (least :meth:`plan_cost`) of the taxi's passengers on board plus ``waiting``."""
         assert self.env is not None
         riding = self.on_board(taxi)
         passengers = riding + [p for p in waiting if p not in riding]
@@ -223,12 +252,13 @@ class ScheduleFleetPolicy:
             on_board=[p in riding for p in passengers],
             start_s=now,
             objective="ride",
+            wait_weight=self.wait_weight,
         )
         self.stats["dp_solves"] += 1
         return plan, [(passengers[i], kind) for i, kind in plan.stops]
 
     def schedule_cost(self, taxi: int, route: Sequence[Stop]) -> float:
-        """Total ride time (s) of the taxi's passengers when it flies ``route`` from now."""
+        """:meth:`plan_cost` (s) of the taxi's passengers when it flies ``route`` from now."""
         assert self.env is not None
         riding = self.on_board(taxi)
         passengers = riding + [p for p, kind in route if kind == PICKUP]
@@ -242,7 +272,7 @@ class ScheduleFleetPolicy:
             on_board=[p in riding for p in passengers],
             capacity=self.seats,
         )
-        return plan.total_ride_s
+        return self.plan_cost(plan)
 
     def cheapest_insertion(self, taxi: int, passenger: int) -> tuple[float, list[Stop]]:
         """(schedule cost, route) with the passenger's pick-up and drop-off at their cheapest positions of the
@@ -369,12 +399,12 @@ class InsertionPolicy(ScheduleFleetPolicy):
         old = self.schedule_cost(taxi, self.routes[taxi]) if self.routes[taxi] else self._riding_cost(taxi)
         if len(waiting) + len(self.on_board(taxi)) + 1 <= self.exact_limit:
             plan, route = self.sequence(taxi, [*waiting, passenger])
-            return plan.total_ride_s - old, route
+            return self.plan_cost(plan) - old, route
         cost, route = self.cheapest_insertion(taxi, passenger)
         return cost - old, route
 
     def _riding_cost(self, taxi: int) -> float:
-        return self.sequence(taxi, [])[0].total_ride_s if self.on_board(taxi) else 0.0
+        return self.plan_cost(self.sequence(taxi, [])[0]) if self.on_board(taxi) else 0.0
 
 
 def assign_trips(
@@ -417,8 +447,9 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         penalty_s: float = 1e6,
         exact_limit: int = 6,
         value: LinearValue | None = None,
+        wait_weight: float = 0.0,
     ) -> None:
-        super().__init__(exact_limit)
+        super().__init__(exact_limit, wait_weight)
         self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
         if period < 1 or max_requests_per_taxi < 1 or penalty_s <= 0:
             raise ValueError(
@@ -457,11 +488,11 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         routes: list[list[Stop]] = []
         free_s: list[float] = []
         for a in range(self.num_taxis):
-            base = self.sequence(a, [])[0].total_ride_s if self.on_board(a) else 0.0
+            base = self.plan_cost(self.sequence(a, [])[0]) if self.on_board(a) else 0.0
             singles = []
             for r in waiting:
                 plan, route = self.sequence(a, [r])
-                singles.append((plan.total_ride_s - base, r, route, plan.finish_s))
+                singles.append((self.plan_cost(plan) - base, r, route, plan.finish_s))
             singles.sort(key=lambda single: single[:2])
             chosen = sorted(r for _, r, _, _ in singles[: self.max_requests_per_taxi])
             for cost, r, route, finish_s in singles[: self.max_requests_per_taxi]:
@@ -473,7 +504,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
                     break
                 for combo in itertools.combinations(chosen, size):
                     plan, route = self.sequence(a, list(combo))
-                    trips.append((a, combo, plan.total_ride_s - base))
+                    trips.append((a, combo, self.plan_cost(plan) - base))
                     routes.append(route)
                     free_s.append(plan.finish_s)
         return trips, routes, free_s
@@ -521,6 +552,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
 
 __all__ = [
     "DISPATCHERS",
+    "WAIT_WEIGHT_SUFFIX",
     "BatchAssignmentPolicy",
     "InsertionPolicy",
     "ScheduleFleetPolicy",
@@ -528,4 +560,5 @@ __all__ = [
     "fleet_action",
     "fleet_actions",
     "make_way",
+    "split_wait_weight",
 ]

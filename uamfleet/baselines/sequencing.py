@@ -9,7 +9,9 @@ origin until the passenger's release (request) time.
 Objectives and ties (deterministic): ``"makespan"`` minimises the time of the last stop, then the total ride
 time, then the node sequence lexicographically; ``"distance"`` minimises the distance flown, then the
 makespan, the ride time and the sequence; ``"ride"`` minimises the total ride time (drop-off − request, summed
-over the passengers; what the fleet dispatchers minimise), then the makespan, then the sequence. Times and
+over the passengers; what the fleet dispatchers minimise), then the makespan, then the sequence; with a
+``wait_weight`` β > 0 it minimises the ride time plus β times the total wait (pick-up − request), a service that
+weighs a rider's wait above her time on board. Times and
 distances are compared rounded to 1e-6 (s or m), so that mathematically equal totals summed in different orders
 tie instead of being split by round-off.
 
@@ -61,6 +63,7 @@ class _Problem:
     capacity: int
     start_s: float
     objective: str
+    wait_weight: float = 0.0  # "ride" objective only: β of ride + β · wait
 
 
 def _flag_list(values: Sequence[bool] | None, n: int, what: str) -> list[bool]:
@@ -81,6 +84,7 @@ def _problem(
     done: Sequence[bool] | None,
     start_s: float,
     objective: str,
+    wait_weight: float = 0.0,
 ) -> _Problem:
     release = tuple(float(r) for r in release_s)
     n = len(release)
@@ -97,6 +101,16 @@ def _problem(
     start = float(start_s)
     if not math.isfinite(start):
         raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
+    beta = float(wait_weight)
+    if not (math.isfinite(beta) and beta >= 0):
+        raise ValueError(
+            f"wait_weight must be a finite number >= 0 (seconds of ride per second of wait), got {wait_weight!r}"
+        )
+    if beta and objective != "ride":
+        raise ValueError(
+            f"wait_weight={wait_weight} weighs waits in the 'ride' objective; objective={objective!r} has none: "
+            "pass objective='ride' or wait_weight=0"
+        )
     board, finished = _check_flags(on_board, done, n, capacity)
     return _Problem(
         travel_s=(dist / speed).tolist(),
@@ -107,6 +121,7 @@ def _problem(
         capacity=int(capacity),
         start_s=start,
         objective=objective,
+        wait_weight=beta,
     )
 
 
@@ -153,10 +168,14 @@ def _stop(node: int) -> tuple[int, str]:
 
 # -- one shared schedule arithmetic: the DP, solve_in_order and the test oracle add in the same order -------
 def _advance(pb: _Problem, t: float, ride: float, dist: float, last: int, node: int) -> tuple[float, float, float]:
+    """Fly from ``last`` to ``node``: the new time, ride cost (ride time, plus the weighted wait with a
+    ``wait_weight``) and distance."""
     t = t + pb.travel_s[last][node]
     passenger = (node - 1) // 2
     if node % 2 == 1:
         t = max(t, pb.release_s[passenger])
+        if pb.wait_weight:
+            ride = ride + pb.wait_weight * (t - pb.release_s[passenger])
     else:
         ride = ride + (t - pb.release_s[passenger])
     return t, ride, dist + pb.dist_m[last][node]
@@ -175,9 +194,12 @@ def _plan(pb: _Problem, nodes: Sequence[int]) -> Plan:
     t, ride, dist, wait, last = pb.start_s, 0.0, 0.0, 0.0, 0
     arrival = []
     for node in nodes:
-        t, ride, dist = _advance(pb, t, ride, dist, last, node)
+        t, _, dist = _advance(pb, t, 0.0, dist, last, node)
+        passenger = (node - 1) // 2
         if node % 2 == 1:
-            wait += t - pb.release_s[(node - 1) // 2]
+            wait += t - pb.release_s[passenger]
+        else:  # the ride time alone, added as _advance adds it (the same sum when wait_weight is 0)
+            ride = ride + (t - pb.release_s[passenger])
         arrival.append(t)
         last = node
     return Plan(
@@ -262,14 +284,16 @@ def solve_pdp(
     done: Sequence[bool] | None = None,
     start_s: float = 0.0,
     objective: str = "makespan",
+    wait_weight: float = 0.0,
 ) -> Plan:
     """Optimal pick-up and drop-off order for one taxi (exact DP; see the module docstring).
 
     ``release_s[i]`` is passenger i's request time (a pick-up waits for it); ``on_board`` passengers need only
-    their drop-off, ``done`` passengers are ignored. Raises ValueError for malformed input or more than
-    :data:`MAX_PASSENGERS` passengers still to serve.
+    their drop-off, ``done`` passengers are ignored; ``wait_weight`` (``"ride"`` only) adds β · wait to the ride
+    time minimised (the plan's ``total_ride_s`` and ``total_wait_s`` stay the plain totals). Raises ValueError for
+    malformed input or more than :data:`MAX_PASSENGERS` passengers still to serve.
     """
-    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective)
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, done, start_s, objective, wait_weight)
     if len(pb.active) > MAX_PASSENGERS:
         raise ValueError(
             f"solve_pdp is exact and exponential: N = {len(pb.active)} passengers to serve exceeds "

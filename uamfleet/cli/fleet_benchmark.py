@@ -40,9 +40,9 @@ import numpy as np
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
-from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER
 from uamfleet.checks import check_number
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_dispatch import WAIT_WEIGHT_SUFFIX, shared_fields, split_wait_weight
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
@@ -69,6 +69,8 @@ class Args:
     first: int = 0
     """index of the first seed in the split"""
     dispatchers: tuple[str, ...] = DISPATCHERS
+    """(each of insertion, batch_assignment, batch_assignment_value[:<price_s>] may end in +wait=<β>: schedules cost
+    ride time + β · wait)"""
     assignment_value: Path | None = None
     """the value file of the dispatchers batch_assignment_value[:<price_s>] (default: the shipped one,
     uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value)"""
@@ -292,11 +294,15 @@ def _check_names(args: Args) -> None:
     """Every setting and dispatcher named is known."""
     for setting in args.settings:
         setting_size(setting)
-    unknown = [d for d in args.dispatchers if d not in POLICIES and d.partition(":")[0] != VALUE_DISPATCHER]
+    bases = {d: split_wait_weight(d)[0] for d in args.dispatchers}
+    unknown = [d for d, b in bases.items() if b not in POLICIES and b.partition(":")[0] != VALUE_DISPATCHER]
     if unknown:
-        raise ValueError(f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)}.")
-    for name in args.dispatchers:  # a value dispatcher's file and price are read now, before anything flies
-        value_for_dispatcher(name, args.assignment_value, args.arrival_window_s)
+        raise ValueError(
+            f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
+            f"dispatchers with an optional {WAIT_WEIGHT_SUFFIX}<β>)."
+        )
+    for name in args.dispatchers:  # a name's weight, value file and price are checked now, before anything flies
+        make_policy(name, num_taxis=2, assignment_value=args.assignment_value, arrival_window_s=args.arrival_window_s)
 
 
 def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:
