@@ -8,10 +8,10 @@ from typing import Any
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.fleet_dispatch import (
     DISPATCHERS,
-    WAIT_WEIGHT_SUFFIX,
+    OPTION_SEPARATOR,
     BatchAssignmentPolicy,
     InsertionPolicy,
-    split_wait_weight,
+    split_options,
 )
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
@@ -32,7 +32,8 @@ def make_policy(
     """A policy by name: a single-taxi planner (:data:`PLANNERS`, :data:`STEP_PLANNERS`), a fleet dispatcher
     (``greedy``, ``insertion``, ``batch_assignment``; ``batch_assignment_value[:<price_s>]`` with the learned value
     of ``assignment_value``, default the shipped file, for a service of ``arrival_window_s``; each of these three
-    with an optional ``+wait=<β>``: schedules cost ride time + β · wait), or random.
+    with the options of :func:`~uamfleet.baselines.fleet_dispatch.split_options`, e.g. ``+wait=1+release``), or
+    random.
 
     Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
     straight line) and score it against the ``scored`` one."""
@@ -43,20 +44,24 @@ def make_policy(
                 f"dispatcher (greedy, {', '.join(DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
             )
         return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
-    base, wait_weight = split_wait_weight(name)
-    if base != name and base not in DISPATCHERS and base.partition(":")[0] != VALUE_DISPATCHER:
+    base, options = split_options(name)
+    batch = base == "batch_assignment" or base.partition(":")[0] == VALUE_DISPATCHER
+    if base != name and not (batch or base == "insertion"):
         raise ValueError(
-            f"--policy {name!r}: {WAIT_WEIGHT_SUFFIX}<β> weighs waits in a schedule dispatcher's costs; "
-            f"{base!r} has none: use it with {', '.join(DISPATCHERS)} or {VALUE_DISPATCHER}[:<price_s>]."
+            f"--policy {name!r}: options after {OPTION_SEPARATOR!r} belong to the schedule dispatchers "
+            f"({', '.join(DISPATCHERS)}, {VALUE_DISPATCHER}[:<price_s>]), not to {base!r}."
         )
+    if options.assign_on_release and not batch:
+        raise ValueError(f"--policy {name!r}: +release times a batch assignment; {base!r} assigns each release.")
     if name == "greedy":
         return GreedyFleetPolicy()
     if base == "insertion":
-        return InsertionPolicy(wait_weight=wait_weight)
-    if base == "batch_assignment":
-        return BatchAssignmentPolicy(wait_weight=wait_weight)
-    if (value := value_for_dispatcher(base, assignment_value, arrival_window_s)) is not None:
-        return BatchAssignmentPolicy(value=value, wait_weight=wait_weight)
+        return InsertionPolicy(wait_weight=options.wait_weight)
+    value = value_for_dispatcher(base, assignment_value, arrival_window_s)
+    if batch:
+        return BatchAssignmentPolicy(
+            value=value, wait_weight=options.wait_weight, assign_on_release=options.assign_on_release
+        )
     if name == "random":
         return RandomPolicy(seed=seed)
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
@@ -64,11 +69,11 @@ def make_policy(
 
 __all__ = [
     "DISPATCHERS",
+    "OPTION_SEPARATOR",
     "PLANNERS",
     "POLICIES",
     "STEP_PLANNERS",
     "VALUE_DISPATCHER",
-    "WAIT_WEIGHT_SUFFIX",
     "BatchAssignmentPolicy",
     "GreedyFleetPolicy",
     "InsertionPolicy",

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
@@ -54,26 +55,45 @@ from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
 
-WAIT_WEIGHT_SUFFIX = "+wait="
-"""A schedule dispatcher's name may end in ``+wait=<β>`` (``insertion+wait=1``, ``batch_assignment_value:100+wait=1``):
-its schedules then cost the total ride time plus β times the total wait (pick-up − request)."""
+OPTION_SEPARATOR = "+"
+"""A schedule dispatcher's name may carry options after ``+``: ``+wait=<β>`` (its schedules cost the total ride
+time plus β times the total wait, pick-up − request) and, for the batch assignments, ``+release`` (it also
+re-assigns at every step where a request is released, not only every ``period`` steps); e.g. ``insertion+wait=1``,
+``batch_assignment_value:100+wait=1+release``."""
 
 
-def split_wait_weight(name: str) -> tuple[str, float]:
-    """(dispatcher name without the suffix, β) of a name that may end in :data:`WAIT_WEIGHT_SUFFIX` (β 0 without)."""
-    head, sep, weight = name.partition(WAIT_WEIGHT_SUFFIX)
-    if not sep:
-        return name, 0.0
-    try:
-        beta = float(weight)
-    except ValueError:
-        beta = float("nan")
-    if not (np.isfinite(beta) and beta >= 0):
-        raise ValueError(
-            f"dispatcher {name!r}: {WAIT_WEIGHT_SUFFIX}<β> takes a finite number >= 0 (seconds of ride time per "
-            f"second of wait), e.g. {head}{WAIT_WEIGHT_SUFFIX}1"
-        )
-    return head, beta
+@dataclass(frozen=True)
+class DispatchOptions:
+    """The options a dispatcher's name carries (:data:`OPTION_SEPARATOR`); the defaults are the plain dispatcher."""
+
+    wait_weight: float = 0.0
+    assign_on_release: bool = False
+
+
+def split_options(name: str) -> tuple[str, DispatchOptions]:
+    """(dispatcher name without its options, the options) of a name such as ``batch_assignment+wait=1+release``."""
+    base, *given = name.split(OPTION_SEPARATOR)
+    wait_weight, on_release = 0.0, False
+    for option in given:
+        key, sep, text = option.partition("=")
+        if key == "wait" and sep:
+            try:
+                wait_weight = float(text)
+            except ValueError:
+                wait_weight = float("nan")
+            if not (np.isfinite(wait_weight) and wait_weight >= 0):
+                raise ValueError(
+                    f"dispatcher {name!r}: +wait=<β> takes a finite number >= 0 (seconds of ride time per second "
+                    f"of wait), e.g. {base}+wait=1"
+                )
+        elif option == "release":
+            on_release = True
+        else:
+            raise ValueError(
+                f"dispatcher {name!r}: unknown option {option!r}; a schedule dispatcher takes +wait=<β> and, the "
+                f"batch assignments, +release (e.g. {base}+wait=1+release)"
+            )
+    return base, DispatchOptions(wait_weight, on_release)
 
 
 # The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
@@ -448,8 +468,11 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         exact_limit: int = 6,
         value: LinearValue | None = None,
         wait_weight: float = 0.0,
+        assign_on_release: bool = False,
     ) -> None:
         super().__init__(exact_limit, wait_weight)
+        # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
+        self.assign_on_release = assign_on_release
         self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
         if period < 1 or max_requests_per_taxi < 1 or penalty_s <= 0:
             raise ValueError(
@@ -462,7 +485,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
 
     def dispatch(self, released: list[int]) -> None:
         assert self.env is not None
-        if int(self.env.state.t[0]) % self.period:
+        if int(self.env.state.t[0]) % self.period and not (self.assign_on_release and released):
             return
         s = self.env.state
         waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]
@@ -552,7 +575,6 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
 
 __all__ = [
     "DISPATCHERS",
-    "WAIT_WEIGHT_SUFFIX",
     "BatchAssignmentPolicy",
     "InsertionPolicy",
     "ScheduleFleetPolicy",
@@ -560,5 +582,5 @@ __all__ = [
     "fleet_action",
     "fleet_actions",
     "make_way",
-    "split_wait_weight",
+    "split_options",
 ]

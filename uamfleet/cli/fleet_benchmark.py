@@ -42,7 +42,7 @@ from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER
 from uamfleet.checks import check_number
-from uamfleet.baselines.fleet_dispatch import WAIT_WEIGHT_SUFFIX, shared_fields, split_wait_weight
+from uamfleet.baselines.fleet_dispatch import shared_fields, split_options
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
@@ -69,8 +69,8 @@ class Args:
     first: int = 0
     """index of the first seed in the split"""
     dispatchers: tuple[str, ...] = DISPATCHERS
-    """(each of insertion, batch_assignment, batch_assignment_value[:<price_s>] may end in +wait=<β>: schedules cost
-    ride time + β · wait)"""
+    """(insertion, batch_assignment and batch_assignment_value[:<price_s>] may end in +wait=<β>: schedules cost
+    ride time + β · wait; the batch assignments also in +release: re-assigned at every release too)"""
     assignment_value: Path | None = None
     """the value file of the dispatchers batch_assignment_value[:<price_s>] (default: the shipped one,
     uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value)"""
@@ -294,12 +294,12 @@ def _check_names(args: Args) -> None:
     """Every setting and dispatcher named is known."""
     for setting in args.settings:
         setting_size(setting)
-    bases = {d: split_wait_weight(d)[0] for d in args.dispatchers}
+    bases = {d: split_options(d)[0] for d in args.dispatchers}
     unknown = [d for d, b in bases.items() if b not in POLICIES and b.partition(":")[0] != VALUE_DISPATCHER]
     if unknown:
         raise ValueError(
             f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
-            f"dispatchers with an optional {WAIT_WEIGHT_SUFFIX}<β>)."
+            "dispatchers with options such as +wait=<β> and +release: uamfleet.baselines.fleet_dispatch.split_options)."
         )
     for name in args.dispatchers:  # a name's weight, value file and price are checked now, before anything flies
         make_policy(name, num_taxis=2, assignment_value=args.assignment_value, arrival_window_s=args.arrival_window_s)
