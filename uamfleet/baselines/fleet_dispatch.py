@@ -7,6 +7,8 @@ pick-up while it has a free seat, a drop-off of a passenger it carries). Schedul
 request, summed over the taxi's passengers, on board ones included) from the current step, over a stop distance
 matrix of feasible-path distances (the distance fields the taxis steer by) at the env's speed. A schedule's cost is
 that total ride time; "how much a schedule grows" is the increase of it (seconds), so wait and detour both count.
+With a wait weight β (``wait_weight``; a name's ``+wait=<β>``) a schedule costs its total ride time plus β times its
+total wait (pick-up − request), sequenced exactly for that cost: a service that weighs waiting above riding.
 
 - :class:`InsertionPolicy` (``insertion``): each request, when released, goes to the taxi whose schedule cost grows
   least when the request is added and the taxi's stops are re-sequenced exactly (ties: lowest taxi index). A
@@ -18,7 +20,8 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
   feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
   taxi's schedule cost when the trip joins its passengers on board. An integer programme
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
-  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch). With a learned
+  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch). With
+  ``assign_on_release`` (``+release``) a batch also runs at every step where a request is released. With a learned
   ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
   by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
 
