@@ -236,3 +236,13 @@ def test_release_triggers_a_batch_assignment(on_release):
         env.step(actions)
     # released at step 1: assigned then with +release, else at the next multiple of the period, step 3
     assert routed_at == (1 if on_release else 3)
+
+
+def test_the_fleet_benchmark_checks_dispatcher_names_at_the_fleet_sizes_it_flies():
+    from uamfleet.cli.fleet_benchmark import Args, _check_names
+
+    _check_names(Args(settings=("1x6",), dispatchers=("replan", "batch_assignment+wait=1+release")))  # one taxi
+    with pytest.raises(ValueError, match="single-taxi planner"):
+        _check_names(Args(settings=("4x24",), dispatchers=("replan",)))
+    with pytest.raises(ValueError, match="unknown option 'fast'"):
+        _check_names(Args(settings=("1x6",), dispatchers=("insertion+fast",)))

@@ -57,10 +57,11 @@ def make_policy(
         return GreedyFleetPolicy()
     if base == "insertion":
         return InsertionPolicy(wait_weight=options.wait_weight)
-    value = value_for_dispatcher(base, assignment_value, arrival_window_s)
     if batch:
         return BatchAssignmentPolicy(
-            value=value, wait_weight=options.wait_weight, assign_on_release=options.assign_on_release
+            value=value_for_dispatcher(base, assignment_value, arrival_window_s),
+            wait_weight=options.wait_weight,
+            assign_on_release=options.assign_on_release,
         )
     if name == "random":
         return RandomPolicy(seed=seed)

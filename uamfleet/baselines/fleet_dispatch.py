@@ -259,7 +259,7 @@ class ScheduleFleetPolicy:
 
     def plan_cost(self, plan: Plan) -> float:
         """A schedule's cost (s): its total ride time, plus ``wait_weight`` times its total wait."""
-        return plan.total_ride_s + self.wait_weight * plan.total_wait_s if self.wait_weight else plan.total_ride_s
+        return plan.total_ride_s + self.wait_weight * plan.total_wait_s  # β = 0: the ride time, bit for bit
 
     def sequence(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
         """The exact best schedule (least :meth:`plan_cost`) of the taxi's passengers on board plus ``waiting``."""

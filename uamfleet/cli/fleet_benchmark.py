@@ -301,8 +301,12 @@ def _check_names(args: Args) -> None:
             f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
             "dispatchers with options such as +wait=<β> and +release: uamfleet.baselines.fleet_dispatch.split_options)."
         )
-    for name in args.dispatchers:  # a name's weight, value file and price are checked now, before anything flies
-        make_policy(name, num_taxis=2, assignment_value=args.assignment_value, arrival_window_s=args.arrival_window_s)
+    # a name's options, value file and price are checked now, before anything flies (at the smallest fleet named,
+    # where a one-taxi planner is still allowed)
+    taxis = min((setting_size(setting)[0] for setting in args.settings), default=1)
+    for name in args.dispatchers:
+        make_policy(name, num_taxis=taxis, assignment_value=args.assignment_value,
+                    arrival_window_s=args.arrival_window_s)  # fmt: skip
 
 
 def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:
