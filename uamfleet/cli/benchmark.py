@@ -44,6 +44,7 @@ from uamfleet.cli._common import (
     run,
 )
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
+from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
 from uamfleet.baselines.step_planner import (
     STEP_PLANNERS,
@@ -61,6 +62,8 @@ from uamfleet.rollout import fly
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
 """The methods flown by default."""
+FINISHED = "_finish"
+"""The suffix of a learned method finished by one search once no request can come (``--finish-beam``)."""
 SLOW_METHODS: tuple[str, ...] = ("replan_futures",)
 """Methods flown only when named (seconds per release): ``replan_futures``, the online search that scores its
 plans on futures sampled from the instance family's demand (uamfleet/baselines/anticipation.py)."""
@@ -107,6 +110,10 @@ class Args:
     guided_horizon: int = 0
     """> 0: guided search rolls each candidate at most this many steps, ranks it by its moves plus its tour bound,
     flies that many steps and searches again (a rolling horizon: bounded latency on large maps); 0: to the end"""
+    finish_beam: int = 0
+    """> 0 with --checkpoint: also fly that policy (and its guided search, with --guided) until the instance family's
+    demand model says no request can come, then one step-level search of this width over the then-known requests
+    (methods learned_finish, learned_guided_finish; uamfleet/baselines/finish.py); instances only"""
     best_known_beams: tuple[int, ...] = (256,)
     """beam widths of best_known's searches (rank slack 1.0 then 0.0 alternately; raster_opt is always a candidate)"""
     replan_beam: int = 64
@@ -143,8 +150,11 @@ def _config(task: Task) -> EnvConfig:
 
 def _policy(
     method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
-    guided: tuple[int, int, float, int, int], task: Task, cfg: EnvConfig,
+    guided: tuple[int, int, float, int, int], task: Task, cfg: EnvConfig, finish_beam: int = 0,
 ) -> Any:  # fmt: skip
+    if method.endswith(FINISHED):  # the family's demand model says when nothing more can come
+        base = _policy(method.removesuffix(FINISHED), checkpoint, beams, replan_beam, guided, task, cfg)
+        return FinishWithSearch.of_family(base, task[1], cfg.slot_s, beam=finish_beam)
     if method == "replan_futures":  # the family's demand model: instances only (the fixed scenarios have none)
         return AnticipatingReplan(DemandPrior.of_family(task[1], cfg))
     if method in PLANNERS:
@@ -188,12 +198,15 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int]]
+Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int], int]
+"""(task, methods, checkpoint, best_known beams, replan beam, guided-search settings, finish beam); a 6-field job
+has no finish beam (scripts/fly_city.py)."""
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
     """Every method on one instance (one worker process)."""
-    task, methods, checkpoint, beams, replan_beam, guided = job
+    task, methods, checkpoint, beams, replan_beam, guided = job[:6]
+    finish_beam = job[6] if len(job) > 6 else 0
     try:
         cfg = _config(task)
         validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
@@ -205,12 +218,12 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     bound = instance_lower_bound_m(cfg)
     rows = []
     for method in methods:
-        if method == "replan_futures" and label == "fixed":
-            print(f"replan_futures skipped on {name}: a fixed scenario has no demand model to sample", flush=True)
+        if (method == "replan_futures" or method.endswith(FINISHED)) and label == "fixed":
+            print(f"{method} skipped on {name}: a fixed scenario has no demand model", flush=True)
             continue
         overrides = planner_env_overrides(method) if method in PLANNERS else {}
         run_cfg = cfg.replace(**overrides) if overrides else cfg
-        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg)
+        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg, finish_beam)
         if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
             windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
             if not windowed and run_cfg.num_passengers > policy.passenger_slots:
@@ -391,6 +404,9 @@ def check_guided(args: Args) -> None:
     """The guided-search options make sense (with a checkpoint, within their bounds)."""
     if args.guided and args.checkpoint is None:
         raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
+    if (args.finish_beam and args.checkpoint is None) or not 0 <= args.finish_beam <= 4096:
+        raise UsageError(f"--finish-beam {args.finish_beam}: a search width 0 <= beam <= 4096 (0: off, e.g. 16), for "
+                         "the policy of a --checkpoint.")  # fmt: skip
     if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
             and 0 <= args.guided_expert_beam <= 4096 and args.guided_horizon >= 0):  # fmt: skip
         raise UsageError(
@@ -434,11 +450,13 @@ def main(args: Args) -> list[dict[str, Any]]:
         check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
         write_outputs(args, earlier, 60.0 * args.wall_min)
         return earlier
-    learned = ("learned", "learned_guided") if args.guided else ("learned",)
+    learned: tuple[str, ...] = ("learned", "learned_guided") if args.guided else ("learned",)
+    learned += tuple(m + FINISHED for m in learned) if args.finish_beam else ()
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
     guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam,
               args.guided_horizon)  # fmt: skip
-    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided) for t in selected]
+    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided, args.finish_beam)
+            for t in selected]  # fmt: skip
     start = time.perf_counter()
     rows = fly_all(args, jobs)
     if not rows:
@@ -500,6 +518,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --methods {' '.join(args.methods)}" if tuple(args.methods) != METHODS else "")
         + (f" --checkpoint {args.checkpoint}" if args.checkpoint is not None else "")
         + guided_flags(args)
+        + (f" --finish-beam {args.finish_beam}" if args.finish_beam else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
