@@ -2,11 +2,14 @@
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --family detroit3gpp --count 20 --horizon 60
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20 --finish-beam 16   # + the finisher
 
 Flies a shipped policy (``--policy``, the generalist ``berlin`` by default) with guided search on the first ``--count``
 test instances of ``--family`` and prints, per search
 (at the start and at each release), the wall-clock and the thread CPU seconds: on a machine shared with other jobs the
-CPU time is the figure that says what one idle core would take. Torch runs on one thread.
+CPU time is the figure that says what one idle core would take. Torch runs on one thread. With ``--finish-beam`` it
+also flies the greedy policy finished by one search once no request can come (uamfleet/baselines/finish.py) and
+prints that search's times.
 """
 
 from __future__ import annotations
@@ -18,8 +21,10 @@ import numpy as np
 import torch
 
 import uamfleet
+from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.rl.guided import GuidedSearchPolicy
+from uamfleet.rollout import fly
 
 
 def main() -> None:
@@ -31,11 +36,12 @@ def main() -> None:
     parser.add_argument("--split", default="test", help="instance split (validation, test)")
     parser.add_argument("--policy", default="berlin", help="a name of uamfleet.pretrained")
     parser.add_argument("--horizon", type=int, default=None, help="GuidedSearchPolicy(horizon=...); none: full")
+    parser.add_argument("--finish-beam", type=int, default=0, help="> 0: also the finisher's search of this width")
     args = parser.parse_args()
     torch.set_num_threads(1)
     policy = uamfleet.pretrained(args.policy)
     guided = GuidedSearchPolicy(policy, top_k=args.top_k, samples=args.samples, horizon=args.horizon)
-    wall, cpu, greedy_cpu = [], [], []
+    wall, cpu, greedy_cpu, finish_cpu, finish_wall = [], [], [], [], []
     for seed in split_seeds(args.split, args.count):
         cfg = policy.layout(make_instance(args.family, seed))
         guided.fly(cfg)
@@ -44,6 +50,11 @@ def main() -> None:
         start = time.thread_time()
         steps = len(policy.fly(cfg).events)
         greedy_cpu.append((time.thread_time() - start) / max(steps, 1))
+        if args.finish_beam:
+            finisher = FinishWithSearch.of_family(policy, args.family, cfg.slot_s, beam=args.finish_beam)
+            fly(cfg, finisher)
+            finish_cpu += [solve[2] for solve in finisher.solves]
+            finish_wall += [solve[3] for solve in finisher.solves]
     pct = [50, 95, 100]
     print(
         f"guided search, {len(cpu)} searches on {args.count} {args.family} {args.split} instances (top-k {args.top_k}, "
@@ -54,6 +65,12 @@ def main() -> None:
         f"greedy decoding: CPU ms per step (episode mean, incl. the env step) p50/max "
         f"{(1000 * np.percentile(greedy_cpu, [50, 100])).round(2).tolist()}"
     )
+    if finish_cpu:
+        print(
+            f"the finisher's search (beam {args.finish_beam}), {len(finish_cpu)} searches: CPU s p50/p95/max "
+            f"{np.percentile(finish_cpu, pct).round(3).tolist()}, "
+            f"wall s {np.percentile(finish_wall, pct).round(3).tolist()}"
+        )
 
 
 if __name__ == "__main__":
