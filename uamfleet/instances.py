@@ -132,7 +132,7 @@ def make_instance(
         try:
             validate_instance(world, start[None], requests)
             stops = np.array([start] + [p for r in requests for p in (r.origin_m, r.destination_m)])
-            if not np.all(np.isfinite(graph.shortest_paths(stops).distance_m)):
+            if not np.all(np.isfinite(graph.stop_distances(stops))):
                 continue
         except (InfeasibleInstanceError, UnreachableStopError):
             continue

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from uamfleet.paths.bucket_dijkstra import _bucket_rows, lattice_distances, lattice_of
-from uamfleet.paths.grid_graph import GridGraph
+from uamfleet.paths.grid_graph import GridGraph, UnreachableStopError
 
 
 def cluttered_graph(connectivity: int, seed: int) -> GridGraph:
@@ -65,3 +65,50 @@ def test_a_graph_that_is_not_a_lattice_is_refused() -> None:
     scattered = sp.random(200, 200, density=0.3, random_state=rng, format="csr")  # ~200 distinct offsets
     with pytest.raises(ValueError, match="at most 32 distinct moves"):
         lattice_of(scattered)
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+def test_the_graphs_distance_fields_equal_scipy_dijkstra_bit_for_bit(connectivity: int) -> None:
+    """``GridGraph.distances_from`` (the step planners' fields) is compiled: scipy's numbers from the same node."""
+    graph = cluttered_graph(connectivity, 3)
+    for node in np.flatnonzero(graph.feasible)[::97]:
+        point = graph.node_xy(node)
+        expected = csgraph.dijkstra(graph.adjacency, directed=True, indices=int(node)).reshape(graph.shape)
+        got = graph.distances_from(point)
+        assert got.shape == graph.shape and got[np.unravel_index(node, graph.shape)] == 0.0
+        np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+def test_the_graphs_own_lattice_is_its_matrix_as_moves(connectivity: int) -> None:
+    """The lattice ``GridGraph`` builds beside its matrix gives the distances of the one read back from the matrix
+    (``lattice_of``); on a raster too narrow for distinct moves it has none, and its fields are scipy's."""
+    graph = cluttered_graph(connectivity, 4)
+    assert graph.lattice is not None
+    sources, targets = np.flatnonzero(graph.feasible)[::50], np.arange(graph.feasible.size)
+    np.testing.assert_array_equal(
+        lattice_distances(graph.lattice, sources, targets),
+        lattice_distances(lattice_of(graph.adjacency), sources, targets),
+    )
+    narrow = GridGraph(np.ones((6, 3), bool), 10.0, connectivity=connectivity)
+    assert narrow.lattice is None
+    expected = csgraph.dijkstra(narrow.adjacency, directed=True, indices=4).reshape(narrow.shape)
+    np.testing.assert_array_equal(narrow.distances_from(narrow.node_xy(4)), expected)
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+def test_stop_distances_are_the_shortest_paths_distances_bit_for_bit(connectivity: int) -> None:
+    """``GridGraph.stop_distances`` (compiled, no paths) against ``shortest_paths(...).distance_m`` (scipy), stops
+    off the cell centres so the snaps count; and the same refusal for a stop that stop 0 does not reach."""
+    graph = cluttered_graph(connectivity, 5)
+    rng = np.random.default_rng(5)
+    nodes = np.flatnonzero(graph.feasible)
+    reach = csgraph.dijkstra(graph.adjacency, directed=True, indices=int(nodes[0]))
+    joined = nodes[np.isfinite(reach[nodes])]
+    stops = graph.node_xy(rng.choice(joined, size=7, replace=False)) + rng.uniform(-2.0, 2.0, size=(7, 2))
+    np.testing.assert_array_equal(graph.stop_distances(stops), graph.shortest_paths(stops).distance_m)
+    walled = nodes[~np.isfinite(reach[nodes])][0]
+    cut_off = np.vstack([stops[:2], graph.node_xy(walled)[None]])
+    for call in (graph.stop_distances, graph.shortest_paths):
+        with pytest.raises(UnreachableStopError, match=r"'stop 2' .* is walled off from stop 'stop 0'"):
+            call(cut_off)

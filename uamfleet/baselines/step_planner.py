@@ -242,7 +242,7 @@ class StepSearch:
         two releases (and every setting of one solve) asks for the same stops again."""
         key = stops.tobytes()
         if self._last_stops is None or self._last_stops[0] != key:
-            self._last_stops = (key, self.fields.graph.shortest_paths(stops).distance_m)
+            self._last_stops = (key, self.fields.graph.stop_distances(stops))
         return self._last_stops[1]
 
     def _beam(self, state: FleetState, e: int, settings: SearchSettings, upper_moves: int | None) -> StepPlan | None:

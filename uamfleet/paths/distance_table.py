@@ -224,8 +224,8 @@ class DistanceTable:
         cols = np.flatnonzero(self.nodes >= 0)
         self.distance_m[rows] = np.inf
         todo = rows[self.nodes[rows] >= 0]
-        if self._lattice is None:
-            self._lattice = lattice_of(self.graph.adjacency)
+        if self._lattice is None:  # the graph's own, built with it (lattice_of reads it back from the matrix)
+            self._lattice = self.graph.lattice if self.graph.lattice is not None else lattice_of(self.graph.adjacency)
         for lo in range(0, todo.size, _CHUNK):
             chunk = todo[lo : lo + _CHUNK]
             lattice = lattice_distances(self._lattice, self.nodes[chunk], self.nodes[cols])
