@@ -234,7 +234,9 @@ def test_the_fleet_benchmark_flies_the_value_dispatcher_through_the_same_rows(tm
     save_value(path, LinearValue(np.array([0.5, 1.0, 0.5, 0.5, -0.5]), 60.0, 300.0, 600.0))
     names = ("batch_assignment", "batch_assignment_value:0", "batch_assignment_value")
     rows = run_episode_set(("berlin", "2x12", 2000000, names, (), "shield", True, None, 600.0, path))
-    assert [r["dispatcher"] for r in rows] == list(names)
+    # rows of a value file other than the shipped one are named apart from the shipped value's
+    assert [r["dispatcher"] for r in rows] == ["batch_assignment", "batch_assignment_value:0@value",
+                                               "batch_assignment_value@value"]  # fmt: skip
     timing = {"decision_p50_ms", "decision_max_ms", "policy_s"}
     assert {k: v for k, v in rows[1].items() if k not in timing | {"dispatcher"}} == {
         k: v for k, v in rows[0].items() if k not in timing | {"dispatcher"}
@@ -245,3 +247,64 @@ def test_the_fleet_benchmark_flies_the_value_dispatcher_through_the_same_rows(tm
     with pytest.raises(FileNotFoundError, match="no assignment value"):
         main(Args(dispatchers=("batch_assignment_value",), assignment_value=tmp_path / "none.json",
                   out_csv=tmp_path / "x.csv", out_md=tmp_path / "x.md"))  # fmt: skip
+
+
+@pytest.mark.parametrize("on_release", [False, True], ids=["every-period", "and-at-releases"])
+def test_the_recorder_flies_its_options_and_records_every_batch_that_runs(on_release):
+    from uamfleet.cli.assignment_value import RecordingAssignment
+
+    env = _env()
+    policy = RecordingAssignment(wait_weight=1.0, assign_on_release=on_release)
+    traj = run_episode(env, policy, seed=0)
+    assert policy.wait_weight == 1.0 and policy.assign_on_release is on_release
+    steps = len(traj.decision_s)  # the steps the policy was called at: 0 ... steps - 1
+    # period 3: batches at steps 0, 3, 6, ...; the requests are released at steps 0, 2, 4 and 7
+    expected = {t for t in range(steps) if t % 3 == 0} | ({2, 4, 7} if on_release else set())
+    slot = env.cfg.slot_s
+    recorded = sorted({round(now / slot) for _, now, _, _, _ in policy.decisions})
+    assert recorded == sorted(expected)
+    assert len(policy.decisions) == len(expected) * len(STARTS)  # one row per taxi per batch
+    assert traj.episode["delivered"] == len(REQUESTS)
+
+
+def test_the_recorder_options_and_settings_are_read_in_one_place():
+    from uamfleet.baselines.fleet_dispatch import DispatchOptions
+    from uamfleet.cli._common import UsageError
+    from uamfleet.cli.assignment_value import family_setting, parse_options
+
+    assert parse_options("") == DispatchOptions()
+    assert parse_options("+wait=1+release") == DispatchOptions(wait_weight=1.0, assign_on_release=True)
+    assert parse_options("+release") == DispatchOptions(assign_on_release=True)
+    with pytest.raises(UsageError, match="as after a dispatcher's name"):
+        parse_options("wait=1")
+    with pytest.raises(ValueError, match="unknown option"):
+        parse_options("+wiat=1")
+    assert family_setting("4x48", "berlin") == ("berlin", "4x48")
+    assert family_setting("detroit3gpp:4x24", "berlin") == ("detroit3gpp", "4x24")
+    with pytest.raises(UsageError, match="unknown family"):
+        family_setting("detroit:4x24", "berlin")
+    with pytest.raises(ValueError, match="unknown --settings"):
+        family_setting("detroit3gpp:4by24", "berlin")
+
+
+def test_the_fit_records_its_options_and_both_families_in_its_meta(tmp_path):
+    from uamfleet.cli.assignment_value import Args, main
+
+    out = tmp_path / "v.json"
+    meta = main(Args(settings=("1x2", "detroit3gpp:1x2"), count=1, options="+wait=1+release", out=out))
+    assert meta["options"] == {"wait_weight": 1.0, "assign_on_release": True}
+    assert meta["settings"] == ["1x2", "detroit3gpp:1x2"] and meta["episodes"] == 2
+    assert load_value(out).meta["options"] == meta["options"]
+
+
+def test_a_value_file_other_than_the_shipped_one_names_its_rows():
+    from pathlib import Path
+
+    from uamfleet.baselines.assignment_value import shipped_value_path
+    from uamfleet.cli.fleet_benchmark import dispatcher_row_name
+
+    name = "batch_assignment_value:100+wait=1+release"
+    assert dispatcher_row_name(name, None) == name
+    assert dispatcher_row_name(name, shipped_value_path()) == name
+    assert dispatcher_row_name(name, Path("scratch/refit.json")) == f"{name}@refit"
+    assert dispatcher_row_name("batch_assignment+wait=1", Path("scratch/refit.json")) == "batch_assignment+wait=1"

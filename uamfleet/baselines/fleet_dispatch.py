@@ -486,9 +486,15 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         self.max_requests_per_taxi = max_requests_per_taxi
         self.penalty_s = penalty_s
 
+    def batch_due(self, released: list[int]) -> bool:
+        """Whether a batch runs at this step: every ``period`` steps, and with ``assign_on_release`` at every step
+        where a request is ``released``."""
+        assert self.env is not None
+        return int(self.env.state.t[0]) % self.period == 0 or (self.assign_on_release and bool(released))
+
     def dispatch(self, released: list[int]) -> None:
         assert self.env is not None
-        if int(self.env.state.t[0]) % self.period and not (self.assign_on_release and released):
+        if not self.batch_due(released):
             return
         s = self.env.state
         waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]

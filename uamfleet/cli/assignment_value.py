@@ -4,9 +4,11 @@
         --out uamfleet/data/pretrained/assignment_value.json
 
 Flies ``batch_assignment`` (or, with ``--fly-value FILE``, the dispatcher with that value: one step of policy
-iteration) on the first ``--count`` episodes of the **train** split of each setting, under the shield with the hover
-action as the loaded benchmark rows, and records at every assignment each taxi's post-decision state (when and where
-its route leaves it free) and who is on its plan, and every pick-up. Each state's return is the discounted count of
+iteration; with ``--options``, e.g. ``+wait=1+release``, the options a dispatcher's name carries) on the first
+``--count`` episodes of the **train** split of each setting (``4x48``, or ``detroit3gpp:4x24`` for another family:
+one fit over all), under the shield with the hover action as the loaded benchmark rows, and records at every batch
+that runs each taxi's post-decision state (when and where its route leaves it free) and who is on its plan, and
+every pick-up. Each state's return is the discounted count of
 the taxi's later pick-ups of passengers not on that plan (:mod:`uamfleet.baselines.assignment_value`); the linear
 value is the ridge least-squares fit of those returns (LSTD(1), Monte-Carlo returns). The result is deterministic
 (the train seeds and the dispatcher are), and written atomically as JSON with
@@ -34,12 +36,12 @@ from uamfleet.baselines.assignment_value import (
     post_state_features,
     save_value,
 )
-from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy, shared_fields
+from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy, DispatchOptions, shared_fields, split_options
 from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_outputs, run
 from uamfleet.cli.fleet_benchmark import setting_size
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
+from uamfleet.instances import FAMILIES, FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
 from uamfleet.rollout import run_episode
 from uamfleet.types import ON_BOARD
 
@@ -47,9 +49,10 @@ from uamfleet.types import ON_BOARD
 @dataclass
 class Args:
     family: str = "berlin"
-    """instance family (uamfleet.instances.FAMILIES)"""
+    """instance family (uamfleet.instances.FAMILIES) of the settings that name none"""
     settings: tuple[str, ...] = ("2x24", "4x48", "6x72", "8x96")
-    """fleet settings (taxis x requests) whose train episodes are flown"""
+    """fleet settings (taxis x requests) whose train episodes are flown; [<family>:]<taxis>x<requests>, e.g.
+    detroit3gpp:4x24 (one fit over the episodes of every setting named)"""
     count: int = 8
     """train episodes per setting"""
     first: int = 0
@@ -61,14 +64,18 @@ class Args:
     """seconds of ride time per unit of value written with the fit (0: the value is off until one is chosen)"""
     fly_value: Path | None = None
     """fly the dispatcher with this value instead of plain batch_assignment (policy iteration)"""
+    options: str = ""
+    """the flown dispatcher's options, as after a dispatcher's name (fleet_dispatch.split_options), e.g.
+    "+wait=1+release": schedules cost ride time + 1 · wait, and a batch also runs at every release"""
     out: Path = Path("uamfleet/data/pretrained/assignment_value.json")
     overwrite: bool = False
     """replace an existing --out"""
 
 
 class RecordingAssignment(BatchAssignmentPolicy):
-    """``batch_assignment`` (with or without a value) that records, at every assignment, each taxi's post-decision
-    state and plan, and every pick-up (passenger, taxi, time)."""
+    """``batch_assignment`` (with or without a value, with its options) that records, at every batch that runs
+    (:meth:`~uamfleet.baselines.fleet_dispatch.BatchAssignmentPolicy.batch_due`), each taxi's post-decision state and
+    plan, and every pick-up (passenger, taxi, time)."""
 
     def reset(self, env: VectorEnv) -> None:
         super().reset(env)
@@ -87,9 +94,9 @@ class RecordingAssignment(BatchAssignmentPolicy):
         return super().__call__(obs)
 
     def dispatch(self, released: list[int]) -> None:
+        due = self.batch_due(released)  # asked before the batch: it reads the step, which the batch leaves alone
         super().dispatch(released)
-        assert self.env is not None
-        if int(self.env.state.t[0]) % self.period:
+        if not due:
             return
         now = self.now_s()
         for a in range(self.num_taxis):
@@ -113,21 +120,45 @@ def episode_samples(
     return feats, np.array(returns, dtype=float)
 
 
-def fly_recorded(family: str, setting: str, seed: int, value: LinearValue | None) -> RecordingAssignment:
+def family_setting(setting: str, family: str) -> tuple[str, str]:
+    """(family, setting) of a ``--settings`` entry: ``detroit3gpp:4x24``, or ``4x48`` in ``family``."""
+    named, sep, size = setting.rpartition(":")
+    if sep and named not in FAMILIES:
+        raise UsageError(f"--settings {setting}: unknown family {named!r}; choose one of {tuple(FAMILIES)}.")
+    setting_size(size)
+    return (named if sep else family), size
+
+
+def parse_options(text: str) -> DispatchOptions:
+    """``--options`` (e.g. ``+wait=1+release``) read as after a dispatcher's name; "" is the plain dispatcher."""
+    if text and not text.startswith("+"):
+        raise UsageError(f"--options {text!r}: give options as after a dispatcher's name, e.g. +wait=1+release.")
+    return split_options(f"batch_assignment{text}")[1]
+
+
+def fly_recorded(
+    family: str,
+    setting: str,
+    seed: int,
+    value: LinearValue | None,
+    options: DispatchOptions = DispatchOptions(),  # noqa: B008 (frozen)
+) -> RecordingAssignment:
     """One train episode flown and recorded (shield and hover action, as the loaded benchmark rows)."""
     taxis, requests = setting_size(setting)
     cfg = make_fleet_instance(family, seed, taxis, requests, separation="shield", hover_action=True)
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
     shared_fields(env, warm=True)
-    policy = RecordingAssignment(value=value)
+    policy = RecordingAssignment(
+        value=value, wait_weight=options.wait_weight, assign_on_release=options.assign_on_release
+    )
     run_episode(env, policy, seed=0)
     return policy
 
 
 def main(args: Args) -> dict[str, Any]:
-    for setting in args.settings:
-        setting_size(setting)
+    flown_settings = [family_setting(setting, args.family) for setting in args.settings]
+    options = parse_options(args.options)
     seeds = split_seeds("train", args.count, args.first)
     check_number("--horizon-s", args.horizon_s, positive=True)
     check_number("--price-s", args.price_s, minimum=0.0)
@@ -139,10 +170,13 @@ def main(args: Args) -> dict[str, Any]:
     start, cpu0 = time.perf_counter(), time.process_time()
     parts: list[tuple[np.ndarray, np.ndarray]] = []
     for seed in seeds:
-        for setting in args.settings:
-            policy = fly_recorded(args.family, setting, seed, flown)
+        for family, setting in flown_settings:
+            policy = fly_recorded(family, setting, seed, flown, options)
             parts.append(episode_samples(policy, args.horizon_s, FLEET_ARRIVAL_WINDOW_S))
-            print(f"{setting} seed {seed}: {len(policy.decisions)} states, {len(policy.pickups)} pick-ups", flush=True)
+            print(
+                f"{family} {setting} seed {seed}: {len(policy.decisions)} states, {len(policy.pickups)} pick-ups",
+                flush=True,
+            )
     feats, returns = (np.concatenate(column) for column in zip(*parts, strict=True))
     weights = fit_linear_value(feats, returns, args.ridge)
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu0
@@ -152,6 +186,7 @@ def main(args: Args) -> dict[str, Any]:
         "episodes": len(parts), "states": len(returns), "mean_return": float(returns.mean()),
         "rmse": residual, "r2": 1.0 - residual**2 / max(float(returns.var()), 1e-12), "ridge": args.ridge,
 "flown_with": str(args.fly_value) if args.fly_value else None,
+        "options": {"wait_weight": options.wait_weight, "assign_on_release": options.assign_on_release},
         "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }  # fmt: skip

@@ -40,7 +40,7 @@ import numpy as np
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
-from uamfleet.baselines.assignment_value import VALUE_DISPATCHER
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.checks import check_number
 from uamfleet.baselines.fleet_dispatch import shared_fields, split_options
 from uamfleet.env.vector_env import VectorEnv
@@ -73,7 +73,8 @@ class Args:
     ride time + β · wait; the batch assignments also in +release: re-assigned at every release too)"""
     assignment_value: Path | None = None
     """the value file of the dispatchers batch_assignment_value[:<price_s>] (default: the shipped one,
-    uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value)"""
+    uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value); with another
+    file their rows are named <dispatcher>@<file stem>, apart from the shipped value's"""
     checkpoints: tuple[Path, ...] = ()
     """learned fleet policies (runs/<name>/best.pt), each flown on the settings of its fleet size as
     "learned:<run name>" ("learned:<file stem>" for other file names; its passenger axis padded to the instance)"""
@@ -121,6 +122,17 @@ def setting_size(setting: str) -> tuple[int, int]:
     return int(taxis), int(requests)
 
 
+def dispatcher_row_name(name: str, assignment_value: Path | None) -> str:
+    """A dispatcher's name in the rows: a valued dispatcher flown with a value file other than the shipped one is
+    ``<name>@<file stem>`` (e.g. ``batch_assignment_value:100+wait=1+release@refit``), so that its rows stay apart
+    from the shipped value's in one CSV (``--merge-csv`` replaces the earlier rows of a name flown now)."""
+    if split_options(name)[0].partition(":")[0] != VALUE_DISPATCHER or assignment_value is None:
+        return name
+    if Path(assignment_value).resolve() == shipped_value_path().resolve():
+        return name
+    return f"{name}@{Path(assignment_value).stem}"
+
+
 def learned_name(checkpoint: Path, passenger_window: int | None = None) -> str:
     """``learned:<run name>`` for a run's best.pt / last.pt, else ``learned:<file stem>`` (e.g. a shipped policy);
     ``+window<K>`` after it when flown with a passenger window."""
@@ -158,7 +170,11 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     fields_s = time.perf_counter() - start
     rows = []
     flights = [
-        (name, cfg, make_policy(name, num_taxis=taxis, assignment_value=value_path, arrival_window_s=arrival_s))
+        (
+            dispatcher_row_name(name, value_path),
+            cfg,
+            make_policy(name, num_taxis=taxis, assignment_value=value_path, arrival_window_s=arrival_s),
+        )
         for name in dispatchers
     ]
     for checkpoint in checkpoints:
