@@ -81,6 +81,11 @@ class InstanceFamily:
     max_passengers: int = 6
     release_window_s: float = 120.0
 
+    def window_steps(self, slot_s: float) -> int:
+        """The last step a request may be released at, with slots of ``slot_s`` seconds (releases are drawn from
+        steps 0 … this)."""
+        return int(self.release_window_s // slot_s)
+
 
 FAMILIES: dict[str, InstanceFamily] = {
     "berlin": InstanceFamily("berlin_random", (-7.0, -6.0, -5.0, -4.0, -3.0), min_trip_m=500.0),
@@ -118,7 +123,7 @@ def make_instance(
     world = World(base)
     sites = flyable_sites(world)
     graph = DistanceFields(world).graph
-    window_steps = int(fam.release_window_s // base.slot_s)
+    window_steps = fam.window_steps(base.slot_s)
     for _ in range(MAX_ATTEMPTS):
         num = int(rng.integers(fam.min_passengers, fam.max_passengers + 1))
         start = sites[int(rng.integers(len(sites)))]

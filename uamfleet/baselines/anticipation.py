@@ -67,7 +67,7 @@ class DemandPrior:
         """The prior of ``family``'s instances on ``cfg``'s map and threshold (its flyable sites)."""
         check_family(family)
         fam = FAMILIES[family]
-        return cls(fam.min_passengers, fam.max_passengers, int(fam.release_window_s // cfg.slot_s), fam.min_trip_m,
+        return cls(fam.min_passengers, fam.max_passengers, fam.window_steps(cfg.slot_s), fam.min_trip_m,
                    flyable_sites(World(cfg)))  # fmt: skip
 
     def count_posterior(self, known: int, t: int) -> tuple[np.ndarray, np.ndarray]:

@@ -61,7 +61,7 @@ class FinishWithSearch:
         ``slot_s`` seconds (the release window in steps, as :func:`uamfleet.instances.make_instance` draws it)."""
         check_family(family)
         fam = FAMILIES[family]
-        return cls(policy, int(fam.release_window_s // slot_s), fam.max_passengers, beam)
+        return cls(policy, fam.window_steps(slot_s), fam.max_passengers, beam)
 
     @property
     def passenger_slots(self) -> int | None:

@@ -228,6 +228,10 @@ class GridGraph:
             )
         return node
 
+    def _stop_nodes(self, pts: np.ndarray, names: list[str]) -> np.ndarray:
+        """[S] flat node ids of stops (:meth:`_stop_node`'s snap rule and its error, naming the stop)."""
+        return np.array([self._stop_node(p, n) for p, n in zip(pts, names, strict=True)], dtype=np.intp)
+
     # -- queries ----------------------------------------------------------------------------------------------
     def distances_from(self, point_xy: Any) -> np.ndarray:
         """[nx, ny] lattice distance (metres) from the point's node (snap rule as for stops); inf if unreachable.
@@ -264,13 +268,13 @@ class GridGraph:
         pts, names = _checked_stops(points, labels)
         if self.lattice is None:
             return self.shortest_paths(pts, names).distance_m
-        nodes = np.array([self._stop_node(p, n) for p, n in zip(pts, names, strict=True)], dtype=np.int64)
+        nodes = self._stop_nodes(pts, names)
         between = lattice_distances(self.lattice, nodes, nodes)  # [S, S]: row i from stop i's node
         return self._stop_table(pts, names, nodes, between)
 
     def _solve(self, pts: np.ndarray, names: list[str]) -> StopPaths:
         s = pts.shape[0]
-        nodes = np.array([self._stop_node(p, n) for p, n in zip(pts, names, strict=True)], dtype=np.intp)
+        nodes = self._stop_nodes(pts, names)
         dist, pred = csgraph.dijkstra(self.adjacency, directed=True, indices=nodes, return_predecessors=True)
         distance_m = self._stop_table(pts, names, nodes, dist[:, nodes])
         node_paths: dict[tuple[int, int], np.ndarray] = {}
