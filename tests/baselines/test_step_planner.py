@@ -3,6 +3,9 @@ route against the promised one, and the lower bound against hand-computed values
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import numpy as np
 import pytest
 from conftest import brute_force_moves, small_config
@@ -13,6 +16,7 @@ from uamfleet.baselines.step_planner import (
     StepSearch,
     instance_lower_bound_m,
     lower_bound_m,
+    remaining_tables,
 )
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
@@ -94,3 +98,53 @@ def test_lower_bound_below_best_known_on_berlin_test_instances():
         policy = StepPlannerPolicy("best_known", [SearchSettings(beam=128, rank_slack=1.0)])
         m = episode_metrics(fly(cfg, policy), cfg.radio)
         assert m.pr_pct == 100.0 and policy.lower_bound_m <= m.td_m
+
+
+def _rest_by_enumeration(dist: np.ndarray, seats: int, phases: list[int], at: int) -> float:
+    """The least sum of ``dist`` legs from stop ``at`` through every stop still to serve (phases 0: pick-up and
+    drop-off to go, 1: drop-off to go), over every order that keeps pick-up before drop-off and the seats."""
+    todo = [2 * i for i, ph in enumerate(phases) if ph == 0] + [2 * i + 1 for i, ph in enumerate(phases) if ph < 2]
+    best = math.inf if todo else 0.0
+    for order in itertools.permutations(todo):
+        on_board, served, length, here, ok = sum(ph == 1 for ph in phases), set(), 0.0, at, True
+        for stop in order:
+            if stop % 2 == 0:
+                on_board += 1
+            elif stop - 1 in todo and stop - 1 not in served:
+                ok = False  # a drop-off before its pick-up
+            else:
+                on_board -= 1
+            if not ok or on_board > seats:
+                ok = False
+                break
+            served.add(stop)
+            length, here = length + dist[here, stop], stop
+        if ok:
+            best = min(best, length)
+    return best
+
+
+@pytest.mark.parametrize("seats", [1, 2])
+def test_remaining_tables_against_every_stop_order(seats: int) -> None:
+    """The compiled tour DP (next_cost[c, s]: the least rest of the tour after serving s from code c) against an
+    enumeration of every stop order of up to 3 passengers, legs shortened by a slack and rounded up to steps."""
+    rng = np.random.default_rng(seats)
+    for num_pax in (1, 2, 3):
+        dist = rng.uniform(0.0, 2_000.0, (2 * num_pax, 2 * num_pax))
+        slack, step = 150.0, 100.0
+        legs = step * np.ceil(np.maximum(dist - slack, 0.0) / step - 1e-9)
+        next_cost, after = remaining_tables(dist, seats, slack, step)
+        for code in range(3**num_pax):
+            phases = [int(p) for p in np.unravel_index(code, (3,) * num_pax)]
+            for s in range(2 * num_pax):
+                i, pick = s // 2, s % 2 == 0
+                allowed = (phases[i] == 0 and pick and sum(p == 1 for p in phases) < seats) or (
+                    phases[i] == 1 and not pick
+                )
+                if not allowed:
+                    assert after[code, s] == -1 and next_cost[code, s] == math.inf
+                    continue
+                served = list(phases)
+                served[i] += 1
+                assert after[code, s] == sum(p * 3 ** (num_pax - 1 - k) for k, p in enumerate(served))
+                assert next_cost[code, s] == pytest.approx(_rest_by_enumeration(legs, seats, served, s), abs=1e-9)

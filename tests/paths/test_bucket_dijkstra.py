@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -106,9 +108,13 @@ def test_stop_distances_are_the_shortest_paths_distances_bit_for_bit(connectivit
     reach = csgraph.dijkstra(graph.adjacency, directed=True, indices=int(nodes[0]))
     joined = nodes[np.isfinite(reach[nodes])]
     stops = graph.node_xy(rng.choice(joined, size=7, replace=False)) + rng.uniform(-2.0, 2.0, size=(7, 2))
-    np.testing.assert_array_equal(graph.stop_distances(stops), graph.shortest_paths(stops).distance_m)
+    expected = graph.shortest_paths(stops).distance_m
+    np.testing.assert_array_equal(graph.stop_distances(stops), expected)
+    # read off each stop's whole field (DistanceFields' cache) instead of Dijkstras between the stops: the same
+    np.testing.assert_array_equal(graph.stop_distances(stops, field_of=graph.distances_from), expected)
     walled = nodes[~np.isfinite(reach[nodes])][0]
     cut_off = np.vstack([stops[:2], graph.node_xy(walled)[None]])
-    for call in (graph.stop_distances, graph.shortest_paths):
+    from_fields = functools.partial(graph.stop_distances, field_of=graph.distances_from)
+    for call in (graph.stop_distances, graph.shortest_paths, from_fields):
         with pytest.raises(UnreachableStopError, match=r"'stop 2' .* is walled off from stop 'stop 0'"):
             call(cut_off)

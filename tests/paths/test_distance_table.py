@@ -190,3 +190,42 @@ def prepare_corners_py(t: dt.TableArrays, x: float, y: float, c: dt.Corners, k: 
 @njit
 def _corner(t: dt.TableArrays, c: dt.Corners, i: int, j: int, ax: float, ay: float, bx: float, by: float) -> float:
     return dt.corner_distance(t, c, i, c, j, ax, ay, bx, by)
+
+
+def test_remaining_many_gives_remaining_m_bit_for_bit() -> None:
+    """The compiled look-up of many goals at once (what the step-level search ranks its children by) against the
+    numpy look-up of one goal at a time: points inside and outside the raster, a goal no flyable cell reaches
+    (straight line), and a second call with other goals (the stacked fields are replaced, not reused)."""
+    world = World(uamfleet.make_config("berlin_random"))
+    fields = DistanceFields(world)
+    rng = np.random.default_rng(3)
+    flyable = np.argwhere(world.block_ok)
+    points = rng.uniform(-300.0, world.side_m + 300.0, (2_000, 2))
+    for _ in range(2):
+        goals = (flyable[rng.integers(len(flyable), size=5)] + rng.random((5, 2))) * BLOCK
+        goals = np.concatenate([goals, [[-1e6, -1e6]]])  # out of every flyable cell's reach
+        expected = np.stack([fields.remaining_m(g, points) for g in goals], axis=1)
+        assert np.isfinite(expected[:, :5]).mean() > 0.5  # inf where no flyable centre is near the point
+        np.testing.assert_array_equal(fields.remaining_many(goals, points), expected)
+    np.testing.assert_array_equal(expected[:, 5], np.linalg.norm(points - goals[5], axis=1))
+
+
+def test_a_small_field_pool_evicts_and_recomputes_the_same_numbers() -> None:
+    """DistanceFields keeps at most ``budget_bytes`` of fields, evicting the least recently used goal. With room
+    for two fields, five goals asked in turn (and again), and more goals at once than the pool holds, give the
+    numbers of an unbounded cache; the stops' table read off the fields is the graph's own, bit for bit."""
+    world = World(uamfleet.make_config("berlin_random"))
+    roomy = DistanceFields(world)
+    field_bytes = 8 * roomy.graph.shape[0] * roomy.graph.shape[1]
+    small = DistanceFields(world, budget_bytes=2 * field_bytes)
+    assert small.max_slots == 2
+    rng = np.random.default_rng(11)
+    flyable = np.argwhere(world.block_ok)
+    goals = (flyable[rng.integers(len(flyable), size=5)] + rng.random((5, 2))) * BLOCK
+    points = rng.uniform(0.0, world.side_m, (500, 2))
+    for g in [*goals, *goals[::-1]]:
+        np.testing.assert_array_equal(small.remaining_m(g, points), roomy.remaining_m(g, points))
+    assert len(small._pool) == 2
+    np.testing.assert_array_equal(small.remaining_many(goals, points), roomy.remaining_many(goals, points))
+    np.testing.assert_array_equal(small.remaining_many(goals[:2], points), roomy.remaining_many(goals[:2], points))
+    np.testing.assert_array_equal(small.stop_distances(goals), roomy.graph.stop_distances(goals))

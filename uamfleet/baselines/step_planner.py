@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from uamfleet.baselines.planner_policy import PlannerPolicy, require_one_taxi_env
 from uamfleet.config import NUM_HEADINGS, EnvConfig, RewardConfig
@@ -114,6 +115,27 @@ def _codes(num_pax: int) -> np.ndarray:
     return np.array(np.unravel_index(np.arange(3**num_pax), (3,) * num_pax)).T.copy()
 
 
+@functools.lru_cache(maxsize=32)
+def _transitions(num_pax: int, seats: int) -> tuple[np.ndarray, np.ndarray]:
+    """(``after`` [3^P, 2P]: the code once stop s is served from a code, -1 where s may not be next; ``done``
+    [3^P]: whether everyone is delivered). They depend on P and the seats only, so they are made once (read-only)."""
+    phases = _codes(num_pax)
+    weights = 3 ** np.arange(num_pax - 1, -1, -1)
+    after = np.full((3**num_pax, 2 * num_pax), -1, dtype=np.int64)
+    for code in range(3**num_pax):
+        ph = phases[code]
+        on_board = int(np.sum(ph == 1))
+        for i in range(num_pax):
+            if ph[i] == 0 and on_board < seats:
+                after[code, 2 * i] = code + weights[i]
+            elif ph[i] == 1:
+                after[code, 2 * i + 1] = code + weights[i]
+    done = np.all(phases == 2, axis=1)
+    after.setflags(write=False)
+    done.setflags(write=False)
+    return after, done
+
+
 def remaining_tables(
     stop_dist_m: np.ndarray, seats: int, leg_slack_m: float, step_m: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -123,37 +145,39 @@ def remaining_tables(
     of the rest of the tour after s (legs ``max(D - leg_slack_m, 0)``), and inf where s may not be next; and
     ``after`` [3^P, 2P]: the code once s is served (-1 where not allowed). Codes: sum phase_i * 3^(P-1-i).
     With ``step_m``, every leg is rounded up to whole steps (a leg between two stops is flown in whole moves).
+    Compiled (:func:`_tour_rests`); ``after`` is shared between calls and read-only.
     """
     num_stops = stop_dist_m.shape[0]
-    num_pax = num_stops // 2
-    phases = _codes(num_pax)
-    weights = 3 ** np.arange(num_pax - 1, -1, -1)
-    num_codes = 3**num_pax
-    after = np.full((num_codes, num_stops), -1, dtype=np.int64)
-    for code in range(num_codes):
-        ph = phases[code]
-        on_board = int(np.sum(ph == 1))
-        for i in range(num_pax):
-            if ph[i] == 0 and on_board < seats:
-                after[code, 2 * i] = code + weights[i]
-            elif ph[i] == 1:
-                after[code, 2 * i + 1] = code + weights[i]
+    after, done = _transitions(num_stops // 2, seats)
     legs = np.maximum(stop_dist_m - leg_slack_m, 0.0)
     if step_m is not None:
         legs = step_m * np.ceil(legs / step_m - 1e-9)
+    return _tour_rests(after, done, np.ascontiguousarray(legs, dtype=np.float64)), after
 
-    @functools.cache
-    def rest(code: int, s: int) -> float:  # least length after serving s, the state now being `code`
-        best = 0.0 if np.all(phases[code] == 2) else math.inf
-        for s2 in np.flatnonzero(after[code] >= 0):
-            best = min(best, legs[s, s2] + rest(int(after[code, s2]), int(s2)))
-        return best
 
-    next_cost = np.full((num_codes, num_stops), np.inf)
+@njit(cache=True)
+def _tour_rests(after: np.ndarray, done: np.ndarray, legs: np.ndarray) -> np.ndarray:
+    """``next_cost`` of :func:`remaining_tables`: rest[c, s], the least length after serving s with the code now
+    c, is 0 once everyone is delivered, else the least legs[s, s2] + rest[after[c, s2], s2]. Serving a stop only
+    raises the code, so the codes are filled from the last down; the same sums as a recursion, the same numbers."""
+    num_codes, num_stops = after.shape
+    rest = np.empty((num_codes, num_stops))
+    for code in range(num_codes - 1, -1, -1):
+        for s in range(num_stops):
+            best = 0.0 if done[code] else math.inf
+            for s2 in range(num_stops):
+                nxt = after[code, s2]
+                if nxt >= 0:
+                    value = legs[s, s2] + rest[nxt, s2]
+                    if value < best:
+                        best = value
+            rest[code, s] = best
+    next_cost = np.full((num_codes, num_stops), math.inf)
     for code in range(num_codes):
-        for s in np.flatnonzero(after[code] >= 0):
-            next_cost[code, s] = rest(int(after[code, s]), int(s))
-    return next_cost, after
+        for s in range(num_stops):
+            if after[code, s] >= 0:
+                next_cost[code, s] = rest[after[code, s], s]
+    return next_cost
 
 
 def state_codes(status: np.ndarray, exists: np.ndarray) -> np.ndarray:
@@ -242,7 +266,7 @@ class StepSearch:
         two releases (and every setting of one solve) asks for the same stops again."""
         key = stops.tobytes()
         if self._last_stops is None or self._last_stops[0] != key:
-            self._last_stops = (key, self.fields.graph.stop_distances(stops))
+            self._last_stops = (key, self.fields.stop_distances(stops))
         return self._last_stops[1]
 
     def _beam(self, state: FleetState, e: int, settings: SearchSettings, upper_moves: int | None) -> StepPlan | None:
@@ -295,7 +319,7 @@ class StepSearch:
         pos = env.state.pos_m[live, 0]
         status = env.state.pax_status[live, :num_pax]
         codes = state_codes(status, env.state.pax_exists[live, :num_pax])
-        d = np.stack([self.fields.remaining_m(tables.stops[s], pos) for s in range(2 * num_pax)], axis=1)  # [L, 2P]
+        d = self.fields.remaining_many(tables.stops, pos)  # [L, 2P]
         first_rank = np.maximum(d - settings.rank_slack * self.radius_m, 0.0)
         h_rank = np.min(first_rank + tables.rank_next[codes], axis=1)
         h_bound = np.min(np.maximum(d - self.radius_m, 0.0) + tables.bound_next[codes], axis=1)

@@ -21,7 +21,7 @@ nearest-cell sampling of its segments.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -262,14 +262,23 @@ class GridGraph:
         self._cache[key] = result
         return result
 
-    def stop_distances(self, points: Any, labels: Sequence[str] | None = None) -> np.ndarray:
+    def stop_distances(
+        self, points: Any, labels: Sequence[str] | None = None,
+        field_of: Callable[[np.ndarray], np.ndarray | None] | None = None,
+    ) -> np.ndarray:  # fmt: skip
         """[S, S] the ``distance_m`` of :meth:`shortest_paths` (same numbers, bit for bit, and the same errors)
-        without the paths, compiled where the graph has a :attr:`lattice`: what the step planners need."""
+        without the paths, compiled where the graph has a :attr:`lattice`: what the step planners need.
+        ``field_of`` (e.g. :meth:`DistanceFields.field`): each stop's :meth:`distances_from` field, cached
+        elsewhere, read instead of new Dijkstras (row i of the table is stop i's field at the stops' nodes)."""
         pts, names = _checked_stops(points, labels)
-        if self.lattice is None:
+        if self.lattice is None and field_of is None:
             return self.shortest_paths(pts, names).distance_m
         nodes = self._stop_nodes(pts, names)
-        between = lattice_distances(self.lattice, nodes, nodes)  # [S, S]: row i from stop i's node
+        if field_of is not None:  # every stop snaps to a node (checked above), so each has a field
+            between = np.stack([np.asarray(field_of(p)).reshape(-1)[nodes] for p in pts])
+        else:
+            assert self.lattice is not None  # checked above
+            between = lattice_distances(self.lattice, nodes, nodes)  # [S, S]: row i from stop i's node
         return self._stop_table(pts, names, nodes, between)
 
     def _solve(self, pts: np.ndarray, names: list[str]) -> StopPaths:
