@@ -13,7 +13,16 @@ from uamfleet.baselines.step_planner import SearchSettings, StepSearch
 from uamfleet.config import Request, heading_vectors, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.imitation import NO_LABEL, Group, ImitationArgs, ReplanExpert, collect, fit, with_heading_residual
+from uamfleet.rl.imitation import (
+    NO_LABEL,
+    AnticipatingExpert,
+    Group,
+    ImitationArgs,
+    ReplanExpert,
+    collect,
+    fit,
+    with_heading_residual,
+)
 from uamfleet.rl.networks import LOOKAHEAD_RULE, PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 from uamfleet.types import HIDDEN, NUM_HEADINGS
@@ -243,3 +252,95 @@ def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_t
     with pytest.raises(ConfigError, match="lookahead_depth=3 must be 1"):
         imitate(args)
     assert not (tmp_path / "deep").exists()
+
+
+def _anticipating(cfg, **prior_kw) -> AnticipatingExpert:  # type: ignore[no-untyped-def]
+    from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
+    from uamfleet.env.generator import flyable_sites
+    from uamfleet.env.world import World
+
+    fields = dict(min_requests=2, max_requests=6, window_steps=39, min_trip_m=200.0, sites=flyable_sites(World(cfg)))
+    prior = DemandPrior(**{**fields, **prior_kw})  # type: ignore[arg-type]
+    planner = AnticipatingReplan(prior, futures=2, scored=2, replan=SearchSettings(32, rank_slack=0.5),
+                                 future_beam=8, score_beam=4)  # fmt: skip
+    return AnticipatingExpert(cfg, 1, planner, seed=3)
+
+
+def test_the_anticipating_teacher_replays_replan_where_no_request_can_come() -> None:
+    """Both requests released at the start and the prior's most: the teacher's one decision is replan's plan, and
+    its labels flown give the distance and steps that plan promised."""
+    requests = (Request(0, (380.0, 560.0), (600.0, 330.0)), Request(0, (230.0, 400.0), (470.0, 420.0)))
+    cfg = small_config(OPEN_7, starts_m=((110.0, 620.0),), requests=requests, time_limit_steps=40)
+    venv = VectorEnv(cfg, 1, autoreset=False)
+    venv.reset(seed=0)
+    promised = StepSearch(cfg).solve(venv.state, [SearchSettings(beam=32, rank_slack=0.5)])
+    assert promised is not None
+    expert = _anticipating(cfg, min_requests=1, max_requests=2)
+    distance, steps = _flown(venv, expert)  # type: ignore[arg-type]
+    assert distance == promised.moves * cfg.step_m and steps == promised.steps
+    assert expert.solves == 1
+
+
+def test_the_anticipating_teacher_never_reads_a_hidden_request_and_redecides_alike() -> None:
+    """Two instances that differ only in a request released at step 5 get the same labels until then; and a
+    decision taken again in the same state (as after a deviation) draws the same futures: the same plan."""
+    first = Request(0, (150.0, 150.0), (550.0, 550.0))
+    labelled = []
+    for later in (Request(5, (650.0, 50.0), (50.0, 650.0)), Request(5, (350.0, 650.0), (650.0, 250.0))):
+        cfg = small_config(OPEN_7, starts_m=((350.0, 350.0),), requests=(first, later), time_limit_steps=60)
+        venv = VectorEnv(cfg, 1, autoreset=False)
+        venv.reset(seed=0)
+        expert = _anticipating(cfg, window_steps=10, max_requests=3)
+        labels = []
+        for _ in range(5):
+            label = expert.labels(venv)
+            again = list(expert.plans[0])
+            expert.valid[:] = False  # decide again in the same state
+            assert expert.labels(venv)[0] == label[0] and expert.plans[0] == again
+            labels.append(int(label[0]))
+            venv.step(label[:, None])
+            expert.advance(label, np.zeros(1, bool), np.zeros(1, bool))
+        labelled.append(labels)
+    assert labelled[0] == labelled[1]
+    assert expert.planner.futures == 2 and expert.solves >= 5  # futures were drawn at every decision
+
+
+class _WaitingTeacher:
+    """Labels a heading the rule forbids (a wait) wherever one exists, else the first allowed heading."""
+
+    solves = corrections = 0
+    solve_s = 0.0
+
+    def __init__(self) -> None:
+        self.waits = 0
+
+    def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
+        mask = venv.state.action_mask[:, 0]  # [E, 16]
+        forbidden = ~mask.all(axis=1)
+        self.waits += int(forbidden.sum())
+        return np.where(forbidden, np.argmin(mask, axis=1), np.argmax(mask, axis=1)).astype(np.int64)
+
+    def advance(self, executed: np.ndarray, released: np.ndarray, ended: np.ndarray) -> None:
+        pass
+
+
+def test_collect_flies_the_teachers_waits_but_never_fits_them() -> None:
+    """A teacher's plan over a sampled future may wait for a release (a heading the rule forbids leaves the taxi in
+    place): collect flies such a label (beta 1) but fits only the labels the action mask allows."""
+    cfg = make_config("berlin_instances", sinr_min_db=-3.0, time_limit_steps=200)
+    venv = VectorEnv(cfg, num_envs=4)
+    obs, _ = venv.reset(seed=1)
+    net = MSHAActorCritic(
+        venv.single_observation_space,
+        NetConfig(variant="de_msfea", d_model=16, num_heads=2, action_head="stops", heading_residual=True,
+                  **observed_inputs(venv.single_observation_space.spaces, "de_msfea", "stops")),
+    )  # fmt: skip
+    shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+    normalizer = ObservationNormalizer(shapes)
+    policy = GreedyPolicy(net, normalizer, torch.device("cpu"), shapes, 1, cfg.num_passengers, cfg)
+    teacher = _WaitingTeacher()
+    data = collect([Group(venv, teacher, obs, np.zeros(4, np.int64))], policy, 1.0, 30, np.random.default_rng(0))  # type: ignore[arg-type]
+    assert teacher.waits > 0, "no forbidden heading was labelled: the test would not see the rule"
+    assert len(data) == 4 * 30 - teacher.waits
+    _, labels, _ = data.arrays()
+    assert labels.max() < NUM_HEADINGS

@@ -111,6 +111,19 @@ class DemandPrior:
         return future
 
 
+@dataclass
+class Decision:
+    """One decision of :class:`AnticipatingReplan`: the ``actions`` committed to; ``cut``: a sampled future's plan
+    cut at that future's next release (decide again when it runs out, or at a real release before); ``basis``: the
+    state the chosen plan was made over (the known requests, or that future); ``plan``: the whole plan chosen
+    (None when no plan was found)."""
+
+    actions: list[int]
+    cut: bool
+    basis: FleetState
+    plan: StepPlan | None
+
+
 REPLAN_FUTURES_SEARCH = SearchSettings(beam=64, rank_slack=0.5)
 """The search over the known requests: beam 64, rank slack 0.5 (the benchmark's ``replan`` uses rank slack 1.0)."""
 
@@ -133,18 +146,23 @@ class AnticipatingReplan:
         self.score_settings = (SearchSettings(score_beam, replan.cell_m, replan.rank_slack),)
         self.plans: list[tuple[int, int, int, float, int, float]] = []
 
-    def reset(self, env: VectorEnv) -> None:
-        require_one_taxi_env(env, "replan_futures", type(self).__name__)
-        self.env = env
+    def prepare(self, cfg: EnvConfig) -> None:
+        """Build the search for ``cfg``'s rules (done by :meth:`reset`; call it once before :meth:`decide` when
+        the planner labels states of another env, as ``uamfleet.rl.imitation``'s teacher does)."""
         # the sampled requests need rows: plan on the env's rules with a passenger axis the prior's count fits in
-        rows = max(env.cfg.num_passengers, self.prior.max_requests)
-        self.padded = env.cfg.replace(max_passengers=rows) if rows > env.cfg.num_passengers else env.cfg
+        rows = max(cfg.num_passengers, self.prior.max_requests)
+        self.padded = cfg.replace(max_passengers=rows) if rows > cfg.num_passengers else cfg
         self.search = StepSearch(self.padded)
         self.scratch = VectorEnv(self.search.scratch_cfg, 1, autoreset=True)
         self.scratch.reset(seed=0)
         # the known requests, on the padded axis (the search reads only SEARCH_STATE_FIELDS): rows past the env's
         # own stay as allocated, empty, for the sampled requests of each future's copy
         self.known = allocate_state(self.scratch.world, 1)
+
+    def reset(self, env: VectorEnv) -> None:
+        require_one_taxi_env(env, "replan_futures", type(self).__name__)
+        self.env = env
+        self.prepare(env.cfg)
         self.rng = np.random.default_rng(self.seed)
         self.plans = []
         self._seen = env.state.pax_status[0] != HIDDEN
@@ -163,9 +181,9 @@ class AnticipatingReplan:
             return np.array([[self.queue.pop(0)]])
         return np.array([[StepPlannerPolicy._wait_action(s.action_mask[0, 0], int(s.t[0]))]])
 
-    def _known_state(self) -> FleetState:
-        """The env's state with only its released requests, on the padded passenger axis."""
-        known = released_only(self.env.state)
+    def known_state(self, state: FleetState, env_index: int = 0) -> FleetState:
+        """Env ``env_index`` of ``state`` with only its released requests, on the padded passenger axis."""
+        known = released_only(state.take(np.array([env_index])))
         P = known.pax_exists.shape[1]
         for name in SEARCH_STATE_FIELDS:
             target, source = getattr(self.known, name), getattr(known, name)
@@ -176,36 +194,42 @@ class AnticipatingReplan:
         return self.known.copy()
 
     def _decide(self) -> list[int]:
+        decision = self.decide(self.known_state(self.env.state), self.rng)
+        self.redecide = decision.cut
+        return decision.actions
+
+    def decide(self, known: FleetState, rng: np.random.Generator) -> Decision:
+        """The decision from ``known`` (:meth:`known_state`), futures drawn from ``rng``; its record is appended
+        to :attr:`plans`."""
         start = time.perf_counter()
-        self.redecide = False  # until a future's cut plan is chosen below
-        known = self._known_state()
         t = int(known.t[0])
         base = self.search.solve(known, self.replan_settings)
         if base is None:  # as replan: a wider, slack-free search before giving up
             wider = [SearchSettings(4 * s.beam, s.cell_m, 0.0) for s in self.replan_settings]
             base = self.search.solve(known, wider)
         if base is None:
-            return []
+            return Decision([], False, known, None)
         candidates: list[StepPlan] = [base]
+        bases = [known]  # the state each candidate was planned over
         horizons = [len(base.actions)]  # how far each candidate is flown before deciding again
-        makers = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.futures)) if f is not None]
+        makers = [f for f in (self.prior.sample(known, rng) for _ in range(self.futures)) if f is not None]
         for future in makers:
             plan = self.search.solve(future, self.future_settings)
             if plan is not None:
                 candidates.append(plan)
+                bases.append(future)
                 horizons.append(_next_release(future) - t)
         if len(candidates) == 1:
             self.plans.append((t, 1, 0, float(base.moves), len(base.actions), time.perf_counter() - start))
-            return list(base.actions)
-        scored = [f for f in (self.prior.sample(known, self.rng) for _ in range(self.scored)) if f is not None]
+            return Decision(list(base.actions), False, known, base)
+        scored = [f for f in (self.prior.sample(known, rng) for _ in range(self.scored)) if f is not None]
         if not scored:
             scored = makers
         means = np.array([np.mean([self._score(c.actions, f, t) for f in scored]) for c in candidates])
         best = int(np.argmin(means))  # ties to the lowest index: replan's plan first
         committed = list(candidates[best].actions[: horizons[best]])
         self.plans.append((t, len(candidates), best, float(means[best]), len(committed), time.perf_counter() - start))
-        self.redecide = best > 0
-        return committed
+        return Decision(committed, best > 0, bases[best], candidates[best])
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""
@@ -229,4 +253,4 @@ def _next_release(future: FleetState) -> int:
     return int(future.pax_release[0, coming].min()) if coming.any() else -1
 
 
-__all__ = ["AnticipatingReplan", "DemandPrior"]
+__all__ = ["AnticipatingReplan", "Decision", "DemandPrior"]

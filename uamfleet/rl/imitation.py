@@ -32,6 +32,7 @@ import torch
 import torch.nn.functional as F
 from gymnasium import spaces
 
+from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
 from uamfleet.baselines.step_planner import SEARCH_STATE_FIELDS, SearchSettings, StepSearch, released_only
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.env.vector_env import VectorEnv
@@ -66,6 +67,17 @@ class ImitationArgs:
     beta_decay: float = 0.5
     expert_beam: int = 32
     """beam of the expert's search (``replan`` runs 64 in the benchmark; smaller is cheaper and close)"""
+    expert: Literal["replan", "futures"] = "replan"
+    """the teacher: ``replan``'s search over the released requests, or ``replan_futures``' decisions (that plan
+    and sampled futures' plans, scored on other sampled futures: it anticipates releases; seconds per decision)"""
+    futures: int = 2
+    """with --expert futures: sampled futures whose plans are candidates (``replan_futures`` flies 4)"""
+    scored_futures: int = 4
+    """with --expert futures: fresh futures each candidate is scored on (``replan_futures`` flies 8)"""
+    future_beam: int = 8
+    """with --expert futures: beam of a future's plan (``replan_futures`` flies 16)"""
+    score_beam: int = 4
+    """with --expert futures: beam of the search that finishes a scored future (``replan_futures`` flies 8)"""
     epochs: int = 3
     minibatch: int = 512
     learning_rate: float = 3e-4
@@ -95,7 +107,18 @@ class ImitationArgs:
     max_wall_s: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("envs_per_threshold", "rounds", "steps_per_round", "expert_beam", "epochs", "minibatch"):
+        for name in (
+            "envs_per_threshold",
+            "rounds",
+            "steps_per_round",
+            "expert_beam",
+            "epochs",
+            "minibatch",
+            "futures",
+            "scored_futures",
+            "future_beam",
+            "score_beam",
+        ):
             setattr(self, name, check_integer(f"--{name.replace('_', '-')}", getattr(self, name), minimum=1))
         self.max_samples = check_integer("--max-samples", self.max_samples, minimum=self.minibatch)
         self.eval_instances = check_integer("--eval-instances", self.eval_instances, minimum=1, maximum=10_000)
@@ -194,14 +217,110 @@ class ReplanExpert:
     def advance(self, executed: np.ndarray, released: np.ndarray, ended: np.ndarray) -> None:
         """After a step: a plan whose first heading was flown, with no release and no episode end, moves on by one;
         every other plan is re-solved at the next :meth:`labels`."""
-        for e, plan in enumerate(self.plans):
-            if not self.valid[e]:
+        _advance_plans(self.plans, self.valid, executed, released, ended)
+
+
+def _advance_plans(
+    plans: list[list[int]], valid: np.ndarray, executed: np.ndarray, released: np.ndarray, ended: np.ndarray
+) -> list[int]:
+    """After a step: each valid plan whose first heading was flown, with no release and no episode end, moves on
+    by one; every other is marked invalid (``valid`` in place). Returns the envs whose plan moved on."""
+    moved_on = []
+    for e, plan in enumerate(plans):
+        if not valid[e]:
+            continue
+        followed = not plan or int(executed[e]) == plan[0]
+        if released[e] or ended[e] or not followed:
+            valid[e] = False
+        elif plan:
+            plan.pop(0)
+            moved_on.append(e)
+    return moved_on
+
+
+class AnticipatingExpert:
+    """``replan_futures``' decisions (:class:`~uamfleet.baselines.anticipation.AnticipatingReplan`: ``replan``'s
+    plan and the plans of sampled futures, scored on other sampled futures) as the labeller of one group of envs.
+
+    A decision holds until the next release, the episode's end, an executed heading other than its plan's, or,
+    for a sampled future's plan, the step that future expected its next release. Every decision between the same
+    two releases of an episode draws the same futures (its generator is seeded by the env, the episode and the
+    number released), so a state reached again after a deviation is labelled against the same sampled demand,
+    not a fresh draw. As in :class:`ReplanExpert`, a proposal other than the plan's first heading is kept when
+    that heading and a search from where it leads, over the state the plan was made for (the known requests or
+    the chosen future), is not longer than the rest of the plan. It never reads a hidden row of the env: only the
+    released requests, the clock and the instance family's demand model."""
+
+    def __init__(self, cfg: EnvConfig, num_envs: int, planner: AnticipatingReplan, seed: int = 0) -> None:
+        self.planner = planner
+        planner.prepare(cfg)
+        self.seed = seed
+        self.plans: list[list[int]] = [[] for _ in range(num_envs)]
+        self.valid = np.zeros(num_envs, bool)
+        self.cut = np.zeros(num_envs, bool)  # a sampled future's plan (or a kept proposal): decide again after it
+        self.basis: list[FleetState | None] = [None] * num_envs  # the state the plan flies over, kept in step
+        self.rest_moves = np.zeros(num_envs, np.int64)  # moves of the whole plan's rest over its basis
+        self.episode = np.zeros(num_envs, np.int64)
+        self.solves = 0  # decisions taken
+        self.solve_s = 0.0
+        self.corrections = 0
+        self._child_env = VectorEnv(planner.search.scratch_cfg, 1, autoreset=True)
+        self._child_env.reset(seed=0)
+
+    def _decide(self, venv: VectorEnv, e: int) -> None:
+        start = time.perf_counter()
+        released = int(_released_count(venv)[e])
+        rng = np.random.default_rng([self.seed, e, int(self.episode[e]), released])
+        decision = self.planner.decide(self.planner.known_state(venv.state, e), rng)
+        self.planner.plans.clear()  # the benchmark's record of decisions; not kept here
+        self.solve_s += time.perf_counter() - start
+        self.solves += 1
+        self.plans[e], self.cut[e], self.valid[e] = list(decision.actions), decision.cut, True
+        self.basis[e] = decision.basis if decision.plan is not None else None
+        self.rest_moves[e] = decision.plan.moves if decision.plan is not None else 0
+
+    def _flown(self, basis: FleetState, heading: int) -> tuple[FleetState, bool, bool]:
+        """(the basis state after ``heading``, whether the taxi moved, whether everyone is delivered)."""
+        env = self._child_env
+        for name in SEARCH_STATE_FIELDS:
+            getattr(env.state, name)[:] = getattr(basis, name)[:1]
+        _, _, terminated, _, info = env.step(np.array([[heading]]))
+        return env.state.take(np.array([0])), bool(info["events"].moved[0, 0]), bool(terminated[0])
+
+    def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
+        """[E] the teacher's heading in each env's current state (:data:`NO_LABEL` where it only waits);
+        ``proposals`` [E] (the policy's headings) are kept where they are as short as the plan."""
+        ran_out = self.cut & np.array([not p for p in self.plans])
+        for stale in np.flatnonzero(~self.valid | ran_out):
+            self._decide(venv, int(stale))
+        for e in range(len(self.plans) if proposals is not None else 0):
+            plan, basis = self.plans[e], self.basis[e]
+            if not plan or basis is None or plan[0] == proposals[e]:  # type: ignore[index]
                 continue
-            followed = not plan or int(executed[e]) == plan[0]
-            if released[e] or ended[e] or not followed:
-                self.valid[e] = False
-            elif plan:
-                plan.pop(0)
+            heading = int(proposals[e])  # type: ignore[index]
+            after, moved, done = self._flown(basis, heading)
+            rest = None if done or not moved else self.planner.search.solve(after, self._settings(e))
+            moves = 1 if done and moved else (1 + rest.moves if rest is not None else None)
+            if moves is not None and moves <= self.rest_moves[e]:
+                actions = [heading, *(rest.actions if rest is not None else [])]
+                self.plans[e] = actions[: len(plan)] if self.cut[e] else actions
+                self.rest_moves[e] = moves
+            else:
+                self.corrections += 1
+        return np.array([p[0] if p else NO_LABEL for p in self.plans], np.int64)
+
+    def _settings(self, e: int) -> tuple[SearchSettings, ...]:
+        return self.planner.future_settings if self.cut[e] else self.planner.replan_settings
+
+    def advance(self, executed: np.ndarray, released: np.ndarray, ended: np.ndarray) -> None:
+        """After a step: a plan whose first heading was flown, with no release and no episode end, moves on by one
+        (its basis state with it); every other plan is decided again at the next :meth:`labels`."""
+        self.episode += ended
+        for e in _advance_plans(self.plans, self.valid, executed, released, ended):
+            basis = self.basis[e]
+            if basis is not None:
+                self.basis[e], moved, _ = self._flown(basis, int(executed[e]))
+                self.rest_moves[e] -= int(moved)
 
 
 @dataclass
@@ -209,7 +328,7 @@ class Group:
     """One threshold's envs, its expert and the number of requests released in each env."""
 
     venv: VectorEnv
-    expert: ReplanExpert
+    expert: ReplanExpert | AnticipatingExpert
     obs: dict[str, np.ndarray]
     released: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
@@ -282,10 +401,13 @@ def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, 
             own = policy.logits_of(normalised).argmax(-1).numpy()  # [E] the policy's greedy heading
             labels = g.expert.labels(g.venv, own)  # [E]
             labelled = labels != NO_LABEL
-            if labelled.any():
+            # a heading the rule forbids leaves the taxi in place: a plan's wait for a release (the anticipating
+            # teacher's plans over sampled futures have them). It is flown, never fitted: the policy cannot wait.
+            allowed = g.venv.state.action_mask[np.arange(E), 0, np.where(labelled, labels, 0)]
+            fitted = labelled & allowed
+            if fitted.any():
                 data.add(
-                    {k: v[labelled].copy() for k, v in normalised.items()}, labels[labelled],
-                    (labels != own)[labelled],
+                    {k: v[fitted].copy() for k, v in normalised.items()}, labels[fitted], (labels != own)[fitted],
                 )  # fmt: skip
             take_expert = labelled & (rng.random(E) < beta)
             executed = np.where(take_expert, labels, own)
@@ -354,7 +476,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     policy = with_heading_residual(prior, lookahead=args.lookahead, lookahead_rule=args.lookahead_rule)
     family = family_of(source_args.scenario)
     eval_like = run_config(source_args, training=False)
-    groups = _groups(args, run_config(source_args, training=True))
+    groups = _groups(args, run_config(source_args, training=True), family)
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
     folder.mkdir(parents=True, exist_ok=True)
     first = validation_metrics(policy, family, args.eval_instances, eval_like)
@@ -379,7 +501,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     return best
 
 
-def _groups(args: ImitationArgs, base: EnvConfig) -> list[Group]:
+def _groups(args: ImitationArgs, base: EnvConfig, family: str) -> list[Group]:
     """One group of ``envs_per_threshold`` envs (tables filled) and its expert per training threshold."""
     groups = []
     for i, threshold in enumerate(args.thresholds):
@@ -387,7 +509,16 @@ def _groups(args: ImitationArgs, base: EnvConfig) -> list[Group]:
         venv = VectorEnv(cfg, num_envs=args.envs_per_threshold)
         table_for(venv.world).fill()
         obs, _ = venv.reset(seed=args.seed + 1000 * i)
-        groups.append(Group(venv, ReplanExpert(cfg, venv.num_envs, args.expert_beam), obs, _released_count(venv)))
+        expert: ReplanExpert | AnticipatingExpert
+        if args.expert == "futures":  # the family's demand model on this threshold's flyable sites
+            planner = AnticipatingReplan(
+                DemandPrior.of_family(family, cfg), args.futures, args.scored_futures,
+                SearchSettings(args.expert_beam, rank_slack=0.5), args.future_beam, args.score_beam,
+            )  # fmt: skip
+            expert = AnticipatingExpert(cfg, venv.num_envs, planner, seed=args.seed + 1000 * i)
+        else:
+            expert = ReplanExpert(cfg, venv.num_envs, args.expert_beam)
+        groups.append(Group(venv, expert, obs, _released_count(venv)))
     return groups
 
 
@@ -451,4 +582,7 @@ def _write_progress(folder: Path, rows: list[dict[str, float]]) -> None:
     write_csv_atomic(folder / "progress.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
 
 
-__all__ = ["NO_LABEL", "ImitationArgs", "ReplanExpert", "collect", "fit", "imitate", "with_heading_residual"]
+__all__ = [
+    "NO_LABEL", "AnticipatingExpert", "ImitationArgs", "ReplanExpert", "collect", "fit", "imitate",
+    "with_heading_residual",
+]  # fmt: skip
