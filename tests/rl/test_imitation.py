@@ -344,3 +344,50 @@ def test_collect_flies_the_teachers_waits_but_never_fits_them() -> None:
     assert len(data) == 4 * 30 - teacher.waits
     _, labels, _ = data.arrays()
     assert labels.max() < NUM_HEADINGS
+
+
+class _LeastPriorTeacher(_WaitingTeacher):
+    """Labels the allowed heading the stop head's prior likes least (mostly one it rules out)."""
+
+    def __init__(self, policy: GreedyPolicy) -> None:
+        super().__init__()
+        self.policy = policy
+        self.group: Group | None = None  # whose current observation it reads
+
+    def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
+        assert self.group is not None
+        inputs = obs_to_torch(self.policy.network_input(self.group.obs), "cpu")
+        with torch.no_grad():
+            prior = self.policy.net.prior_logits(inputs).numpy()
+        allowed = venv.state.action_mask[:, 0]
+        return np.argmin(np.where(allowed, prior, np.inf), axis=1).astype(np.int64)
+
+
+def test_skip_ruled_out_fits_only_labels_the_prior_reaches() -> None:
+    """With ``skip_ruled_out``, a label whose prior log-probability is at the floor (a heading toward no known stop)
+    is flown but not fitted; without it, it is fitted."""
+    cfg = make_config("berlin_instances", sinr_min_db=-5.0, time_limit_steps=200)
+    sizes = []
+    for skip in (False, True):
+        venv = VectorEnv(cfg, num_envs=2)
+        obs, _ = venv.reset(seed=1)
+        torch.manual_seed(0)
+        net = MSHAActorCritic(
+            venv.single_observation_space,
+            NetConfig(variant="de_msfea", d_model=16, num_heads=2, action_head="stops", heading_residual=True,
+                      **observed_inputs(venv.single_observation_space.spaces, "de_msfea", "stops")),
+        )  # fmt: skip
+        shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
+        policy = GreedyPolicy(
+            net, ObservationNormalizer(shapes), torch.device("cpu"), shapes, 1, cfg.num_passengers, cfg
+        )
+        teacher = _LeastPriorTeacher(policy)
+        group = teacher.group = Group(venv, teacher, obs, np.zeros(2, np.int64))  # type: ignore[arg-type]
+        data = collect([group], policy, 1.0, 15, np.random.default_rng(0), skip_ruled_out=skip)
+        sizes.append(len(data))
+        if skip and len(data):
+            x, y, _ = data.arrays()
+            with torch.no_grad():
+                prior = net.prior_logits(obs_to_torch(x, "cpu")).numpy()
+            assert np.all(prior[np.arange(len(y)), y] > PRIOR_FLOOR)
+    assert sizes[0] == 2 * 15 and sizes[1] < sizes[0]

@@ -39,7 +39,7 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
-from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
+from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.checkpoint import run_config
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
 from uamfleet.env.layout import layout_to_dict, observation_layout
@@ -94,6 +94,10 @@ class ImitationArgs:
     """with --lookahead: fixed logits per move of look-ahead taken from each heading (``NetConfig.lookahead_rule``;
     100 makes the untrained policy fly the least look-ahead heading, the prior breaking near-ties, so DAgger fits
     corrections of that rule rather than of the prior)"""
+    skip_ruled_out: bool = False
+    """fit no label the stop head's prior rules out (log-probability at or below ``PRIOR_FLOOR``): a heading toward
+    no known stop, e.g. the anticipating teacher's flight toward a sampled request, which the residual can only
+    reach with a dozen logits"""
     correction_weight: float = 1.0
     """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
@@ -391,8 +395,12 @@ def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False, lookahe
     )  # fmt: skip
 
 
-def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, rng: np.random.Generator) -> Dataset:
-    """``steps`` steps of every group under the DAgger mixture; the labelled states of all of them."""
+def collect(
+    groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, rng: np.random.Generator,
+    skip_ruled_out: bool = False,
+) -> Dataset:  # fmt: skip
+    """``steps`` steps of every group under the DAgger mixture; the labelled states of all of them (with
+    ``skip_ruled_out``, not those whose label the stop head's prior rules out: ``ImitationArgs.skip_ruled_out``)."""
     data = Dataset()
     for _ in range(steps):
         for g in groups:
@@ -405,6 +413,10 @@ def collect(groups: list[Group], policy: GreedyPolicy, beta: float, steps: int, 
             # teacher's plans over sampled futures have them). It is flown, never fitted: the policy cannot wait.
             allowed = g.venv.state.action_mask[np.arange(E), 0, np.where(labelled, labels, 0)]
             fitted = labelled & allowed
+            if skip_ruled_out and fitted.any():
+                with torch.inference_mode():
+                    prior = policy.net.prior_logits(obs_to_torch(normalised, policy.device)).numpy()  # [E, 16]
+                fitted &= prior[np.arange(E), np.where(labelled, labels, 0)] > PRIOR_FLOOR
             if fitted.any():
                 data.add(
                     {k: v[fitted].copy() for k, v in normalised.items()}, labels[fitted], (labels != own)[fitted],
@@ -530,7 +542,7 @@ def _round(
     expert solves) and the fit's statistics."""
     solves_before = sum(g.expert.solves for g in groups)
     corrections_before = sum(g.expert.corrections for g in groups)
-    new = collect(groups, policy, args.beta(r), args.steps_per_round, rng)
+    new = collect(groups, policy, args.beta(r), args.steps_per_round, rng, args.skip_ruled_out)
     for o, lab, cor in zip(new.obs, new.labels, new.corrected, strict=True):
         data.add(o, lab, cor)
     data.trim(args.max_samples)
