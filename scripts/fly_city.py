@@ -71,7 +71,7 @@ def main(argv: list[str]) -> int:
         checkpoint = None if args.no_generalist else pretrained_path("berlin")
         methods = tuple(args.methods) + (() if checkpoint is None else ("learned",))
         jobs = [
-            (("test", family, seed, None, "endpoint_block"), methods, checkpoint, (256,), 64, (8, 24, 2.0, 0))
+            (("test", family, seed, None, "endpoint_block"), methods, checkpoint, (256,), 64, (8, 24, 2.0, 0, 0))
             for seed in seeds
         ]
         flight, table, columns = benchmark.run_instance, benchmark.markdown, benchmark.COLUMNS

@@ -239,11 +239,12 @@ class ScheduleFleetPolicy:
         stops = [(p, kind) for p in passengers for kind in (PICKUP, DROPOFF)]
         rows = [2 * p + (kind == DROPOFF) for p, kind in stops]
         pos = self.env.state.pos_m[0, taxi]
+        points = np.array([self._point(st) for st in stops]).reshape(-1, 2)
         dist = np.zeros((1 + len(stops), 1 + len(stops)))
+        dist[0, 1:] = self.fields.remaining_many(points, pos[None])[0]  # from the taxi to every stop, one pass
         for j, stop in enumerate(stops):
-            dist[0, 1 + j] = self.fields.remaining_m(self._point(stop), pos[None])[0]
             dist[1:, 1 + j] = self._column(stop)[rows]
-        dist[1:, 0] = np.linalg.norm(np.array([self._point(st) for st in stops]) - pos, axis=-1)  # never used
+        dist[1:, 0] = np.linalg.norm(points - pos, axis=-1)  # never used
         np.fill_diagonal(dist, 0.0)
         return dist
 
