@@ -252,7 +252,8 @@ class ScheduleFleetPolicy:
     def on_board(self, taxi: int) -> list[int]:
         assert self.env is not None
         s = self.env.state
-        return [int(p) for p in self.pax if s.pax_status[0, p] == ON_BOARD and s.pax_taxi[0, p] == taxi]
+        riding = (s.pax_status[0, self.pax] == ON_BOARD) & (s.pax_taxi[0, self.pax] == taxi)
+        return self.pax[riding].tolist()  # ascending, as self.pax
 
     def waiting_of(self, taxi: int) -> list[int]:
         """Waiting passengers whose pick-up is on the taxi's schedule."""

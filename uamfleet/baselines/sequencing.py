@@ -30,6 +30,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, types
+from numba.typed import Dict
 
 OBJECTIVES: tuple[str, ...] = ("makespan", "distance", "ride")
 MAX_PASSENGERS = 8  # 3^8 statuses x 17 last nodes: ~0.2-0.4 s in pure Python; beyond, use an insertion heuristic
@@ -255,23 +257,177 @@ def _moves(pb: _Problem, status: tuple[int, ...]) -> list[tuple[int, int]]:
 
 
 def _dp(pb: _Problem) -> tuple[int, ...]:
-    status0 = tuple(1 if i in pb.on_board else 0 for i in pb.active)
-    layer: dict[tuple[tuple[int, ...], int], list[_Label]] = {(status0, 0): [(pb.start_s, 0.0, 0.0, ())]}
-    moves_of: dict[tuple[int, ...], list[tuple[int, int]]] = {}
-    for _ in range(sum(2 - s for s in status0)):
-        nxt: dict[tuple[tuple[int, ...], int], list[_Label]] = {}
-        for (status, last), labels in layer.items():
-            if status not in moves_of:
-                moves_of[status] = _moves(pb, status)
-            for k, node in moves_of[status]:
-                new_status = (*status[:k], status[k] + 1, *status[k + 1 :])
-                bucket = nxt.setdefault((new_status, node), [])
-                for t, ride, dist, seq in labels:
-                    _insert(bucket, (*_advance(pb, t, ride, dist, last, node), (*seq, node)), pb.objective)
-        layer = nxt
-    finals = [label for labels in layer.values() for label in labels]
+    """The best node sequence: the labels of every final (status, last stop) from :func:`_dp_labels` (compiled),
+    the least by :func:`_key` (in Python: its rounding is Python's)."""
+    active = np.array(pb.active, dtype=np.int64)
+    board = np.array([i in pb.on_board for i in pb.active], dtype=np.bool_)
+    t, ride, dist, seq = _dp_labels(
+        np.array(pb.travel_s), np.array(pb.dist_m), np.array(pb.release_s), active, board, pb.capacity,
+        pb.start_s, OBJECTIVES.index(pb.objective), pb.wait_weight, _GAP,
+    )  # fmt: skip
+    finals = [(float(t[i]), float(ride[i]), float(dist[i]), tuple(int(v) for v in seq[i])) for i in range(len(t))]
     best = min(finals, key=lambda lab: _key(pb, *lab))
     return best[3]
+
+
+@njit(cache=True)
+def _dp_labels(
+    travel: np.ndarray, dist_m: np.ndarray, release: np.ndarray, active: np.ndarray, board: np.ndarray,
+    capacity: int, start_s: float, objective: int, beta: float, gap: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The exact DP over (passenger statuses, last stop) with labels (time, ride cost, distance, node sequence),
+    layer by layer, a label dropped when another of its bucket dominates it (:func:`_dominates`), in the order the
+    Python version visited them (states in first-reached order, moves by passenger, labels in bucket order), so
+    the same labels survive. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D]."""
+    num = len(active)
+    status0 = board.astype(np.int64)  # 1: on board, 0: to pick up
+    depth = 2 * num - int(status0.sum())  # stops still to serve
+    pow3 = 3 ** np.arange(num)
+    # label store (grows): time, ride, distance, sequence
+    lt, lr, ld = np.empty(64), np.empty(64), np.empty(64)
+    lseq = np.zeros((64, max(depth, 1)), np.int64)
+    used = 1
+    lt[0], lr[0], ld[0] = start_s, 0.0, 0.0
+    # a layer: its states in first-reached order (status digits, last node) and each state's bucket (label ids)
+    st_status = [status0.copy()]
+    st_last = [0]
+    buckets = [[0]]
+    for level in range(depth):
+        index = Dict.empty(key_type=types.int64, value_type=types.int64)
+        n_status: list[np.ndarray] = [np.empty(0, np.int64) for _ in range(0)]
+        n_last: list[int] = [0 for _ in range(0)]
+        n_buckets: list[list[int]] = [[0 for _ in range(0)] for _ in range(0)]
+        for si in range(len(st_status)):
+            status, last, labels = st_status[si], st_last[si], buckets[si]
+            free = capacity - int((status == 1).sum())
+            code = int((status * pow3).sum())
+            for k in range(num):
+                node = _next_node(status[k], free, active[k])
+                if node < 0:
+                    continue
+                key = (code + pow3[k]) * (2 * len(release) + 1) + node  # (the new status, node)
+                if key in index:
+                    b = index[key]
+                else:
+                    b = len(n_status)
+                    index[key] = b
+                    new_status = status.copy()
+                    new_status[k] += 1
+                    n_status.append(new_status)
+                    n_last.append(node)
+                    n_buckets.append([0 for _ in range(0)])
+                for a in labels:
+                    if used == len(lt):  # grow the store
+                        lt, lr, ld, lseq = _grown(lt, lr, ld, lseq, used)
+                    lt[used], lr[used], ld[used] = _advanced(lt[a], lr[a], ld[a], last, node, travel, dist_m, release,
+                                                             beta)  # fmt: skip
+                    lseq[used, :level] = lseq[a, :level]
+                    lseq[used, level] = node
+                    kept = _with_label(n_buckets[b], used, lt, lr, ld, lseq, level + 1, objective, gap)
+                    if len(kept):  # the new label survived: the bucket is now ``kept``
+                        n_buckets[b] = kept
+                        used += 1
+        st_status, st_last, buckets = n_status, n_last, n_buckets
+    return _final_labels(buckets, lt, lr, ld, lseq, depth)
+
+
+@njit(cache=True)
+def _final_labels(
+    buckets: list[list[int]], lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, depth: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The labels of the last layer's buckets, in order, as arrays."""
+    count = 0
+    for bucket in buckets:
+        count += len(bucket)
+    out_t, out_r, out_d = np.empty(count), np.empty(count), np.empty(count)
+    out_seq = np.zeros((count, depth), np.int64)
+    i = 0
+    for bucket in buckets:
+        for a in bucket:
+            out_t[i], out_r[i], out_d[i] = lt[a], lr[a], ld[a]
+            out_seq[i] = lseq[a, :depth]
+            i += 1
+    return out_t, out_r, out_d, out_seq
+
+
+@njit(cache=True)
+def _next_node(status: int, free: int, passenger: int) -> int:
+    """The node a passenger of this status may be served at next (pick-up if waiting and a seat is free, drop-off
+    if on board), -1 if none."""
+    if status == 0 and free > 0:
+        return 1 + 2 * passenger
+    if status == 1:
+        return 2 + 2 * passenger
+    return -1
+
+
+@njit(cache=True)
+def _advanced(
+    t: float, ride: float, dist: float, last: int, node: int, travel: np.ndarray, dist_m: np.ndarray,
+    release: np.ndarray, beta: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """:func:`_advance`, compiled: the same operations in the same order."""
+    passenger = (node - 1) // 2
+    t = t + travel[last, node]
+    if node % 2 == 1:
+        if release[passenger] > t:
+            t = release[passenger]
+        if beta != 0.0:
+            ride = ride + beta * (t - release[passenger])
+    else:
+        ride = ride + (t - release[passenger])
+    return t, ride, dist + dist_m[last, node]
+
+
+@njit(cache=True)
+def _grown(
+    lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, used: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The label store with twice the room."""
+    cap = 2 * len(lt)
+    lt2, lr2, ld2 = np.empty(cap), np.empty(cap), np.empty(cap)
+    lt2[:used], lr2[:used], ld2[:used] = lt[:used], lr[:used], ld[:used]
+    seq2 = np.zeros((cap, lseq.shape[1]), np.int64)
+    seq2[:used] = lseq[:used]
+    return lt2, lr2, ld2, seq2
+
+
+@njit(cache=True)
+def _with_label(
+    bucket: list[int], new: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, length: int,
+    objective: int, gap: float,
+) -> list[int]:  # fmt: skip
+    """:func:`_insert`, compiled: empty if a label of the bucket dominates ``new``, else the bucket without the
+    labels ``new`` dominates, ``new`` appended."""
+    kept = [0 for _ in range(0)]
+    for other in bucket:
+        if _label_dominates(other, new, lt, lr, ld, lseq, length, objective, gap):
+            return kept
+    for other in bucket:
+        if not _label_dominates(new, other, lt, lr, ld, lseq, length, objective, gap):
+            kept.append(other)
+    kept.append(new)
+    return kept
+
+
+@njit(cache=True)
+def _label_dominates(
+    a: int, b: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, length: int, objective: int,
+    gap: float,
+) -> bool:  # fmt: skip
+    """:func:`_dominates` of label a over label b (objective 1: distance, as ``OBJECTIVES``' index)."""
+    if lt[a] > lt[b] or lr[a] > lr[b]:
+        return False
+    if objective == 1 and ld[a] > ld[b]:
+        return False
+    smaller = False
+    for i in range(length):
+        if lseq[a, i] != lseq[b, i]:
+            smaller = lseq[a, i] < lseq[b, i]
+            break
+    if smaller or lr[b] - lr[a] > gap:
+        return True
+    return objective == 1 and ld[b] - ld[a] > gap
 
 
 def solve_pdp(
