@@ -5,6 +5,8 @@ validation instances shortest.
 
     uamfleet-imitate --run-name berlin_dagger                  # or: .venv/bin/python train/imitate.py ...
     uamfleet-imitate --rounds 2 --steps-per-round 30 --eval-instances 10 --run-name try   # a quick look
+    uamfleet-imitate --init berlin --lookahead --lookahead-depth 2 --expert futures --run-name fut   # teacher:
+        # replan_futures' decisions (it anticipates releases; ~1 s per decision at the default futures settings)
 
 Writes runs/<name>/progress.csv (one row per round: samples, expert solves, fit loss and agreement, validation PR
 and TD), runs/<name>/last.pt and runs/<name>/best.pt (atomic, loadable with load_policy and export_policy).
