@@ -391,3 +391,23 @@ def test_skip_ruled_out_fits_only_labels_the_prior_reaches() -> None:
                 prior = net.prior_logits(obs_to_torch(x, "cpu")).numpy()
             assert np.all(prior[np.arange(len(y)), y] > PRIOR_FLOOR)
     assert sizes[0] == 2 * 15 and sizes[1] < sizes[0]
+
+
+def test_imitate_with_the_anticipating_teacher_end_to_end(tmp_path) -> None:
+    """One small round with ``--expert futures`` (the family's demand model on each threshold's sites): labels are
+    fitted and the checkpoints load; a bad futures setting is refused by name."""
+    from uamfleet.config import ConfigError
+    from uamfleet.rl.imitation import imitate
+    from uamfleet.rl.policy import load_policy
+
+    args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=1, rounds=1, steps_per_round=6, eval_instances=1,
+                         epochs=1, minibatch=4, run_dir=tmp_path, run_name="fut", expert="futures", futures=1,
+                         scored_futures=1, expert_beam=8, future_beam=4, score_beam=2)  # fmt: skip
+    best = imitate(args)
+    assert best["val_pr_pct"] == 100.0
+    rows = (tmp_path / "fut" / "progress.csv").read_text().splitlines()
+    assert len(rows) == 3 and int(rows[2].split(",")[rows[0].split(",").index("new_samples")]) > 0
+    policy, _ = load_policy(tmp_path / "fut" / "best.pt")
+    assert policy.net.cfg.heading_residual
+    with pytest.raises(ConfigError, match="--scored-futures"):
+        ImitationArgs(expert="futures", scored_futures=0)
