@@ -14,6 +14,7 @@ checkpoint:
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,6 +28,7 @@ from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import FleetState
 from uamfleet.zoo import pretrained_path
+from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import load_policy
 
 
@@ -38,6 +40,10 @@ class Args:
     """taxis decided per call"""
     calls: int = 300
     threads: int = 1
+    traced: bool = False
+    """run the actor as TorchScript traces (``GreedyPolicy.trace_actor``: the same logits)"""
+    both: bool = False
+    """time the eager and the traced actor in turn, call by call, on the same observations (paired)"""
 
 
 def main(args: Args) -> list[dict[str, float]]:
@@ -45,6 +51,9 @@ def main(args: Args) -> list[dict[str, float]]:
     path = args.checkpoint if args.checkpoint is not None else pretrained_path("berlin")
     policy, _ = load_policy(path)
     assert policy.trained_on is not None
+    policy.trace_actor(args.traced)
+    if args.both:
+        return paired(policy, args)
     print(f"policy: {path} ({sum(p.numel() for p in policy.net.parameters()):,} parameters), "
           f"torch {torch.__version__}, {args.threads} thread(s)")  # fmt: skip
     print(f"{'taxis per call':>15} {'p50 ms/call':>12} {'p95 ms/call':>12} {'p50 ms/taxi':>12} "
@@ -80,6 +89,38 @@ def main(args: Args) -> list[dict[str, float]]:
         rows.append(row)
         print(f"{taxis:>15} {row['p50_ms']:>12.3f} {row['p95_ms']:>12.3f} {row['p50_ms'] / taxis:>12.3f} "
               f"{row['p50_observe_ms']:>11.3f} {row['p50_observe_and_call_ms']:>13.3f}")  # fmt: skip
+    return rows
+
+
+def paired(policy, args: Args) -> list[dict[str, float]]:  # type: ignore[no-untyped-def]
+    """Eager and traced calls alternated on the same observations; p50 ms per call of each, and whether every
+    traced action equals the eager one."""
+    traced = copy.copy(policy)  # the same network, its own traces and loop guard
+    traced._traces = {}
+    traced.loop_guard = LoopGuard() if policy.loop_guard is not None else None
+    traced.trace_actor()
+    policy.trace_actor(False)
+    assert policy.trained_on is not None
+    rows = []
+    print(f"{'taxis per call':>15} {'eager p50 ms':>13} {'traced p50 ms':>14} {'same actions':>13}")
+    for batch in args.batch:
+        cfg = policy.layout(make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis))
+        env = VectorEnv(cfg, num_envs=batch)
+        obs, _ = env.reset(seed=0)
+        eager_s, traced_s, same = [], [], True
+        for i in range(args.calls + 10):
+            order = (policy, traced) if i % 2 else (traced, policy)
+            out = {}
+            for p in order:
+                start = time.perf_counter()
+                out[id(p)] = p(obs)
+                (eager_s if p is policy else traced_s).append(time.perf_counter() - start)
+            same &= bool(np.array_equal(out[id(policy)], out[id(traced)]))
+            obs, *_ = env.step(out[id(policy)])
+        row = {"taxis": batch * cfg.num_taxis, "eager_p50_ms": 1000 * float(np.median(eager_s[10:])),
+               "traced_p50_ms": 1000 * float(np.median(traced_s[10:])), "same": float(same)}  # fmt: skip
+        rows.append(row)
+        print(f"{row['taxis']:>15} {row['eager_p50_ms']:>13.3f} {row['traced_p50_ms']:>14.3f} {same!s:>13}")
     return rows
 
 
