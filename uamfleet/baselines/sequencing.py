@@ -168,7 +168,7 @@ def _stop(node: int) -> tuple[int, str]:
     return ((node - 1) // 2, PICKUP if node % 2 == 1 else DROPOFF)
 
 
-# -- one shared schedule arithmetic: the DP, solve_in_order and the test oracle add in the same order -------
+# -- one schedule arithmetic: solve_in_order and the test oracle add as the DP (its compiled twin _advanced) --
 def _advance(pb: _Problem, t: float, ride: float, dist: float, last: int, node: int) -> tuple[float, float, float]:
     """Fly from ``last`` to ``node``: the new time, ride cost (ride time, plus the weighted wait with a
     ``wait_weight``) and distance."""
@@ -216,46 +216,6 @@ def _plan(pb: _Problem, nodes: Sequence[int]) -> Plan:
 
 
 # -- exact DP -----------------------------------------------------------------------------------------------
-_Label = tuple[float, float, float, tuple[int, ...]]  # (time, ride, distance, node sequence)
-
-
-def _dominates(a: _Label, b: _Label, objective: str) -> bool:
-    """True if every completion of ``a`` is at least as good as the same completion of ``b``.
-
-    Completions are monotone in time, ride and distance (float addition and max are monotone), so ``a`` no
-    worse on all three suffices when its sequence is smaller (final ties go to it); otherwise a gap in an
-    accumulated sum (ride, or distance when it is the objective) that rounding cannot close is needed —
-    a gap in time can be closed by waiting for a release.
-    """
-    if a[0] > b[0] or a[1] > b[1]:
-        return False
-    if objective == "distance" and a[2] > b[2]:
-        return False
-    if a[3] < b[3] or b[1] - a[1] > _GAP:
-        return True
-    return objective == "distance" and b[2] - a[2] > _GAP
-
-
-def _insert(bucket: list[_Label], label: _Label, objective: str) -> None:
-    for other in bucket:
-        if _dominates(other, label, objective):
-            return
-    bucket[:] = [other for other in bucket if not _dominates(label, other, objective)]
-    bucket.append(label)
-
-
-def _moves(pb: _Problem, status: tuple[int, ...]) -> list[tuple[int, int]]:
-    """(digit, node) of every stop that may come next; status[k] of passenger active[k]: 0/1/2."""
-    free = pb.capacity - status.count(1)
-    out = []
-    for k, s in enumerate(status):
-        if s == 0 and free > 0:
-            out.append((k, 1 + 2 * pb.active[k]))
-        elif s == 1:
-            out.append((k, 2 + 2 * pb.active[k]))
-    return out
-
-
 def _dp(pb: _Problem) -> tuple[int, ...]:
     """The best node sequence: the labels of every final (status, last stop) from :func:`_dp_labels` (compiled),
     the least by :func:`_key` (in Python: its rounding is Python's)."""
@@ -276,7 +236,7 @@ def _dp_labels(
     capacity: int, start_s: float, objective: int, beta: float, gap: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The exact DP over (passenger statuses, last stop) with labels (time, ride cost, distance, node sequence),
-    layer by layer, a label dropped when another of its bucket dominates it (:func:`_dominates`), in the order the
+    layer by layer, a label dropped when another of its bucket dominates it (:func:`_label_dominates`), in the order the
     Python version visited them (states in first-reached order, moves by passenger, labels in bucket order), so
     the same labels survive. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D]."""
     num = len(active)
@@ -397,8 +357,8 @@ def _with_label(
     bucket: list[int], new: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, length: int,
     objective: int, gap: float,
 ) -> list[int]:  # fmt: skip
-    """:func:`_insert`, compiled: empty if a label of the bucket dominates ``new``, else the bucket without the
-    labels ``new`` dominates, ``new`` appended."""
+    """Empty if a label of the bucket dominates ``new``, else the bucket without the labels ``new`` dominates,
+    ``new`` appended (the survivors in their order)."""
     kept = [0 for _ in range(0)]
     for other in bucket:
         if _label_dominates(other, new, lt, lr, ld, lseq, length, objective, gap):
@@ -415,7 +375,13 @@ def _label_dominates(
     a: int, b: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, length: int, objective: int,
     gap: float,
 ) -> bool:  # fmt: skip
-    """:func:`_dominates` of label a over label b (objective 1: distance, as ``OBJECTIVES``' index)."""
+    """True if every completion of label ``a`` is at least as good as the same completion of label ``b``
+    (objective 1: distance, as ``OBJECTIVES``' index).
+
+    Completions are monotone in time, ride and distance (float addition and max are monotone), so ``a`` no
+    worse on all three suffices when its node sequence is smaller (final ties go to it); otherwise a gap in an
+    accumulated sum (ride, or distance when it is the objective) that rounding cannot close is needed — a gap in
+    time can be closed by waiting for a release."""
     if lt[a] > lt[b] or lr[a] > lr[b]:
         return False
     if objective == 1 and ld[a] > ld[b]:
