@@ -192,10 +192,31 @@ def _corner(t: dt.TableArrays, c: dt.Corners, i: int, j: int, ax: float, ay: flo
     return dt.corner_distance(t, c, i, c, j, ax, ay, bx, by)
 
 
-def test_remaining_many_gives_remaining_m_bit_for_bit() -> None:
-    """The compiled look-up of many goals at once (what the step-level search ranks its children by) against the
-    numpy look-up of one goal at a time: points inside and outside the raster, a goal no flyable cell reaches
-    (straight line), and a second call with other goals (the stacked fields are replaced, not reused)."""
+def _remaining_by_numpy(fields: DistanceFields, goal: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The look-up written out in numpy (as DistanceFields had it before it was compiled): the goal's field at
+    each of the 4 cell centres around the point plus the straight line to it, the least; the straight line where
+    no flyable cell reaches the goal."""
+    field_m = fields.field(goal)
+    if field_m is None:
+        return np.linalg.norm(points - goal, axis=-1)
+    radio = fields.world.radio
+    res, (ox, oy) = radio.resolution_m, radio.origin_m
+    fx, fy = (points[:, 0] - ox) / res, (points[:, 1] - oy) / res
+    best = np.full(len(points), np.inf)
+    nx, ny = field_m.shape
+    for dx in (0, 1):
+        for dy in (0, 1):
+            ix = np.clip(np.floor(fx).astype(int) + dx, 0, nx - 1)
+            iy = np.clip(np.floor(fy).astype(int) + dy, 0, ny - 1)
+            centre = np.stack([ox + ix * res, oy + iy * res], axis=-1)
+            best = np.minimum(best, field_m[ix, iy] + np.linalg.norm(points - centre, axis=-1))
+    return best
+
+
+def test_the_compiled_lookup_gives_the_numpy_one_bit_for_bit() -> None:
+    """``remaining_many`` (many goals, one compiled pass) and ``remaining_m`` (one goal) against the look-up written
+    out in numpy: points inside and outside the raster, a goal no flyable cell reaches (straight line), and a
+    second call with other goals (the slots are looked up again, not reused)."""
     world = World(uamfleet.make_config("berlin_random"))
     fields = DistanceFields(world)
     rng = np.random.default_rng(3)
@@ -204,9 +225,11 @@ def test_remaining_many_gives_remaining_m_bit_for_bit() -> None:
     for _ in range(2):
         goals = (flyable[rng.integers(len(flyable), size=5)] + rng.random((5, 2))) * BLOCK
         goals = np.concatenate([goals, [[-1e6, -1e6]]])  # out of every flyable cell's reach
-        expected = np.stack([fields.remaining_m(g, points) for g in goals], axis=1)
+        expected = np.stack([_remaining_by_numpy(fields, g, points) for g in goals], axis=1)
         assert np.isfinite(expected[:, :5]).mean() > 0.5  # inf where no flyable centre is near the point
         np.testing.assert_array_equal(fields.remaining_many(goals, points), expected)
+        for g, goal in enumerate(goals):
+            np.testing.assert_array_equal(fields.remaining_m(goal, points), expected[:, g])
     np.testing.assert_array_equal(expected[:, 5], np.linalg.norm(points - goals[5], axis=1))
 
 

@@ -117,12 +117,15 @@ class DistanceFields:
         return self._pool[slot] if slot >= 0 else None
 
     def remaining_many(self, goals: np.ndarray, candidates: np.ndarray) -> np.ndarray:
-        """[K, G] :meth:`remaining_m` of each goal [G, 2] from each candidate [K, 2], the same float64 numbers,
-        in one compiled pass over the pool (a step-level search asks for all its stops at every layer)."""
+        """[K, G] :meth:`remaining_m` of each goal [G, 2] from each candidate [K, 2], in one compiled pass over the
+        pool (a step-level search asks for all its stops at every layer)."""
         goals = np.ascontiguousarray(goals, dtype=np.float64).reshape(-1, 2)
         candidates = np.ascontiguousarray(candidates, dtype=np.float64).reshape(-1, 2)
         if len(goals) > self.max_slots:  # more goals than the pool holds at once: one at a time
-            return np.stack([self.remaining_m(g, candidates) for g in goals], axis=1).reshape(len(candidates), -1)
+            return np.concatenate([self._rows(goals[g : g + 1], candidates) for g in range(len(goals))], axis=1)
+        return self._rows(goals, candidates)
+
+    def _rows(self, goals: np.ndarray, candidates: np.ndarray) -> np.ndarray:
         key = goals.tobytes()
         if self._recent is not None and self._recent[0] == key and self._recent[1] == self._evictions:
             slots = self._recent[2]  # the same goals as the last call (every layer of a search), all still held
@@ -141,25 +144,11 @@ class DistanceFields:
         return self.graph.stop_distances(stops, field_of=self.field)
 
     def remaining_m(self, goal: np.ndarray, candidates: np.ndarray) -> np.ndarray:
-        """[K] feasible-path distance from each candidate point [K, 2] to ``goal``. A point near a block edge may
-        have its nearest cell centre across it, so the best of the 4 surrounding centres is used. A goal that no
-        flyable cell reaches falls back to the straight-line distance."""
-        field_m = self.field(goal)
-        if field_m is None:
-            return np.linalg.norm(candidates - goal, axis=-1)
-        radio = self.world.radio
-        res, (ox, oy) = radio.resolution_m, radio.origin_m
-        fx = (candidates[:, 0] - ox) / res
-        fy = (candidates[:, 1] - oy) / res
-        best = np.full(len(candidates), np.inf)
-        nx, ny = field_m.shape
-        for dx in (0, 1):
-            for dy in (0, 1):
-                ix = np.clip(np.floor(fx).astype(int) + dx, 0, nx - 1)
-                iy = np.clip(np.floor(fy).astype(int) + dy, 0, ny - 1)
-                centre = np.stack([ox + ix * res, oy + iy * res], axis=-1)
-                best = np.minimum(best, field_m[ix, iy] + np.linalg.norm(candidates - centre, axis=-1))
-        return best
+        """[K] feasible-path distance from each candidate point [K, 2] to ``goal``: the goal's field at the best of
+        the 4 cell centres around the point plus the straight line to that centre (a point near a block edge may
+        have its nearest centre across it). A goal that no flyable cell reaches falls back to the straight-line
+        distance."""
+        return self.remaining_many(np.reshape(goal, (1, 2)), candidates)[:, 0]
 
     def heading(self, pos: np.ndarray, allowed: np.ndarray, goal: np.ndarray) -> int:
         """The allowed heading whose endpoint is nearest ``goal`` along feasible paths."""
@@ -174,8 +163,7 @@ def _remaining_rows(
 ) -> None:  # fmt: skip
     """out[k, g] = :meth:`DistanceFields.remaining_m` of goal g at candidate k: the least of field + straight line
     over the 4 cell centres around the candidate (clipped to the raster), the field being ``pool[slots[g]]``; the
-    straight line where ``slots[g]`` is -1 (unreachable). The same operations in the same order as the numpy code,
-    so the same float64 numbers."""
+    straight line where ``slots[g]`` is -1 (unreachable)."""
     nx, ny = pool.shape[1], pool.shape[2]
     for k in range(candidates.shape[0]):
         cx, cy = candidates[k, 0], candidates[k, 1]
