@@ -184,15 +184,12 @@ class ReplanExpert:
     def _after(self, known: FleetState, e: int, heading: int) -> list[int] | None:
         """The plan that starts with ``heading`` from env ``e`` of ``known``: the heading, then the search from
         where it leads; None if that heading does not move or no plan is found from there."""
-        env = self._child_env
-        for name in SEARCH_STATE_FIELDS:
-            getattr(env.state, name)[:] = getattr(known, name)[e : e + 1]
-        _, _, terminated, _, info = env.step(np.array([[heading]]))
-        if not info["events"].moved[0, 0]:
+        after, moved, done = _one_step(self._child_env, known, e, heading)
+        if not moved:
             return None
-        if terminated[0]:
+        if done:
             return [heading]
-        rest = self._solve(env.state.take(np.array([0])), 0)
+        rest = self._solve(after, 0)
         return [heading, *rest] if rest else None
 
     def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
@@ -222,6 +219,15 @@ class ReplanExpert:
         """After a step: a plan whose first heading was flown, with no release and no episode end, moves on by one;
         every other plan is re-solved at the next :meth:`labels`."""
         _advance_plans(self.plans, self.valid, executed, released, ended)
+
+
+def _one_step(env: VectorEnv, state: FleetState, e: int, heading: int) -> tuple[FleetState, bool, bool]:
+    """Env ``e`` of ``state`` flown one ``heading`` in the one-env core ``env``: (the state after it, whether the
+    taxi moved, whether everyone is delivered; the state is the core's next episode then, and is not to be read)."""
+    for name in SEARCH_STATE_FIELDS:
+        getattr(env.state, name)[:] = getattr(state, name)[e : e + 1]
+    _, _, terminated, _, info = env.step(np.array([[heading]]))
+    return env.state.take(np.array([0])), bool(info["events"].moved[0, 0]), bool(terminated[0])
 
 
 def _advance_plans(
@@ -283,14 +289,6 @@ class AnticipatingExpert:
         self.basis[e] = decision.basis if decision.plan is not None else None
         self.rest_moves[e] = decision.plan.moves if decision.plan is not None else 0
 
-    def _flown(self, basis: FleetState, heading: int) -> tuple[FleetState, bool, bool]:
-        """(the basis state after ``heading``, whether the taxi moved, whether everyone is delivered)."""
-        env = self._child_env
-        for name in SEARCH_STATE_FIELDS:
-            getattr(env.state, name)[:] = getattr(basis, name)[:1]
-        _, _, terminated, _, info = env.step(np.array([[heading]]))
-        return env.state.take(np.array([0])), bool(info["events"].moved[0, 0]), bool(terminated[0])
-
     def labels(self, venv: VectorEnv, proposals: np.ndarray | None = None) -> np.ndarray:
         """[E] the teacher's heading in each env's current state (:data:`NO_LABEL` where it only waits);
         ``proposals`` [E] (the policy's headings) are kept where they are as short as the plan."""
@@ -302,7 +300,7 @@ class AnticipatingExpert:
             if not plan or basis is None or plan[0] == proposals[e]:  # type: ignore[index]
                 continue
             heading = int(proposals[e])  # type: ignore[index]
-            after, moved, done = self._flown(basis, heading)
+            after, moved, done = _one_step(self._child_env, basis, 0, heading)
             rest = None if done or not moved else self.planner.search.solve(after, self._settings(e))
             moves = 1 if done and moved else (1 + rest.moves if rest is not None else None)
             if moves is not None and moves <= self.rest_moves[e]:
@@ -323,7 +321,7 @@ class AnticipatingExpert:
         for e in _advance_plans(self.plans, self.valid, executed, released, ended):
             basis = self.basis[e]
             if basis is not None:
-                self.basis[e], moved, _ = self._flown(basis, int(executed[e]))
+                self.basis[e], moved, _ = _one_step(self._child_env, basis, 0, int(executed[e]))
                 self.rest_moves[e] -= int(moved)
 
 
