@@ -117,6 +117,48 @@ def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, sea
         assert policy.inner.stats["heuristic_inserts"] > 0
 
 
+def test_stop_matrix_is_the_feasible_path_distance_at_every_step():
+    """The dispatcher looks its distances up once a decision (taxi to stop) or once an episode (stop to stop); at
+    every step of an episode on a walled map each entry equals the field look-up of that pair alone, so no stale
+    position or column is ever read."""
+    cfg = small_config(
+        WALLED_10,
+        time_limit_steps=200,
+        starts_m=((150.0, 150.0), (150.0, 850.0)),
+        requests=(
+            Request(0, (350.0, 250.0), (250.0, 850.0)),
+            Request(0, (450.0, 150.0), (150.0, 750.0)),
+            Request(4, (750.0, 850.0), (850.0, 150.0)),
+            Request(9, (550.0, 650.0), (350.0, 150.0)),
+        ),
+    )
+    policy = BatchAssignmentPolicy()
+    checked = 0
+
+    class _Probe(_Checked):
+        def __call__(self, obs):
+            nonlocal checked
+            actions = super().__call__(obs)
+            s = env.state
+            active = [int(p) for p in np.flatnonzero((s.pax_status[0] == 1) | (s.pax_status[0] == 2))]
+            for taxi in range(env.num_taxis):
+                for passengers in (active, active[::-1], active[:1]):
+                    if not passengers:
+                        continue
+                    points = [pt for p in passengers for pt in (policy.origin_m[p], policy.dest_m[p])]
+                    got = policy.stop_matrix(taxi, passengers)
+                    for j, goal in enumerate(points):
+                        alone = policy.fields.remaining_m(goal, np.array([s.pos_m[0, taxi], *points]))
+                        alone[1 + j] = 0.0
+                        np.testing.assert_array_equal(got[:, 1 + j], alone)
+                    checked += 1
+            return actions
+
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    traj = run_episode(env, _Probe(policy), seed=0)
+    assert traj.terminated and checked > 20
+
+
 def _brute_force(trips, num_taxis, penalty):
     by_taxi = [[k for k, t in enumerate(trips) if t[0] == a] for a in range(num_taxis)]
     best = (np.inf, None)

@@ -9,7 +9,7 @@ import pytest
 
 from pdp_oracle import brute_force_pdp, count_feasible_sequences, every_plan
 
-from uamfleet.baselines.sequencing import Plan, solve_in_order, solve_pdp
+from uamfleet.baselines.sequencing import _GAP, OBJECTIVES, Plan, _dp_labels, _problem, solve_in_order, solve_pdp
 
 
 def _line(xs: list[float]) -> np.ndarray:
@@ -82,6 +82,30 @@ def test_dp_matches_brute_force(n: int, objective: str) -> None:
             capacity=kwargs["capacity"],
         )
         assert again == dp
+
+
+@pytest.mark.parametrize("objective", ["makespan", "distance", "ride"])
+def test_dp_labels_the_same_when_buckets_widen(objective: str) -> None:
+    """The compiled DP keeps a state's labels in a row that widens when a bucket outgrows it: with one label of
+    room (the widening taken at every second label) it leaves the same final labels, in the same order, as with
+    room for all, and the plan is the brute force's."""
+    rng = np.random.default_rng(7 + len(objective))
+    widened = 0
+    for trial in range(24):
+        kwargs = _random_instance(rng, int(rng.integers(2, 6)), ties=trial % 2 == 1)
+        pb = _problem(**{k: kwargs[k] for k in ("dist_m", "speed_mps", "release_s", "capacity", "on_board", "done",
+                                                "start_s")}, objective=objective)  # fmt: skip
+        args = (
+            pb.travel_array, pb.dist_array, np.array(pb.release_s), np.array(pb.active, dtype=np.int64),
+            np.array([i in pb.on_board for i in pb.active]), pb.capacity, pb.start_s, OBJECTIVES.index(objective),
+            0.0, _GAP,
+        )  # fmt: skip
+        roomy, tight = _dp_labels(*args, 64), _dp_labels(*args, 1)
+        for a, b in zip(roomy, tight, strict=True):
+            np.testing.assert_array_equal(a, b)
+        widened += len(roomy[0]) > 1
+        assert solve_pdp(**kwargs, objective=objective) == brute_force_pdp(**kwargs, objective=objective)
+    assert widened > 0  # some final layer held more than one label: the widening was taken
 
 
 @pytest.mark.parametrize("wait_weight", [0.5, 1.0, 4.0])

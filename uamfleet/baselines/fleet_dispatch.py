@@ -215,7 +215,17 @@ class ScheduleFleetPolicy:
         self.speed_mps = env.cfg.step_m / env.cfg.slot_s
         self.seats = env.cfg.seats
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
-        self._to_stop: dict[tuple[int, str], np.ndarray] = {}  # distance from every stop to this stop
+        # feasible-path distances, looked up once: [2P, 2P] stop to stop (row 2p: origin of p, 2p + 1: its
+        # destination; a column is filled the first time its stop is asked for), and [A, 2P] from each taxi's
+        # position to every active stop, for one decision (_taxi_key: the step and the positions it holds for)
+        self._every_stop = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
+        self._stop_to_stop = np.zeros((len(self._every_stop), len(self._every_stop)))
+        self._column_known = np.zeros(len(self._every_stop), dtype=bool)
+        self._taxi_key: tuple[int, bytes] | None = None
+        self._taxi_to_stop = np.zeros((env.num_taxis, len(self._every_stop)))
+        self._taxi_known = np.zeros(len(self._every_stop), dtype=bool)
+        self._riding: list[list[int] | None] = [None] * env.num_taxis  # on_board(taxi), for the same decision
+        self._sequenced: dict[tuple[int, tuple[int, ...]], tuple[Plan, list[Stop]]] = {}  # sequence(), the same
         self.routes: list[list[Stop]] = [[] for _ in range(self.num_taxis)]
         self._seen = np.zeros(len(s.pax_status[0]), dtype=bool)  # the first call dispatches step-0 requests
         self.stats = {"dp_solves": 0, "heuristic_inserts": 0, "assignments": 0}
@@ -225,35 +235,70 @@ class ScheduleFleetPolicy:
         p, kind = stop
         return self.origin_m[p] if kind == PICKUP else self.dest_m[p]
 
-    def _column(self, stop: Stop) -> np.ndarray:
-        """[2P] feasible-path distance from every stop (origin of p at 2p, destination at 2p + 1) to ``stop``."""
-        if stop not in self._to_stop:
-            every = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
-            self._to_stop[stop] = self.fields.remaining_m(self._point(stop), every)
-        return self._to_stop[stop]
+    def _this_decision(self) -> None:
+        """Forget the per-decision look-ups (taxi to stop distances, who rides with whom) once the env has changed:
+        they hold while the step, the taxis' positions and the passengers' statuses and carriers are those they
+        were made for."""
+        assert self.env is not None
+        s = self.env.state
+        key = (int(s.t[0]), s.pos_m[0].tobytes() + s.pax_status[0].tobytes() + s.pax_taxi[0].tobytes())
+        if key != self._taxi_key:
+            self._taxi_key = key
+            self._taxi_known[:] = False
+            self._riding = [None] * self.num_taxis
+            self._sequenced = {}
+
+    def _stop_rows(self, passengers: Sequence[int] | np.ndarray) -> np.ndarray:
+        """[2N] the stop rows of the passengers in :mod:`~uamfleet.baselines.sequencing`'s node order: origin of
+        each at 2p, destination at 2p + 1."""
+        return (2 * np.asarray(passengers, dtype=np.int64)[:, None] + np.arange(2)).reshape(-1)
+
+    def _from_taxis(self, rows: np.ndarray) -> np.ndarray:
+        """[A, len(rows)] feasible-path distance from every taxi's position now to the stops ``rows``. A miss looks
+        up every active (waiting or riding) passenger's stops for every taxi in one compiled pass: a batch asks for
+        them all, and each entry is the same number :meth:`DistanceFields.remaining_m` gives alone."""
+        assert self.env is not None
+        self._this_decision()
+        if not self._taxi_known[rows].all():
+            s = self.env.state
+            active = (s.pax_status[0] == WAITING) | (s.pax_status[0] == ON_BOARD)
+            need = np.union1d(self._stop_rows(np.flatnonzero(active)), rows)
+            need = need[~self._taxi_known[need]]
+            self._taxi_to_stop[:, need] = self.fields.remaining_many(self._every_stop[need], s.pos_m[0])
+            self._taxi_known[need] = True
+        return self._taxi_to_stop[:, rows]
+
+    def _between_stops(self, rows: np.ndarray) -> np.ndarray:
+        """[len(rows), len(rows)] feasible-path distance from stop to stop (each column looked up once an
+        episode, from every stop at once)."""
+        if not self._column_known[rows].all():
+            missing = np.unique(rows[~self._column_known[rows]])
+            self._stop_to_stop[:, missing] = self.fields.remaining_many(self._every_stop[missing], self._every_stop)
+            self._column_known[missing] = True
+        return self._stop_to_stop[rows[:, None], rows]
 
     def stop_matrix(self, taxi: int, passengers: Sequence[int]) -> np.ndarray:
         """[1 + 2N, 1 + 2N] distances in :mod:`~uamfleet.baselines.sequencing`'s node order: the taxi's position,
         then origin / destination of each passenger."""
         assert self.env is not None
-        stops = [(p, kind) for p in passengers for kind in (PICKUP, DROPOFF)]
-        rows = [2 * p + (kind == DROPOFF) for p, kind in stops]
-        pos = self.env.state.pos_m[0, taxi]
-        points = np.array([self._point(st) for st in stops]).reshape(-1, 2)
-        dist = np.zeros((1 + len(stops), 1 + len(stops)))
-        dist[0, 1:] = self.fields.remaining_many(points, pos[None])[0]  # from the taxi to every stop, one pass
-        for j, stop in enumerate(stops):
-            dist[1:, 1 + j] = self._column(stop)[rows]
-        dist[1:, 0] = np.linalg.norm(points - pos, axis=-1)  # never used
+        rows = self._stop_rows(passengers)
+        dist = np.zeros((1 + len(rows), 1 + len(rows)))  # column 0 (back to the taxi) stays 0: no stop leads there
+        dist[0, 1:] = self._from_taxis(rows)[taxi]
+        dist[1:, 1:] = self._between_stops(rows)
         np.fill_diagonal(dist, 0.0)
         return dist
 
     # ---- schedules -------------------------------------------------------------------------------------
     def on_board(self, taxi: int) -> list[int]:
+        """The taxi's riders, ascending (a new list; looked up once a decision)."""
         assert self.env is not None
-        s = self.env.state
-        riding = (s.pax_status[0, self.pax] == ON_BOARD) & (s.pax_taxi[0, self.pax] == taxi)
-        return self.pax[riding].tolist()  # ascending, as self.pax
+        self._this_decision()
+        riding = self._riding[taxi]
+        if riding is None:
+            s = self.env.state
+            on = (s.pax_status[0, self.pax] == ON_BOARD) & (s.pax_taxi[0, self.pax] == taxi)
+            riding = self._riding[taxi] = self.pax[on].tolist()  # ascending, as self.pax
+        return list(riding)
 
     def waiting_of(self, taxi: int) -> list[int]:
         """Waiting passengers whose pick-up is on the taxi's schedule."""
@@ -264,7 +309,17 @@ class ScheduleFleetPolicy:
         return plan.total_ride_s + self.wait_weight * plan.total_wait_s  # β = 0: the ride time, bit for bit
 
     def sequence(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
-        """The exact best schedule (least :meth:`plan_cost`) of the taxi's passengers on board plus ``waiting``."""
+        """The exact best schedule (least :meth:`plan_cost`) of the taxi's passengers on board plus ``waiting``
+        (solved once a decision: a batch asks for a taxi's riders alone twice)."""
+        assert self.env is not None
+        self._this_decision()
+        key = (taxi, tuple(waiting))
+        if key not in self._sequenced:
+            self._sequenced[key] = self._solved(taxi, waiting)
+        plan, route = self._sequenced[key]
+        return plan, list(route)
+
+    def _solved(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
         assert self.env is not None
         riding = self.on_board(taxi)
         passengers = riding + [p for p in waiting if p not in riding]

@@ -27,11 +27,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, types
-from numba.typed import Dict
+from numba import njit
 
 OBJECTIVES: tuple[str, ...] = ("makespan", "distance", "ride")
 MAX_PASSENGERS = 8  # 3^8 statuses x 17 last nodes: ~0.2-0.4 s in pure Python; beyond, use an insertion heuristic
@@ -66,6 +65,9 @@ class _Problem:
     start_s: float
     objective: str
     wait_weight: float = 0.0  # "ride" objective only: β of ride + β · wait
+    # the same matrices as arrays, for the compiled DP (the lists serve the Python arithmetic of _advance)
+    travel_array: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), compare=False, repr=False)
+    dist_array: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), compare=False, repr=False)
 
 
 def _flag_list(values: Sequence[bool] | None, n: int, what: str) -> list[bool]:
@@ -114,8 +116,9 @@ def _problem(
             "pass objective='ride' or wait_weight=0"
         )
     board, finished = _check_flags(on_board, done, n, capacity)
+    travel = dist / speed
     return _Problem(
-        travel_s=(dist / speed).tolist(),
+        travel_s=travel.tolist(),
         dist_m=dist.tolist(),
         release_s=release,
         active=tuple(i for i in range(n) if not finished[i]),
@@ -124,6 +127,8 @@ def _problem(
         start_s=start,
         objective=objective,
         wait_weight=beta,
+        travel_array=travel,
+        dist_array=np.ascontiguousarray(dist),
     )
 
 
@@ -222,10 +227,10 @@ def _dp(pb: _Problem) -> tuple[int, ...]:
     active = np.array(pb.active, dtype=np.int64)
     board = np.array([i in pb.on_board for i in pb.active], dtype=np.bool_)
     t, ride, dist, seq = _dp_labels(
-        np.array(pb.travel_s), np.array(pb.dist_m), np.array(pb.release_s), active, board, pb.capacity,
+        pb.travel_array, pb.dist_array, np.array(pb.release_s), active, board, pb.capacity,
         pb.start_s, OBJECTIVES.index(pb.objective), pb.wait_weight, _GAP,
     )  # fmt: skip
-    finals = [(float(t[i]), float(ride[i]), float(dist[i]), tuple(int(v) for v in seq[i])) for i in range(len(t))]
+    finals = zip(t.tolist(), ride.tolist(), dist.tolist(), map(tuple, seq.tolist()), strict=True)
     best = min(finals, key=lambda lab: _key(pb, *lab))
     return best[3]
 
@@ -233,77 +238,95 @@ def _dp(pb: _Problem) -> tuple[int, ...]:
 @njit(cache=True)
 def _dp_labels(
     travel: np.ndarray, dist_m: np.ndarray, release: np.ndarray, active: np.ndarray, board: np.ndarray,
-    capacity: int, start_s: float, objective: int, beta: float, gap: float,
+    capacity: int, start_s: float, objective: int, beta: float, gap: float, bucket_room: int = 4,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The exact DP over (passenger statuses, last stop) with labels (time, ride cost, distance, node sequence),
     layer by layer, a label dropped when another of its bucket dominates it (:func:`_label_dominates`), in the order the
     Python version visited them (states in first-reached order, moves by passenger, labels in bucket order), so
-    the same labels survive. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D]."""
+    the same labels survive. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D].
+
+    Plain arrays throughout (a state's statuses are a row, its bucket a row of label ids): a state is found by its
+    (statuses, last stop) code in one table for all layers (a layer's codes differ from every other layer's, their
+    digits summing to the stops served), since typed dicts and lists cost more than the DP itself on the 1–4
+    passenger problems a dispatcher solves by the hundred per batch. ``bucket_room``: the labels a bucket's row
+    holds before the layer's rows are widened (a test sets 1 to take that path often)."""
     num = len(active)
-    status0 = board.astype(np.int64)  # 1: on board, 0: to pick up
+    status0 = board.astype(np.int64)
     depth = 2 * num - int(status0.sum())  # stops still to serve
     pow3 = 3 ** np.arange(num)
+    width = 2 * num + 1  # last stop of a state: 0, or 1 + 2k (pick-up of active passenger k), 2 + 2k (its drop-off)
+    where = np.full(3**num * width, -1, np.int64)  # (status code, last stop) -> the state's index in its layer
     # label store (grows): time, ride, distance, sequence
     lt, lr, ld = np.empty(64), np.empty(64), np.empty(64)
     lseq = np.zeros((64, max(depth, 1)), np.int64)
     used = 1
     lt[0], lr[0], ld[0] = start_s, 0.0, 0.0
-    # a layer: its states in first-reached order (status digits, last node) and each state's bucket (label ids)
-    st_status = [status0.copy()]
-    st_last = [0]
-    buckets = [[0]]
+    # a layer: its states in first-reached order (status rows, last node) and each state's bucket (label ids)
+    st_status = status0.reshape(1, num).copy()
+    st_last = np.zeros(1, np.int64)
+    st_bucket = np.zeros((1, bucket_room), np.int64)  # rows widen when a bucket outgrows them
+    st_count = np.ones(1, np.int64)
     for level in range(depth):
-        index = Dict.empty(key_type=types.int64, value_type=types.int64)
-        n_status: list[np.ndarray] = [np.empty(0, np.int64) for _ in range(0)]
-        n_last: list[int] = [0 for _ in range(0)]
-        n_buckets: list[list[int]] = [[0 for _ in range(0)] for _ in range(0)]
-        for si in range(len(st_status)):
-            status, last, labels = st_status[si], st_last[si], buckets[si]
-            free = capacity - int((status == 1).sum())
-            code = int((status * pow3).sum())
+        room = len(st_last) * num  # at most one new state per (state, passenger)
+        n_status = np.empty((room, num), np.int64)
+        n_last = np.empty(room, np.int64)
+        n_bucket = np.empty((room, st_bucket.shape[1]), np.int64)
+        n_count = np.zeros(room, np.int64)
+        states = 0
+        for si in range(len(st_last)):
+            last = st_last[si]
+            free = capacity
+            code = 0
             for k in range(num):
-                node = _next_node(status[k], free, active[k])
+                free -= st_status[si, k] == 1
+                code += st_status[si, k] * pow3[k]
+            for k in range(num):
+                node = _next_node(st_status[si, k], free, active[k])
                 if node < 0:
                     continue
-                key = (code + pow3[k]) * (2 * len(release) + 1) + node  # (the new status, node)
-                if key in index:
-                    b = index[key]
-                else:
-                    b = len(n_status)
-                    index[key] = b
-                    new_status = status.copy()
-                    new_status[k] += 1
-                    n_status.append(new_status)
-                    n_last.append(node)
-                    n_buckets.append([0 for _ in range(0)])
-                for a in labels:
+                key = (code + pow3[k]) * width + 1 + 2 * k + st_status[si, k]  # (the new statuses, this stop)
+                b = where[key]
+                if b < 0:
+                    b = states
+                    where[key] = b
+                    n_status[b] = st_status[si]
+                    n_status[b, k] += 1
+                    n_last[b] = node
+                    states += 1
+                for j in range(st_count[si]):
+                    a = st_bucket[si, j]
                     if used == len(lt):  # grow the store
                         lt, lr, ld, lseq = _grown(lt, lr, ld, lseq, used)
                     lt[used], lr[used], ld[used] = _advanced(lt[a], lr[a], ld[a], last, node, travel, dist_m, release,
                                                              beta)  # fmt: skip
                     lseq[used, :level] = lseq[a, :level]
                     lseq[used, level] = node
-                    kept = _with_label(n_buckets[b], used, lt, lr, ld, lseq, level + 1, objective, gap)
-                    if len(kept):  # the new label survived: the bucket is now ``kept``
-                        n_buckets[b] = kept
+                    count = _with_label(n_bucket[b], n_count[b], used, lt, lr, ld, lseq, level + 1, objective, gap)
+                    if count:  # the new label survived: the bucket now holds ``count`` labels, itself the last
+                        if count > n_bucket.shape[1]:  # a full row that dropped none: widen, then append
+                            wider = np.empty((room, 2 * n_bucket.shape[1]), np.int64)
+                            wider[:, : n_bucket.shape[1]] = n_bucket
+                            n_bucket = wider
+                            n_bucket[b, count - 1] = used
+                        n_count[b] = count
                         used += 1
-        st_status, st_last, buckets = n_status, n_last, n_buckets
-    return _final_labels(buckets, lt, lr, ld, lseq, depth)
+        st_status, st_last = n_status[:states], n_last[:states]
+        st_bucket, st_count = n_bucket[:states], n_count[:states]
+    return _final_labels(st_bucket, st_count, lt, lr, ld, lseq, depth)
 
 
 @njit(cache=True)
 def _final_labels(
-    buckets: list[list[int]], lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, depth: int
+    bucket: np.ndarray, count: np.ndarray, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, depth: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The labels of the last layer's buckets, in order, as arrays."""
-    count = 0
-    for bucket in buckets:
-        count += len(bucket)
-    out_t, out_r, out_d = np.empty(count), np.empty(count), np.empty(count)
-    out_seq = np.zeros((count, depth), np.int64)
+    total = int(count.sum())
+    out_t, out_r, out_d = np.empty(total), np.empty(total), np.empty(total)
+    out_seq = np.zeros((total, depth), np.int64)
     i = 0
-    for bucket in buckets:
-        for a in bucket:
+    for s in range(len(count)):
+        for j in range(count[s]):
+            a = bucket[s, j]
             out_t[i], out_r[i], out_d[i] = lt[a], lr[a], ld[a]
             out_seq[i] = lseq[a, :depth]
             i += 1
@@ -354,20 +377,24 @@ def _grown(
 
 @njit(cache=True)
 def _with_label(
-    bucket: list[int], new: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray, length: int,
-    objective: int, gap: float,
-) -> list[int]:  # fmt: skip
-    """Empty if a label of the bucket dominates ``new``, else the bucket without the labels ``new`` dominates,
-    ``new`` appended (the survivors in their order)."""
-    kept = [0 for _ in range(0)]
-    for other in bucket:
-        if _label_dominates(other, new, lt, lr, ld, lseq, length, objective, gap):
-            return kept
-    for other in bucket:
-        if not _label_dominates(new, other, lt, lr, ld, lseq, length, objective, gap):
-            kept.append(other)
-    kept.append(new)
-    return kept
+    bucket: np.ndarray, count: int, new: int, lt: np.ndarray, lr: np.ndarray, ld: np.ndarray, lseq: np.ndarray,
+    length: int, objective: int, gap: float,
+) -> int:  # fmt: skip
+    """0 if a label of the bucket's first ``count`` dominates ``new`` (the bucket untouched); else the number of
+    labels it holds once those ``new`` dominates are dropped (the survivors kept in their order) and ``new``
+    appended; they are written to ``bucket`` in place where it has room for them all."""
+    for q in range(count):
+        if _label_dominates(bucket[q], new, lt, lr, ld, lseq, length, objective, gap):
+            return 0
+    kept = 0
+    for q in range(count):
+        if not _label_dominates(new, bucket[q], lt, lr, ld, lseq, length, objective, gap):
+            if kept < len(bucket):
+                bucket[kept] = bucket[q]
+            kept += 1
+    if kept < len(bucket):
+        bucket[kept] = new
+    return kept + 1
 
 
 @njit(cache=True)
