@@ -87,10 +87,9 @@ class _Checked:
         return actions
 
 
-@pytest.mark.parametrize("name", [*DISPATCHERS, "insertion_heuristic"])
-@pytest.mark.parametrize("seats", [1, 2])
-def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
-    cfg = small_config(
+def _walled_scene(seats: int):
+    """Two taxis, four requests (two at step 0, then steps 4 and 9) on a map walled across but for a gap."""
+    return small_config(
         WALLED_10,
         seats=seats,
         time_limit_steps=200,
@@ -102,6 +101,12 @@ def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, sea
             Request(9, (550.0, 650.0), (350.0, 150.0)),
         ),
     )
+
+
+@pytest.mark.parametrize("name", [*DISPATCHERS, "insertion_heuristic"])
+@pytest.mark.parametrize("seats", [1, 2])
+def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
+    cfg = _walled_scene(seats)
     # insertion with exact_limit=1: every schedule beyond one passenger is repaired by cheapest insertion
     inner = InsertionPolicy(exact_limit=1) if name == "insertion_heuristic" else make_policy(name, num_taxis=2)
     policy = _Checked(inner)
@@ -121,17 +126,7 @@ def test_stop_matrix_is_the_feasible_path_distance_at_every_step():
     """The dispatcher looks its distances up once a decision (taxi to stop) or once an episode (stop to stop); at
     every step of an episode on a walled map each entry equals the field look-up of that pair alone, so no stale
     position or column is ever read."""
-    cfg = small_config(
-        WALLED_10,
-        time_limit_steps=200,
-        starts_m=((150.0, 150.0), (150.0, 850.0)),
-        requests=(
-            Request(0, (350.0, 250.0), (250.0, 850.0)),
-            Request(0, (450.0, 150.0), (150.0, 750.0)),
-            Request(4, (750.0, 850.0), (850.0, 150.0)),
-            Request(9, (550.0, 650.0), (350.0, 150.0)),
-        ),
-    )
+    cfg = _walled_scene(seats=2)
     policy = BatchAssignmentPolicy()
     checked = 0
 
