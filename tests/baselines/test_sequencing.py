@@ -9,7 +9,16 @@ import pytest
 
 from pdp_oracle import brute_force_pdp, count_feasible_sequences, every_plan
 
-from uamfleet.baselines.sequencing import _GAP, OBJECTIVES, Plan, _dp_labels, _problem, solve_in_order, solve_pdp
+from uamfleet.baselines.sequencing import (
+    _GAP,
+    OBJECTIVES,
+    Plan,
+    _dp_labels,
+    _problem,
+    solve_in_order,
+    solve_pdp,
+    solve_pdp_each,
+)
 
 
 def _line(xs: list[float]) -> np.ndarray:
@@ -106,6 +115,44 @@ def test_dp_labels_the_same_when_buckets_widen(objective: str) -> None:
         widened += len(roomy[0]) > 1
         assert solve_pdp(**kwargs, objective=objective) == brute_force_pdp(**kwargs, objective=objective)
     assert widened > 0  # some final layer held more than one label: the widening was taken
+
+
+@pytest.mark.parametrize("objective", ["makespan", "distance", "ride"])
+def test_solve_pdp_each_is_solve_pdp_of_each_subset_alone(objective: str) -> None:
+    """Every subset solved over the whole matrix gives, to the bit, the plan of its own sub-matrix (ties made on
+    purpose on half the draws; riders in every subset)."""
+    rng = np.random.default_rng(31 + len(objective))
+    for trial in range(20):
+        n = int(rng.integers(1, 7))
+        kwargs = _random_instance(rng, n, ties=trial % 2 == 1)
+        kwargs.pop("done")
+        riding = [i for i in range(n) if kwargs["on_board"][i]]
+        others = [i for i in range(n) if i not in riding]
+        subsets = [sorted(riding + [int(i) for i in rng.choice(others, size=m, replace=False)])
+                   for m in rng.integers(0, min(len(others), 4) + 1, size=5)]  # fmt: skip
+        beta = 1.0 if objective == "ride" and trial % 4 == 0 else 0.0
+        plans = solve_pdp_each(**kwargs, subsets=subsets, objective=objective, wait_weight=beta)
+        for subset, plan in zip(subsets, plans, strict=True):
+            nodes = [0] + [1 + 2 * i + d for i in subset for d in (0, 1)]
+            alone = solve_pdp(
+                kwargs["dist_m"][np.ix_(nodes, nodes)],
+                kwargs["speed_mps"],
+                [kwargs["release_s"][i] for i in subset],
+                capacity=kwargs["capacity"],
+                on_board=[kwargs["on_board"][i] for i in subset],
+                start_s=kwargs["start_s"],
+                objective=objective,
+                wait_weight=beta,
+            )
+            assert plan == alone, (subset, kwargs)
+
+
+def test_solve_pdp_each_refuses_unordered_subsets_and_riders_left_out() -> None:
+    dist = _line([0, 1, 2, 3, 4])
+    with pytest.raises(ValueError, match="ascending"):
+        solve_pdp_each(dist, 1.0, [0.0, 0.0], [[1, 0]])
+    with pytest.raises(ValueError, match="on board"):
+        solve_pdp_each(dist, 1.0, [0.0, 0.0], [[1]], on_board=[True, False])
 
 
 @pytest.mark.parametrize("wait_weight", [0.5, 1.0, 4.0])

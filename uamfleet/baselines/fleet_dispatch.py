@@ -47,7 +47,7 @@ import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from uamfleet.baselines.assignment_value import LinearValue, SiteRemoteness
-from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp
+from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
 from uamfleet.config import heading_vectors
 from uamfleet.env.generator import flyable_sites
 from uamfleet.env.motion import passes_within
@@ -311,31 +311,54 @@ class ScheduleFleetPolicy:
     def sequence(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
         """The exact best schedule (least :meth:`plan_cost`) of the taxi's passengers on board plus ``waiting``
         (solved once a decision: a batch asks for a taxi's riders alone twice)."""
+        return self.sequence_each(taxi, [waiting])[0]
+
+    def sequence_each(self, taxi: int, waiting_sets: Sequence[Sequence[int]]) -> list[tuple[Plan, list[Stop]]]:
+        """:meth:`sequence` of each set of waiting passengers. The sets not yet solved this decision are solved over
+        one stop matrix of the taxi's riders and all their passengers (:func:`solve_pdp_each`: the same plans as
+        one matrix per set), all but a set not in ascending order, which is solved alone as it is given."""
         assert self.env is not None
         self._this_decision()
-        key = (taxi, tuple(waiting))
-        if key not in self._sequenced:
-            self._sequenced[key] = self._solved(taxi, waiting)
-        plan, route = self._sequenced[key]
-        return plan, list(route)
+        keys = [(taxi, tuple(int(p) for p in waiting)) for waiting in waiting_sets]
+        todo = [key for key in dict.fromkeys(keys) if key not in self._sequenced]
+        if todo:
+            riding = self.on_board(taxi)
+            joined: list[tuple[tuple[int, tuple[int, ...]], list[int]]] = []
+            alone: list[tuple[tuple[int, tuple[int, ...]], list[int]]] = []
+            for key in todo:
+                new = [p for p in key[1] if p not in riding]
+                (joined if all(a < b for a, b in itertools.pairwise(new)) else alone).append((key, new))
+            for key, new in alone:
+                (self._sequenced[key],) = self._solved(taxi, riding, riding + new, [list(range(len(riding + new)))])
+            if joined:
+                extra = sorted({p for _, new in joined for p in new})
+                index = {p: len(riding) + i for i, p in enumerate(extra)}
+                subsets = [list(range(len(riding))) + [index[p] for p in new] for _, new in joined]
+                solved = self._solved(taxi, riding, riding + extra, subsets)
+                self._sequenced.update(zip([key for key, _ in joined], solved, strict=True))
+        return [(plan, list(route)) for plan, route in (self._sequenced[key] for key in keys)]
 
-    def _solved(self, taxi: int, waiting: Sequence[int]) -> tuple[Plan, list[Stop]]:
+    def _solved(
+        self, taxi: int, riding: list[int], passengers: list[int], subsets: list[list[int]]
+    ) -> list[tuple[Plan, list[Stop]]]:
+        """(plan, route) of each subset of ``passengers`` (riders first; indices, ascending, each with every rider)."""
         assert self.env is not None
-        riding = self.on_board(taxi)
-        passengers = riding + [p for p in waiting if p not in riding]
-        now = float(self.env.state.t[0]) * self.env.cfg.slot_s
-        plan = solve_pdp(
+        plans = solve_pdp_each(
             self.stop_matrix(taxi, passengers),
             self.speed_mps,
             [float(self.release_s[p]) for p in passengers],
+            subsets,
             capacity=self.seats,
             on_board=[p in riding for p in passengers],
-            start_s=now,
+            start_s=float(self.env.state.t[0]) * self.env.cfg.slot_s,
             objective="ride",
             wait_weight=self.wait_weight,
         )
-        self.stats["dp_solves"] += 1
-        return plan, [(passengers[i], kind) for i, kind in plan.stops]
+        self.stats["dp_solves"] += len(subsets)
+        return [
+            (plan, [(passengers[subset[i]], kind) for i, kind in plan.stops])
+            for subset, plan in zip(subsets, plans, strict=True)
+        ]
 
     def schedule_cost(self, taxi: int, route: Sequence[Stop]) -> float:
         """:meth:`plan_cost` (s) of the taxi's passengers when it flies ``route`` from now."""
@@ -577,25 +600,25 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         routes: list[list[Stop]] = []
         free_s: list[float] = []
         for a in range(self.num_taxis):
-            base = self.plan_cost(self.sequence(a, [])[0]) if self.on_board(a) else 0.0
-            singles = []
-            for r in waiting:
-                plan, route = self.sequence(a, [r])
-                singles.append((self.plan_cost(plan) - base, r, route, plan.finish_s))
+            riding = self.on_board(a)
+            alone_and_singles = self.sequence_each(a, [[]] * bool(riding) + [[r] for r in waiting])
+            base = self.plan_cost(alone_and_singles.pop(0)[0]) if riding else 0.0
+            singles = [
+                (self.plan_cost(plan) - base, r, route, plan.finish_s)
+                for r, (plan, route) in zip(waiting, alone_and_singles, strict=True)
+            ]
             singles.sort(key=lambda single: single[:2])
             chosen = sorted(r for _, r, _, _ in singles[: self.max_requests_per_taxi])
             for cost, r, route, finish_s in singles[: self.max_requests_per_taxi]:
                 trips.append((a, (r,), cost))
                 routes.append(route)
                 free_s.append(finish_s)
-            for size in range(2, self.seats + 1):
-                if len(self.on_board(a)) + size > self.exact_limit:
-                    break
-                for combo in itertools.combinations(chosen, size):
-                    plan, route = self.sequence(a, list(combo))
-                    trips.append((a, combo, self.plan_cost(plan) - base))
-                    routes.append(route)
-                    free_s.append(plan.finish_s)
+            sizes = [size for size in range(2, self.seats + 1) if len(riding) + size <= self.exact_limit]
+            combos = [combo for size in sizes for combo in itertools.combinations(chosen, size)]
+            for combo, (plan, route) in zip(combos, self.sequence_each(a, combos), strict=True):
+                trips.append((a, combo, self.plan_cost(plan) - base))
+                routes.append(route)
+                free_s.append(plan.finish_s)
         return trips, routes, free_s
 
     def now_s(self) -> float:

@@ -25,6 +25,7 @@ independent check. Measured on random instances: N = 6 in ~0.01-0.03 s, N = 8 in
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -221,11 +222,13 @@ def _plan(pb: _Problem, nodes: Sequence[int]) -> Plan:
 
 
 # -- exact DP -----------------------------------------------------------------------------------------------
-def _dp(pb: _Problem) -> tuple[int, ...]:
+def _dp(pb: _Problem, serve: tuple[int, ...] | None = None) -> tuple[int, ...]:
     """The best node sequence: the labels of every final (status, last stop) from :func:`_dp_labels` (compiled),
-    the least by :func:`_key` (in Python: its rounding is Python's)."""
-    active = np.array(pb.active, dtype=np.int64)
-    board = np.array([i in pb.on_board for i in pb.active], dtype=np.bool_)
+    the least by :func:`_key` (in Python: its rounding is Python's). ``serve``: the passengers to serve, if not
+    ``pb.active`` (the others left out as if done)."""
+    serve = pb.active if serve is None else serve
+    active = np.array(serve, dtype=np.int64)
+    board = np.array([i in pb.on_board for i in serve], dtype=np.bool_)
     t, ride, dist, seq = _dp_labels(
         pb.travel_array, pb.dist_array, np.array(pb.release_s), active, board, pb.capacity,
         pb.start_s, OBJECTIVES.index(pb.objective), pb.wait_weight, _GAP,
@@ -449,6 +452,50 @@ def solve_pdp(
             f"{MAX_PASSENGERS}; use an insertion heuristic for larger instances"
         )
     return _plan(pb, _dp(pb))
+
+
+def solve_pdp_each(
+    dist_m: np.ndarray,
+    speed_mps: float,
+    release_s: Sequence[float],
+    subsets: Sequence[Sequence[int]],
+    *,
+    capacity: int = 2,
+    on_board: Sequence[bool] | None = None,
+    start_s: float = 0.0,
+    objective: str = "makespan",
+    wait_weight: float = 0.0,
+) -> list[Plan]:
+    """:func:`solve_pdp` of each subset of the passengers as a problem of its own, the input checked once: plan k is
+    ``solve_pdp(dist_m[np.ix_(nodes, nodes)], speed_mps, [release_s[i] for i in subsets[k]], ...)`` with node 0 and
+    the subset's stops as ``nodes``, so its passenger i is ``subsets[k][i]`` (a dispatcher costs every candidate trip
+    of a taxi over one matrix).
+
+    Each subset lists passengers in ascending order and holds every ``on_board`` one; the DP then visits the same
+    states, moves and labels as on the subset's own matrix (its node numbers map in order), so the plans are the
+    same to the bit."""
+    pb = _problem(dist_m, speed_mps, release_s, capacity, on_board, None, start_s, objective, wait_weight)
+    n = len(pb.release_s)
+    plans = []
+    for k, subset in enumerate(subsets):
+        members = tuple(int(i) for i in subset)
+        if any(b <= a for a, b in itertools.pairwise(members)) or not all(0 <= i < n for i in members):
+            raise ValueError(f"subsets[{k}] = {list(subset)} must list passengers of [0, {n - 1}] in ascending order")
+        if not pb.on_board <= set(members):
+            raise ValueError(
+                f"subsets[{k}] = {list(subset)} leaves out passengers on board {sorted(pb.on_board - set(members))}; "
+                "a passenger on board must be served in every subset"
+            )
+        if len(members) > MAX_PASSENGERS:
+            raise ValueError(f"subsets[{k}] has {len(members)} passengers, more than solve_pdp's {MAX_PASSENGERS}")
+        # the whole matrix with the others left out, as solve_pdp's ``done``: its plan in the whole's numbering
+        whole = _plan(pb, _dp(pb, members))
+        within = {i: j for j, i in enumerate(members)}
+        stops = tuple((within[i], kind) for i, kind in whole.stops)
+        nodes = tuple(_node(i, kind) for i, kind in stops)
+        plans.append(Plan(stops, nodes, whole.arrival_s, whole.finish_s, whole.distance_m, whole.total_ride_s,
+                          whole.total_wait_s))  # fmt: skip
+    return plans
 
 
 def solve_in_order(
