@@ -75,3 +75,7 @@ if [ "$EXTRAS" = dev,rt ]; then
     bash scripts/rt.sh --llvm
 fi
 .venv/bin/python -m pip install --quiet -e ".[$EXTRAS]"
+# Compile the numba kernels into their on-disk cache now (about a minute once per machine and source change), so
+# the first command after set-up starts at once: the first training iteration came 40 s after the command on a
+# fresh machine, 16 s with the kernels cached (docs/benchmarks.md, "first training on a fresh machine").
+.venv/bin/python -m uamfleet.warmup
