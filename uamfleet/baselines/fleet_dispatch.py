@@ -217,7 +217,7 @@ class ScheduleFleetPolicy:
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
         # feasible-path distances, looked up once: [2P, 2P] stop to stop (row 2p: origin of p, 2p + 1: its
         # destination; a column is filled the first time its stop is asked for), and [A, 2P] from each taxi's
-        # position to every active stop, for one decision (_taxi_key: the step and the positions it holds for)
+        # position to every active stop, for one decision (_taxi_key: the state it holds for, _this_decision)
         self._every_stop = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
         self._stop_to_stop = np.zeros((len(self._every_stop), len(self._every_stop)))
         self._column_known = np.zeros(len(self._every_stop), dtype=bool)

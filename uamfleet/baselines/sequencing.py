@@ -254,7 +254,7 @@ def _dp_labels(
     passenger problems a dispatcher solves by the hundred per batch. ``bucket_room``: the labels a bucket's row
     holds before the layer's rows are widened (a test sets 1 to take that path often)."""
     num = len(active)
-    status0 = board.astype(np.int64)
+    status0 = board.astype(np.int64)  # 1: on board, 0: to pick up
     depth = 2 * num - int(status0.sum())  # stops still to serve
     pow3 = 3 ** np.arange(num)
     width = 2 * num + 1  # last stop of a state: 0, or 1 + 2k (pick-up of active passenger k), 2 + 2k (its drop-off)
