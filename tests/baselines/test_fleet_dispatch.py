@@ -162,7 +162,8 @@ def _brute_force(trips, num_taxis, penalty):
         served = [r for k in chosen for r in trips[k][1]]
         if len(served) != len(set(served)):
             continue
-        value = sum(trips[k][2] for k in chosen) - penalty * len(served)
+        price = penalty if isinstance(penalty, dict) else dict.fromkeys(served, penalty)
+        value = sum(trips[k][2] for k in chosen) - sum(price[r] for r in served)
         if value < best[0]:
             best = (value, sorted(chosen))
     return best
@@ -185,6 +186,38 @@ def test_milp_assignment_equals_brute_force_enumeration():
         assert sum(trips[k][2] for k in chosen) - penalty * sum(len(trips[k][1]) for k in chosen) == pytest.approx(
             value
         )
+
+
+def test_milp_assignment_with_a_price_per_request_equals_brute_force_enumeration():
+    rng = np.random.default_rng(17)
+    for _ in range(20):
+        num_taxis, requests = 3, [2, 5, 7, 8]
+        trips = [
+            (a, combo, float(rng.uniform(0, 100) * size))
+            for a in range(num_taxis)
+            for size in (1, 2)
+            for combo in itertools.combinations(requests, size)
+            if rng.random() < 0.7
+        ]
+        prices = [float(p) for p in rng.uniform(0, 150, size=len(requests))]  # some below a trip's cost
+        chosen = assign_trips(trips, num_taxis, requests, prices)
+        _, expected = _brute_force(trips, num_taxis, dict(zip(requests, prices, strict=True)))
+        assert sorted(chosen) == expected
+
+
+def test_a_price_per_unassigned_request_adds_the_wait_so_far():
+    """``+price=<s>``: a request left out costs the price plus (1 + β) times its wait so far (worked by hand)."""
+    env = _env(
+        starts_m=((150.0, 150.0), (850.0, 850.0)),
+        requests=(Request(0, (850.0, 550.0), (350.0, 550.0)), Request(2, (450.0, 150.0), (450.0, 650.0))),
+    )
+    policy = make_policy("batch_assignment+wait=2+price=500", num_taxis=2)
+    assert policy.unassigned_price_s == 500.0
+    policy.reset(env)
+    for _ in range(4):  # to step 4: the requests have waited 12 s and 6 s (3 s steps)
+        env.step(policy(None))
+    assert policy.unassigned_prices([0, 1]) == [500.0 + 3 * 12.0, 500.0 + 3 * 6.0]
+    assert make_policy("batch_assignment", num_taxis=2).unassigned_prices([0, 1]) == 1e6
 
 
 def test_dispatchers_are_registered_and_validate_their_settings():
@@ -230,13 +263,15 @@ def test_options_in_a_dispatcher_name() -> None:
     assert split_options("batch_assignment") == ("batch_assignment", DispatchOptions())
     assert split_options("batch_assignment_value:100+wait=1.5") == ("batch_assignment_value:100", DispatchOptions(1.5))
     assert split_options("batch_assignment+release+wait=2") == ("batch_assignment", DispatchOptions(2.0, True))
+    assert split_options("batch_assignment+price=800") == ("batch_assignment", DispatchOptions(0.0, False, 800.0))
     assert make_policy("insertion+wait=2", num_taxis=2).wait_weight == 2.0
     policy = make_policy("batch_assignment_value:100+wait=1+release", num_taxis=2)
     assert (policy.wait_weight, policy.assign_on_release, policy.value.price_s) == (1.0, True, 100.0)
     plain = make_policy("batch_assignment", num_taxis=2)
     assert (plain.wait_weight, plain.assign_on_release, plain.value) == (0.0, False, None)
     bad = ["batch_assignment+wait=-1", "insertion+wait=x", "greedy+wait=1", "cptsp+wait=1", "insertion+release",
-           "batch_assignment+fast", "batch_assignment+wait"]  # fmt: skip
+           "batch_assignment+fast", "batch_assignment+wait", "insertion+price=100", "batch_assignment+price=-1",
+           "batch_assignment+price=inf"]  # fmt: skip
     for name in bad:
         with pytest.raises(ValueError, match=r"\+|option"):
             make_policy(name, num_taxis=2)

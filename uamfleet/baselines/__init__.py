@@ -53,6 +53,8 @@ def make_policy(
         )
     if options.assign_on_release and not batch:
         raise ValueError(f"--policy {name!r}: +release times a batch assignment; {base!r} assigns each release.")
+    if options.unassigned_price_s is not None and not batch:
+        raise ValueError(f"--policy {name!r}: +price prices what a batch assignment leaves out; {base!r} has none.")
     if name == "greedy":
         return GreedyFleetPolicy()
     if base == "insertion":
@@ -62,6 +64,7 @@ def make_policy(
             value=value_for_dispatcher(base, assignment_value, arrival_window_s),
             wait_weight=options.wait_weight,
             assign_on_release=options.assign_on_release,
+            unassigned_price_s=options.unassigned_price_s,
         )
     if name == "random":
         return RandomPolicy(seed=seed)

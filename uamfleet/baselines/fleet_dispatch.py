@@ -61,8 +61,9 @@ Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
 OPTION_SEPARATOR = "+"
 """A schedule dispatcher's name may carry options after ``+``: ``+wait=<β>`` (its schedules cost the total ride
 time plus β times the total wait, pick-up − request) and, for the batch assignments, ``+release`` (it also
-re-assigns at every step where a request is released, not only every ``period`` steps); e.g. ``insertion+wait=1``,
-``batch_assignment_value:100+wait=1+release``."""
+re-assigns at every step where a request is released, not only every ``period`` steps) and ``+price=<s>`` (a
+request a batch leaves unassigned costs ``<s>`` plus (1 + β) times the wait it has had, instead of ``penalty_s``);
+e.g. ``insertion+wait=1``, ``batch_assignment_value:100+wait=1+release``."""
 
 
 @dataclass(frozen=True)
@@ -71,32 +72,40 @@ class DispatchOptions:
 
     wait_weight: float = 0.0
     assign_on_release: bool = False
+    unassigned_price_s: float | None = None  # None: every request left unassigned costs penalty_s (10^6 s)
+
+
+def _option_number(name: str, base: str, option: str, text: str, meaning: str, example: str) -> float:
+    """The finite number >= 0 of ``+option=<text>`` in the dispatcher ``name``; ValueError naming the fix else."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(
+            f"dispatcher {name!r}: +{option}=<…> takes a finite number >= 0 ({meaning}), e.g. {base}+{option}={example}"
+        )
+    return value
 
 
 def split_options(name: str) -> tuple[str, DispatchOptions]:
     """(dispatcher name without its options, the options) of a name such as ``batch_assignment+wait=1+release``."""
     base, *given = name.split(OPTION_SEPARATOR)
-    wait_weight, on_release = 0.0, False
+    wait_weight, on_release, price = 0.0, False, None
     for option in given:
         key, sep, text = option.partition("=")
         if key == "wait" and sep:
-            try:
-                wait_weight = float(text)
-            except ValueError:
-                wait_weight = float("nan")
-            if not (np.isfinite(wait_weight) and wait_weight >= 0):
-                raise ValueError(
-                    f"dispatcher {name!r}: +wait=<β> takes a finite number >= 0 (seconds of ride time per second "
-                    f"of wait), e.g. {base}+wait=1"
-                )
+            wait_weight = _option_number(name, base, key, text, "seconds of ride time per second of wait", "1")
+        elif key == "price" and sep:
+            price = _option_number(name, base, key, text, "seconds per request left unassigned", "1000")
         elif option == "release":
             on_release = True
         else:
             raise ValueError(
                 f"dispatcher {name!r}: unknown option {option!r}; a schedule dispatcher takes +wait=<β> and, the "
-                f"batch assignments, +release (e.g. {base}+wait=1+release)"
+                f"batch assignments, +release and +price=<s> (e.g. {base}+wait=1+release)"
             )
-    return base, DispatchOptions(wait_weight, on_release)
+    return base, DispatchOptions(wait_weight, on_release, price)
 
 
 # The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
@@ -511,17 +520,25 @@ class InsertionPolicy(ScheduleFleetPolicy):
 
 
 def assign_trips(
-    trips: Sequence[tuple[int, tuple[int, ...], float]], num_taxis: int, requests: Sequence[int], penalty_s: float
+    trips: Sequence[tuple[int, tuple[int, ...], float]],
+    num_taxis: int,
+    requests: Sequence[int],
+    penalty_s: float | Sequence[float],
 ) -> list[int]:
     """Indices of the chosen ``(taxi, requests of the trip, cost)`` rows: the exact optimum of
 
-    minimise sum(cost · x) + penalty_s · (requests not served), each taxi at most one trip, each request at most
-    once, x binary; solved by ``scipy.optimize.milp`` (HiGHS). Ties are HiGHS's choice."""
+    minimise sum(cost · x) + sum of penalty_s over the requests not served, each taxi at most one trip, each
+    request at most once, x binary; solved by ``scipy.optimize.milp`` (HiGHS). Ties are HiGHS's choice.
+    ``penalty_s``: one price for every request, or one per request in the order of ``requests``."""
     if not trips:
         return []
     index = {r: i for i, r in enumerate(requests)}
     n = len(trips)
-    c = np.array([cost - penalty_s * len(reqs) for _, reqs, cost in trips])
+    if np.ndim(penalty_s) == 0:  # one price: the same sums as before per-request prices existed
+        c = np.array([cost - float(penalty_s) * len(reqs) for _, reqs, cost in trips])  # type: ignore[arg-type]
+    else:
+        price = {r: float(p) for r, p in zip(requests, penalty_s, strict=True)}  # type: ignore[arg-type]
+        c = np.array([cost - sum(price[r] for r in reqs) for _, reqs, cost in trips])
     a_taxi = np.zeros((num_taxis, n))
     a_req = np.zeros((len(requests), n))
     for k, (taxi, reqs, _) in enumerate(trips):
@@ -552,8 +569,16 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         value: LinearValue | None = None,
         wait_weight: float = 0.0,
         assign_on_release: bool = False,
+        unassigned_price_s: float | None = None,
     ) -> None:
         super().__init__(exact_limit, wait_weight)
+        # a request left unassigned costs this plus (1 + β) × the wait it has had (None: penalty_s for every one).
+        # A trip's cost counts its riders' waits since their release, so a flat finite price would make a request
+        # dearer to serve at every batch it waits and, once dearer than the price, never served; the wait so far
+        # added to its price leaves only what is still to come to be weighed.
+        if unassigned_price_s is not None and not (np.isfinite(unassigned_price_s) and unassigned_price_s >= 0):
+            raise ValueError(f"unassigned_price_s={unassigned_price_s} must be a finite number of seconds >= 0")
+        self.unassigned_price_s = unassigned_price_s
         # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
         self.assign_on_release = assign_on_release
         self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
@@ -587,9 +612,17 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
             return
         if self.value is not None:
             trips = self.valued_trips(trips, routes, free_s, idle_free_s)
-        for k in assign_trips(trips, self.num_taxis, waiting, self.penalty_s):
+        for k in assign_trips(trips, self.num_taxis, waiting, self.unassigned_prices(waiting)):
             self.routes[trips[k][0]] = routes[k]
         self.stats["assignments"] += 1
+
+    def unassigned_prices(self, waiting: list[int]) -> float | list[float]:
+        """What leaving each of the ``waiting`` requests out of this batch costs: ``penalty_s``, or with
+        ``unassigned_price_s`` that price plus (1 + β) times the request's wait so far."""
+        if self.unassigned_price_s is None:
+            return self.penalty_s
+        now, held = self.now_s(), 1.0 + self.wait_weight
+        return [self.unassigned_price_s + held * (now - float(self.release_s[r])) for r in waiting]
 
     def candidate_trips(
         self, waiting: list[int]

@@ -150,7 +150,10 @@ def fly_recorded(
     env.reset(seed=0)
     shared_fields(env, warm=True)
     policy = RecordingAssignment(
-        value=value, wait_weight=options.wait_weight, assign_on_release=options.assign_on_release
+        value=value,
+        wait_weight=options.wait_weight,
+        assign_on_release=options.assign_on_release,
+        unassigned_price_s=options.unassigned_price_s,
     )
     run_episode(env, policy, seed=0)
     return policy
@@ -186,7 +189,8 @@ def main(args: Args) -> dict[str, Any]:
         "episodes": len(parts), "states": len(returns), "mean_return": float(returns.mean()),
         "rmse": residual, "r2": 1.0 - residual**2 / max(float(returns.var()), 1e-12), "ridge": args.ridge,
 "flown_with": str(args.fly_value) if args.fly_value else None,
-        "options": {"wait_weight": options.wait_weight, "assign_on_release": options.assign_on_release},
+        "options": {"wait_weight": options.wait_weight, "assign_on_release": options.assign_on_release}
+        | ({} if options.unassigned_price_s is None else {"unassigned_price_s": options.unassigned_price_s}),
         "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }  # fmt: skip
