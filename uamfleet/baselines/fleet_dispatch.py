@@ -20,7 +20,9 @@ total wait (pick-up − request), sequenced exactly for that cost: a service tha
   feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
   taxi's schedule cost when the trip joins its passengers on board. An integer programme
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
-  at most once, with ``penalty_s`` for every request left unassigned (it waits for the next batch). With
+  at most once, with ``penalty_s`` (10⁶ s) for every request left unassigned (it waits for the next batch), or
+  with ``unassigned_price_s`` (``+price=<s>``) that price plus (1 + β) times the request's wait so far, so that a
+  taxi is not made to take a second request whatever it costs. With
   ``assign_on_release`` (``+release``) a batch also runs at every step where a request is released. With a learned
   ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
   by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
