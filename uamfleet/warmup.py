@@ -6,7 +6,7 @@ Every kernel is compiled on its first call and cached beside its source (``cache
 took about 24 s of the first training command (the generalist's recipe logged its first iteration 40 s after the
 command; 16 s with the kernels cached). This flies a few steps of what the commands fly, on the packaged Berlin map
 at one threshold, with random allowed actions: a lone taxi with the stop features and the two-move heading
-look-ahead, under both feasibility rules and with path shaping (the generalist and the shipped policy); the fleet
+look-ahead under both feasibility rules (the shipped policy), and the generalist's preset with path shaping; the fleet
 preset (shield, hover action, claims, passenger window); and a schedule dispatcher, whose exact sequencing and
 stop look-ups have kernels of their own. The distance tables it needs are computed here and not written to the
 table cache (``UAMFLEET_CACHE``): a command fills those it needs (about 2 s per map and threshold).
@@ -36,7 +36,7 @@ def _fly(cfg: EnvConfig, steps: int, seed: int) -> None:
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     for _ in range(steps):
-        mask = env.state.action_mask  # [E, A, actions]
+        mask = env.state.action_mask  # [E, A, headings]
         scores = np.where(mask, rng.random(mask.shape), -1.0)
         env.step(scores.argmax(-1))
 
@@ -57,7 +57,7 @@ def warm(steps: int = WARM_STEPS, verbose: bool = True) -> float:
 def _warm(steps: int, verbose: bool) -> float:
     start = time.perf_counter()
     from uamfleet.baselines import make_policy
-    from uamfleet.config import Request, make_config
+    from uamfleet.config import Request, RewardConfig, make_config
     from uamfleet.env.vector_env import VectorEnv
     from uamfleet.instances import make_fleet_instance, make_instance
 
@@ -70,7 +70,8 @@ def _warm(steps: int, verbose: bool) -> float:
         lookahead = single.replace(stop_features=True, heading_lookahead=True, lookahead_depth=2)
         _fly(lookahead, steps, seed=0)
         _fly(lookahead.replace(lookahead_depth=1), steps, seed=1)
-    _fly(make_config("berlin_instances", sinr_min_db=single.sinr_min_db), steps, seed=2)
+    shaped = RewardConfig(shaping=1.0)  # the potential along feasible paths (train --shaping)
+    _fly(make_config("berlin_instances", sinr_min_db=single.sinr_min_db, reward=shaped), steps, seed=2)
     done("one taxi, stop features and look-ahead")
     fleet = make_config("berlin_fleet", sinr_min_db=single.sinr_min_db, num_taxis=4)
     _fly(fleet, steps, seed=3)
