@@ -3,10 +3,11 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_decision_time.py --family berlin --setting 8x96 --count 2
     .venv/bin/python benchmarks/run_against.py <other checkout> benchmarks/fleet_decision_time.py ...   # paired
 
-Flies the dispatcher (default: the chosen loaded one, ``batch_assignment_value:100+wait=1+release``) under the
-shield with the hover action, as the fleet benchmark does (every stop's field computed first, untimed), and prints
-each episode's TD and median wait (so a run against another checkout shows the flights are the same) and the
-thread CPU per taxi and step of the dispatcher's calls: mean, p50, p95, max, and the share of steps over 1 ms.
+Flies the dispatcher (default: ``batch_assignment_value:100+wait=1+release``, the loaded one the committed timings
+were measured with; the chosen one now adds ``+price=1000``, docs/results.md) under the shield with the hover
+action, as the fleet benchmark does (every stop's field computed first, untimed), and prints each episode's TD and
+median wait (so a run against another checkout shows the flights are the same) and the thread CPU per taxi and step
+of the dispatcher's calls: mean, p50, p95, max, and the share of steps over 1 ms.
 """
 
 from __future__ import annotations
