@@ -242,10 +242,6 @@ class ScheduleFleetPolicy:
         self.stats = {"dp_solves": 0, "heuristic_inserts": 0, "assignments": 0}
 
     # ---- distances -------------------------------------------------------------------------------------
-    def _point(self, stop: Stop) -> np.ndarray:
-        p, kind = stop
-        return self.origin_m[p] if kind == PICKUP else self.dest_m[p]
-
     def _this_decision(self) -> None:
         """Forget the per-decision look-ups (taxi to stop distances, who rides with whom) once the env has changed:
         they hold while the step, the taxis' positions and the passengers' statuses and carriers are those they

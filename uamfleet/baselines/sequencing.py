@@ -244,9 +244,9 @@ def _dp_labels(
     capacity: int, start_s: float, objective: int, beta: float, gap: float, bucket_room: int = 4,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The exact DP over (passenger statuses, last stop) with labels (time, ride cost, distance, node sequence),
-    layer by layer, a label dropped when another of its bucket dominates it (:func:`_label_dominates`), in the order the
-    Python version visited them (states in first-reached order, moves by passenger, labels in bucket order), so
-    the same labels survive. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D].
+    layer by layer, a label dropped when another of its bucket dominates it (:func:`_label_dominates`), in one fixed
+    order (states in first-reached order, moves by passenger, labels in bucket order), on which the surviving
+    labels depend. Returns the final layer's labels: time [L], ride [L], distance [L], sequences [L, D].
 
     Plain arrays throughout (a state's statuses are a row, its bucket a row of label ids): a state is found by its
     (statuses, last stop) code in one table for all layers (a layer's codes differ from every other layer's, their
