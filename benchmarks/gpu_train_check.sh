@@ -5,7 +5,9 @@
 #       GPU, trained, then resumed;
 #   (b) training throughput with 1 GPU rank;
 #   (c) 1 GPU + 8 CPU env ranks: 8 torchrun-style ranks, each stepping 1/8 of the envs on its own core with a
-#       replica of the network on the one GPU (gloo all-reduce through host memory); then 8 CPU-only ranks.
+#       replica of the network on the one GPU (gloo all-reduce through host memory); then 8 CPU-only ranks;
+#   (d) the generalist's recipe (issue 24's GPU target) on 1 GPU rank at 1,020 envs, its envs stepped in process
+#       or by 7 or 14 env worker processes (--env-workers), the network alone on the GPU.
 # The table of (b) and (c) is printed at the end and everything is written to $OUT (default out/gpu_check).
 #
 # The GPU image has torch with CUDA but not gymnasium, pettingzoo or tyro, and may not reach PyPI. Put their
@@ -70,6 +72,16 @@ if [ "$CUDA" = 1 ]; then
   bench --device cuda --variants de_msfea --ranks 1 8 | tee "$OUT/throughput_gpu.txt" || FAILED=1
   bench --device cuda --variants full --ranks 1 | grep -E "^full " | tee -a "$OUT/throughput_gpu.txt" || FAILED=1
 fi
+if [ "$CUDA" = 1 ]; then
+  # issue 24's GPU recipe: the generalist's recipe, one GPU rank, 1,020 envs stepped in process or by env workers
+  # (uamfleet.env.workers: one process per core, observations through shared memory); 8 x 128 = 1,020 envs x 64
+  # steps per update (65,280 agent-steps), 4 epochs x 8 minibatches
+  step "(d) the generalist's recipe on 1 GPU rank, 1,020 envs x 64 steps, env workers 0 / 7 / 14"
+  timeout 420 "$PY" benchmarks/train_throughput.py --iterations 3 --device cuda --scenario berlin_instances \
+    --thresholds -7 -6 -5 -4 -3 --action-head stops --variants de_msfea --d-model 32 --num-envs 1020 --num-steps 64 \
+    --num-minibatches 8 --time-limit-steps 600 --shaping 0 --env-workers 0 7 14 | tee "$OUT/throughput_workers.txt" \
+    || FAILED=1
+fi
 step "(c') 8 CPU-only ranks (gloo), same problem"
 bench --device cpu --variants de_msfea --ranks 8 | tee "$OUT/throughput_cpu8.txt" || FAILED=1
 
@@ -78,6 +90,8 @@ echo "256 envs x 64 steps per update, 4 epochs x 16 minibatches; last column: de
 echo "variant    ranks  agent-steps/s  updates/s  speed-up  CPU s/update/rank  CPU speed-up"
 grep -h -E "^(le|de|de_msfea|full) " "$OUT"/throughput_gpu.txt 2>/dev/null | sed 's/$/   cuda/'
 grep -h -E "^(le|de|de_msfea|full) " "$OUT"/throughput_cpu8.txt 2>/dev/null | sed 's/$/   cpu/'
+echo "the generalist's recipe, 1,020 envs x 64 steps, 1 GPU rank; the third column: env workers"
+grep -h -E "^de_msfea " "$OUT"/throughput_workers.txt 2>/dev/null
 rm -rf "$RUNS"
 echo "done in $((SECONDS - START)) s; $([ $FAILED = 0 ] && echo 'all checks passed' || echo 'SOME CHECKS FAILED')"
 exit $FAILED

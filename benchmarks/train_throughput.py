@@ -63,9 +63,12 @@ class Args:
     shaping: float = 50.0
     """0 turns the shaping term, and its path look-ups in every step, off"""
     heading_lookahead: bool = False
+    env_workers: tuple[int, ...] = (0,)
+    """env worker processes per rank to compare (TrainArgs.env_workers; 0: the envs in process); each setting is a
+    row. "CPU s/update/rank" counts the trainer's process only, not its workers"""
 
 
-def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None) -> TrainArgs:
+def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None, env_workers: int = 0) -> TrainArgs:
     return TrainArgs(
         scenario=args.scenario, num_taxis=taxis, action_head=args.action_head,  # type: ignore[arg-type]
         stop_prior=args.stop_prior, d_model=args.d_model, variant=variant,  # type: ignore[arg-type]
@@ -74,25 +77,28 @@ def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None
         progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
         thresholds=args.thresholds, num_minibatches=args.num_minibatches, update_epochs=args.update_epochs,
         time_limit_steps=args.time_limit_steps, shaping=args.shaping, heading_lookahead=args.heading_lookahead,
+        env_workers=env_workers,
     )  # fmt: skip
 
 
-def _rank_main(args: Args, variant: str, run_dir: str, taxis: int | None = None) -> None:
+def _rank_main(args: Args, variant: str, run_dir: str, taxis: int | None = None, env_workers: int = 0) -> None:
     """Train; record each iteration's end as (wall s, this process's CPU s) in run_dir/times_rank<r>.json."""
     times: list[tuple[float, float]] = []
-    result = train(train_args(args, variant, Path(run_dir), taxis),
+    result = train(train_args(args, variant, Path(run_dir), taxis, env_workers),
                    on_iteration=lambda _, __: times.append((time.perf_counter(), time.process_time())))  # fmt: skip
     (Path(run_dir) / f"times_rank{result.rank}.json").write_text(json.dumps(times))
 
 
-def measure(args: Args, variant: str, ranks: int, taxis: int | None = None) -> tuple[float, float, float]:
+def measure(
+    args: Args, variant: str, ranks: int, taxis: int | None = None, env_workers: int = 0
+) -> tuple[float, float, float]:
     """(agent-steps/s, updates/s, CPU s per update of the busiest rank), between the end of the first and of the
     last iteration."""
     with tempfile.TemporaryDirectory() as tmp:
         if ranks == 1:
-            _rank_main(args, variant, tmp, taxis)
+            _rank_main(args, variant, tmp, taxis, env_workers)
         else:
-            launch_local(ranks, _rank_main, args, variant, tmp, taxis)
+            launch_local(ranks, _rank_main, args, variant, tmp, taxis, env_workers)
         times = [json.loads((Path(tmp) / f"times_rank{r}.json").read_text()) for r in range(ranks)]
     updates = len(times[0]) - 1
     seconds = times[0][-1][0] - times[0][0][0]
@@ -113,18 +119,19 @@ def main(args: Args) -> list[dict[str, float | str | int]]:
     if args.taxis:
         return by_fleet_size(args)
     print(header(args, "(global)", "per rank"))
-    print(f"{'variant':<10} {'ranks':>5} {'agent-steps/s':>14} {'updates/s':>10} {'speed-up':>9} "
-          f"{'CPU s/update/rank':>18} {'CPU speed-up':>13}")  # fmt: skip
+    print(f"{'variant':<10} {'ranks':>5} {'env workers':>11} {'agent-steps/s':>14} {'updates/s':>10} "
+          f"{'speed-up':>9} {'CPU s/update/rank':>18} {'CPU speed-up':>13}")  # fmt: skip
     table: list[dict[str, float | str | int]] = []
     for variant in args.variants:
         base = base_cpu = None
         for ranks in args.ranks:
-            sps, ups, cpu = measure(args, variant, ranks)
-            base, base_cpu = base or sps, base_cpu or cpu
-            table.append({"variant": variant, "ranks": ranks, "sps": sps, "ups": ups, "speedup": sps / base,
-                          "cpu_per_update": cpu, "cpu_speedup": base_cpu / cpu})  # fmt: skip
-            print(f"{variant:<10} {ranks:>5} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x {cpu:>18.2f} "
-                  f"{base_cpu / cpu:>12.2f}x", flush=True)  # fmt: skip
+            for workers in args.env_workers:
+                sps, ups, cpu = measure(args, variant, ranks, env_workers=workers)
+                base, base_cpu = base or sps, base_cpu or cpu
+                table.append({"variant": variant, "ranks": ranks, "env_workers": workers, "sps": sps, "ups": ups,
+                              "speedup": sps / base, "cpu_per_update": cpu, "cpu_speedup": base_cpu / cpu})  # fmt: skip
+                print(f"{variant:<10} {ranks:>5} {workers:>11} {sps:>14,.0f} {ups:>10.3f} {sps / base:>8.2f}x "
+                      f"{cpu:>18.2f} {base_cpu / cpu:>12.2f}x", flush=True)  # fmt: skip
     return table
 
 

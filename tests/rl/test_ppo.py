@@ -71,7 +71,7 @@ def test_ppo_loss_clips_the_ratio():
 
 from conftest import small_config  # noqa: E402
 
-from uamfleet.config import Request  # noqa: E402
+from uamfleet.config import ConfigError, Request  # noqa: E402
 from uamfleet.rl.trainer import TrainArgs, load_policy, make_env_config, train  # noqa: E402
 from uamfleet.rollout import fly  # noqa: E402
 
@@ -96,6 +96,15 @@ def test_two_short_cpu_runs_with_one_seed_give_identical_losses(tmp_path):
     assert a.losses and a.losses == b.losses
     c = train(tiny_args(tmp_path / "c", seed=4), env_config=ONE_PASSENGER)
     assert c.losses != a.losses
+
+
+def test_env_workers_train_the_same_run_as_the_envs_in_process(tmp_path):
+    # The envs stepped by two worker processes (uamfleet.env.workers) are the same envs: the same losses, bit for bit.
+    here = train(tiny_args(tmp_path / "here", seed=3, device="cpu"), env_config=ONE_PASSENGER)
+    workers = train(tiny_args(tmp_path / "workers", seed=3, device="cpu", env_workers=2), env_config=ONE_PASSENGER)
+    assert here.losses and here.losses == workers.losses
+    with pytest.raises(ConfigError, match=r"--env-workers=5 exceeds this rank's 4 envs"):
+        train(tiny_args(tmp_path / "five", env_workers=5), env_config=ONE_PASSENGER)
 
 
 def test_checkpoint_resume_continues_the_run(tmp_path):

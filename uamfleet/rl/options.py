@@ -208,6 +208,9 @@ class TrainArgs:
     gloo)"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
+    env_workers: int = 0
+    """step this rank's training envs in this many worker processes, one core each (uamfleet.env.workers), while
+    the network runs here (e.g. on a GPU); 0: in this process. Same episodes either way; configs of one fleet size"""
     progress: bool = True
     """show a progress bar"""
     tensorboard: bool = True
@@ -355,7 +358,7 @@ class TrainArgs:
 _COUNTS: dict[str, int] = {
     "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
     "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
-    "checkpoint_every": 1, "threads": 0, "eval_instances": 0,
+    "checkpoint_every": 1, "threads": 0, "eval_instances": 0, "env_workers": 0,
 }  # fmt: skip
 # (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
 _RANGES: dict[str, tuple[float, float | None, bool]] = {

@@ -32,6 +32,8 @@ from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
 from uamfleet.env.layout import Layout, layout_differences, layout_shapes, layout_to_dict, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.workers import ShardedVectorEnv
+from uamfleet.env.world import World
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.paths import table_for
@@ -109,7 +111,7 @@ class Run:
     folder: Path
     cfg: EnvConfig
     eval_cfg: EnvConfig
-    venv: VectorEnv | MixtureVectorEnv
+    venv: VectorEnv | MixtureVectorEnv | ShardedVectorEnv
     obs_shapes: dict[str, tuple[int, ...]]
     layout: Layout  # the spec of one taxi's observation (stored in checkpoints)
     buffer: RolloutBuffer
@@ -195,7 +197,7 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     )  # fmt: skip
 
 
-def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv) -> int:
+def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv | ShardedVectorEnv) -> int:
     """Size of the centralised critic's state (the env state and a one-hot of the taxi); 0 without one.
     ConfigError for a mixture whose settings' global states differ in size (no one critic input holds them)."""
     if not args.centralised_critic:
@@ -212,14 +214,30 @@ def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv) -> in
 
 def _training_envs(
     args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local_envs: int
-) -> VectorEnv | MixtureVectorEnv:
+) -> VectorEnv | MixtureVectorEnv | ShardedVectorEnv:
     """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``; tables
     filled if asked."""
     cfgs = training_configs(args, cfg, base)
+    fill = args.fill_tables and cfg.stop_features and cfg.requests is None
+    if args.env_workers:
+        if args.env_workers > local_envs:
+            raise ConfigError(
+                f"--env-workers={args.env_workers} exceeds this rank's {local_envs} envs; give at most {local_envs} "
+                "(each worker steps one env at least), or more --num-envs."
+            )
+        if fill:  # filled once here and saved to the disk cache, which every worker then loads
+            for c in cfgs:
+                table_for(World(c)).fill()
+        try:
+            return ShardedVectorEnv(
+                cfgs, local_envs, args.env_workers, global_state=args.centralised_critic, fill_tables=fill
+            )
+        except ValueError as err:
+            raise ConfigError(f"--env-workers={args.env_workers}: {err}") from err
     venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
     if args.thresholds or args.fleet_mixture:
         venv = MixtureVectorEnv(cfgs, num_envs=local_envs)
-    if args.fill_tables and cfg.stop_features and cfg.requests is None:
+    if fill:
         # Random demand reads every row of the distance tables within minutes: compute them now (or load them
         # from the disk cache), instead of a few Dijkstras in every new episode's reset.
         for env in venv.envs if isinstance(venv, MixtureVectorEnv) else [venv]:
@@ -685,6 +703,15 @@ def train(
         torch.set_num_threads(args.threads)
     ranks, device = Ranks.from_env(args.device, args.backend)
     run = make_run(with_init_architecture(args), env_config, ranks, device)
+    try:
+        return _train(run, on_iteration)
+    finally:
+        if isinstance(run.venv, ShardedVectorEnv):
+            run.venv.close()  # the env workers stop with the training, however it ends
+
+
+def _train(run: Run, on_iteration: Callable[[int, torch.nn.Module], None] | None) -> TrainResult:
+    args, ranks = run.args, run.ranks
     learner = make_learner(run)
     counters, rows = start(run, learner)
     if args.init_from is not None and counters.iteration == 0 and ranks.is_main:
