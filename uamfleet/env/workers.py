@@ -235,12 +235,16 @@ class ShardedVectorEnv:
     The same interface as the mixture for a trainer: ``reset(seed)``, ``step(actions)`` (obs, rewards [E, A],
     terminated [E], truncated [E], info with ``reward_terms`` and, where an episode ended, ``_episode``,
     ``episode`` and ``final_obs`` for every env; read them where ``_episode``), ``global_state()`` (with
-    ``global_state=True``), ``set_reward_weights``, the spaces, ``num_envs``, ``num_taxis``, ``taxi_mask``. The
-    arrays it returns are copies: the shared buffers are written again at the next step."""
+    ``global_state=True``), ``set_reward_weights``, the spaces, ``num_envs``, ``num_taxis``, ``taxi_mask``.
+
+    ``copy=True`` (as Gymnasium's ``AsyncVectorEnv``): the observations returned are copies. ``copy=False`` returns
+    views of the shared buffers, which the next ``step`` or ``reset`` overwrites: for a caller that copies them on
+    before it steps again (the trainer writes them into its rollout buffer), it saves a copy of every observation
+    (at 1,020 envs, a third of a step's time on the 2-core machine; docs/benchmarks.md)."""
 
     def __init__(
         self, cfgs: Sequence[EnvConfig], num_envs: int, workers: int, global_state: bool = False,
-        fill_tables: bool = False,
+        fill_tables: bool = False, copy: bool = True,
     ) -> None:  # fmt: skip
         cfgs = list(cfgs)
         if not cfgs:
@@ -261,7 +265,7 @@ class ShardedVectorEnv:
                 "mixture's padding of smaller fleets runs in one process): train mixed fleet sizes without "
                 "env workers."
             )
-        self.cfgs, self.cfg = cfgs, cfgs[0]
+        self.cfgs, self.cfg, self.copy = cfgs, cfgs[0], bool(copy)
         self.num_envs, self.num_workers = int(num_envs), int(workers)
         self.pieces = shard_pieces(cfgs, self.num_envs, self.num_workers)
         self._closed = True
@@ -365,7 +369,8 @@ class ShardedVectorEnv:
 
     # ---- plumbing --------------------------------------------------------------------------------------------
     def _observation(self, prefix: str) -> dict[str, np.ndarray]:
-        return {key: self._shared.arrays[prefix + key].copy() for key in self._keys}
+        arrays = self._shared.arrays
+        return {key: arrays[prefix + key].copy() if self.copy else arrays[prefix + key] for key in self._keys}
 
     def _call_all(self, command: str, argument: Any) -> list[Any]:
         if self._closed:

@@ -229,8 +229,9 @@ def _training_envs(
             for c in cfgs:
                 table_for(World(c)).fill()
         try:
+            # copy=False: collect_rollout copies each observation into its buffer before it steps again
             return ShardedVectorEnv(
-                cfgs, local_envs, args.env_workers, global_state=args.centralised_critic, fill_tables=fill
+                cfgs, local_envs, args.env_workers, global_state=args.centralised_critic, fill_tables=fill, copy=False
             )
         except ValueError as err:
             raise ConfigError(f"--env-workers={args.env_workers}: {err}") from err
