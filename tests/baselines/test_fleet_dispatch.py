@@ -21,6 +21,7 @@ from uamfleet.baselines.fleet_dispatch import (
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rollout import run_episode
+from uamfleet.types import DELIVERED
 
 OPEN_10 = "\n".join(["." * 10] * 10)
 WALLED_10 = "\n".join([".........."] * 4 + ["#######..."] + [".........."] * 5)  # a wall with a gap in the east
@@ -218,6 +219,27 @@ def test_a_price_per_unassigned_request_adds_the_wait_so_far():
         env.step(policy(None))
     assert policy.unassigned_prices([0, 1]) == [500.0 + 3 * 12.0, 500.0 + 3 * 6.0]
     assert make_policy("batch_assignment", num_taxis=2).unassigned_prices([0, 1]) == 1e6
+    guarded = make_policy("batch_assignment+wait=2+price=500+guard=10", num_taxis=2)
+    guarded.reset(env)  # the same clock (step 4): request 0 has waited 12 s > 10 s, request 1 6 s
+    assert guarded.unassigned_prices([0, 1]) == [1e6, 500.0 + 3 * 6.0]
+
+
+def test_a_price_can_starve_a_request_and_the_guard_serves_it():
+    """Price 0 and β = 0: leaving the request out costs its wait so far, serving it that wait plus the rest of its
+    trip, so every batch leaves it out and the taxi never turns to it. Past a guard of 30 s its price is 10^6 s
+    again: it is taken, and delivered."""
+    requests = (Request(0, (850.0, 850.0), (150.0, 850.0)),)
+    delivered = {}
+    for name in ("batch_assignment+price=0", "batch_assignment+price=0+guard=30"):
+        env = _env(starts_m=((150.0, 150.0),), requests=requests)
+        policy = make_policy(name, num_taxis=1)
+        policy.reset(env)
+        for _ in range(60):
+            if env.step(policy(None))[2][0]:  # everyone delivered: the episode is over
+                break
+        delivered[name] = int(env.state.pax_status[0, 0]) == DELIVERED
+        assert policy.stats["assignments"] > 0
+    assert delivered == {"batch_assignment+price=0": False, "batch_assignment+price=0+guard=30": True}
 
 
 def test_dispatchers_are_registered_and_validate_their_settings():
@@ -264,6 +286,8 @@ def test_options_in_a_dispatcher_name() -> None:
     assert split_options("batch_assignment_value:100+wait=1.5") == ("batch_assignment_value:100", DispatchOptions(1.5))
     assert split_options("batch_assignment+release+wait=2") == ("batch_assignment", DispatchOptions(2.0, True))
     assert split_options("batch_assignment+price=800") == ("batch_assignment", DispatchOptions(0.0, False, 800.0))
+    guarded = split_options("batch_assignment+price=800+guard=600")
+    assert guarded == ("batch_assignment", DispatchOptions(0.0, False, 800.0, 600.0))
     assert make_policy("insertion+wait=2", num_taxis=2).wait_weight == 2.0
     policy = make_policy("batch_assignment_value:100+wait=1+release", num_taxis=2)
     assert (policy.wait_weight, policy.assign_on_release, policy.value.price_s) == (1.0, True, 100.0)
@@ -271,7 +295,8 @@ def test_options_in_a_dispatcher_name() -> None:
     assert (plain.wait_weight, plain.assign_on_release, plain.value) == (0.0, False, None)
     bad = ["batch_assignment+wait=-1", "insertion+wait=x", "greedy+wait=1", "cptsp+wait=1", "insertion+release",
            "batch_assignment+fast", "batch_assignment+wait", "insertion+price=100", "batch_assignment+price=-1",
-           "batch_assignment+price=inf"]  # fmt: skip
+           "batch_assignment+price=inf", "batch_assignment+guard=600", "batch_assignment+price=9+guard=-1",
+           "insertion+price=9+guard=9"]  # fmt: skip
     for name in bad:
         with pytest.raises(ValueError, match=r"\+|option"):
             make_policy(name, num_taxis=2)

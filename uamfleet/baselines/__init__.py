@@ -65,6 +65,7 @@ def make_policy(
             wait_weight=options.wait_weight,
             assign_on_release=options.assign_on_release,
             unassigned_price_s=options.unassigned_price_s,
+            unassigned_guard_s=options.unassigned_guard_s,
         )
     if name == "random":
         return RandomPolicy(seed=seed)

@@ -22,7 +22,8 @@ total wait (pick-up − request), sequenced exactly for that cost: a service tha
   (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
   at most once, with ``penalty_s`` (10⁶ s) for every request left unassigned (it waits for the next batch), or
   with ``unassigned_price_s`` (``+price=<s>``) that price plus (1 + β) times the request's wait so far, so that a
-  taxi is not made to take a second request whatever it costs. With
+  taxi is not made to take a second request whatever it costs; ``unassigned_guard_s`` (``+guard=<s>``) prices a
+  request that has waited longer than it at ``penalty_s`` again, so no price starves it. With
   ``assign_on_release`` (``+release``) a batch also runs at every step where a request is released. With a learned
   ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
   by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
@@ -42,6 +43,7 @@ taxi whose route no longer fits its seats because it boarded a planned passenger
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -64,8 +66,9 @@ OPTION_SEPARATOR = "+"
 """A schedule dispatcher's name may carry options after ``+``: ``+wait=<β>`` (its schedules cost the total ride
 time plus β times the total wait, pick-up − request) and, for the batch assignments, ``+release`` (it also
 re-assigns at every step where a request is released, not only every ``period`` steps) and ``+price=<s>`` (a
-request a batch leaves unassigned costs ``<s>`` plus (1 + β) times the wait it has had, instead of ``penalty_s``);
-e.g. ``insertion+wait=1``, ``batch_assignment_value:100+wait=1+release``."""
+request a batch leaves unassigned costs ``<s>`` plus (1 + β) times the wait it has had, instead of ``penalty_s``)
+with ``+guard=<s>`` (past ``<s>`` of wait, ``penalty_s`` again); e.g. ``insertion+wait=1``,
+``batch_assignment_value:100+wait=1+release``, ``batch_assignment_value:100+wait=1+release+price=1000+guard=600``."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +78,7 @@ class DispatchOptions:
     wait_weight: float = 0.0
     assign_on_release: bool = False
     unassigned_price_s: float | None = None  # None: every request left unassigned costs penalty_s (10^6 s)
+    unassigned_guard_s: float | None = None  # with a price: a request that has waited longer costs penalty_s again
 
 
 def _option_number(name: str, base: str, option: str, text: str, meaning: str, example: str) -> float:
@@ -93,21 +97,28 @@ def _option_number(name: str, base: str, option: str, text: str, meaning: str, e
 def split_options(name: str) -> tuple[str, DispatchOptions]:
     """(dispatcher name without its options, the options) of a name such as ``batch_assignment+wait=1+release``."""
     base, *given = name.split(OPTION_SEPARATOR)
-    wait_weight, on_release, price = 0.0, False, None
+    wait_weight, on_release, price, guard = 0.0, False, None, None
     for option in given:
         key, sep, text = option.partition("=")
         if key == "wait" and sep:
             wait_weight = _option_number(name, base, key, text, "seconds of ride time per second of wait", "1")
         elif key == "price" and sep:
             price = _option_number(name, base, key, text, "seconds per request left unassigned", "1000")
+        elif key == "guard" and sep:
+            guard = _option_number(name, base, key, text, "seconds of wait after which a request must be taken", "600")
         elif option == "release":
             on_release = True
         else:
             raise ValueError(
                 f"dispatcher {name!r}: unknown option {option!r}; a schedule dispatcher takes +wait=<β> and, the "
-                f"batch assignments, +release and +price=<s> (e.g. {base}+wait=1+release)"
+                f"batch assignments, +release, +price=<s> and +guard=<s> (e.g. {base}+wait=1+release)"
             )
-    return base, DispatchOptions(wait_weight, on_release, price)
+    if guard is not None and price is None:
+        raise ValueError(
+            f"dispatcher {name!r}: +guard=<s> bounds how long +price=<s> may leave a request out; give both (e.g. "
+            f"{base}+price=1000+guard=600), or neither (every request left out then costs 10^6 s)"
+        )
+    return base, DispatchOptions(wait_weight, on_release, price, guard)
 
 
 # The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
@@ -568,6 +579,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         wait_weight: float = 0.0,
         assign_on_release: bool = False,
         unassigned_price_s: float | None = None,
+        unassigned_guard_s: float | None = None,
     ) -> None:
         super().__init__(exact_limit, wait_weight)
         # a request left unassigned costs this plus (1 + β) × the wait it has had (None: penalty_s for every one).
@@ -577,6 +589,16 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         if unassigned_price_s is not None and not (np.isfinite(unassigned_price_s) and unassigned_price_s >= 0):
             raise ValueError(f"unassigned_price_s={unassigned_price_s} must be a finite number of seconds >= 0")
         self.unassigned_price_s = unassigned_price_s
+        # A finite price can still starve a request whose remaining trip costs more than the price at every batch
+        # (a long ride, few taxis); past the guard its price is penalty_s again, so it is taken as soon as a taxi can.
+        if unassigned_guard_s is not None and (
+            unassigned_price_s is None or not (np.isfinite(unassigned_guard_s) and unassigned_guard_s >= 0)
+        ):
+            raise ValueError(
+                f"unassigned_guard_s={unassigned_guard_s} must be a finite number of seconds >= 0, and it bounds "
+                "unassigned_price_s: give both"
+            )
+        self.unassigned_guard_s = unassigned_guard_s
         # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
         self.assign_on_release = assign_on_release
         self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
@@ -616,11 +638,14 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
 
     def unassigned_prices(self, waiting: list[int]) -> float | list[float]:
         """What leaving each of the ``waiting`` requests out of this batch costs: ``penalty_s``, or with
-        ``unassigned_price_s`` that price plus (1 + β) times the request's wait so far."""
+        ``unassigned_price_s`` that price plus (1 + β) times the request's wait so far; past ``unassigned_guard_s``
+        of wait, ``penalty_s`` again."""
         if self.unassigned_price_s is None:
             return self.penalty_s
         now, held = self.now_s(), 1.0 + self.wait_weight
-        return [self.unassigned_price_s + held * (now - float(self.release_s[r])) for r in waiting]
+        guard = math.inf if self.unassigned_guard_s is None else self.unassigned_guard_s
+        waits = [now - float(self.release_s[r]) for r in waiting]
+        return [self.penalty_s if wait > guard else self.unassigned_price_s + held * wait for wait in waits]
 
     def candidate_trips(
         self, waiting: list[int]

@@ -154,6 +154,7 @@ def fly_recorded(
         wait_weight=options.wait_weight,
         assign_on_release=options.assign_on_release,
         unassigned_price_s=options.unassigned_price_s,
+        unassigned_guard_s=options.unassigned_guard_s,
     )
     run_episode(env, policy, seed=0)
     return policy
@@ -190,7 +191,8 @@ def main(args: Args) -> dict[str, Any]:
         "rmse": residual, "r2": 1.0 - residual**2 / max(float(returns.var()), 1e-12), "ridge": args.ridge,
 "flown_with": str(args.fly_value) if args.fly_value else None,
         "options": {"wait_weight": options.wait_weight, "assign_on_release": options.assign_on_release}
-        | ({} if options.unassigned_price_s is None else {"unassigned_price_s": options.unassigned_price_s}),
+        | ({} if options.unassigned_price_s is None else {"unassigned_price_s": options.unassigned_price_s})
+        | ({} if options.unassigned_guard_s is None else {"unassigned_guard_s": options.unassigned_guard_s}),
         "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }  # fmt: skip
