@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import multiprocessing
+
 import numpy as np
 import pytest
 import torch
@@ -103,6 +105,7 @@ def test_env_workers_train_the_same_run_as_the_envs_in_process(tmp_path):
     here = train(tiny_args(tmp_path / "here", seed=3, device="cpu"), env_config=ONE_PASSENGER)
     workers = train(tiny_args(tmp_path / "workers", seed=3, device="cpu", env_workers=2), env_config=ONE_PASSENGER)
     assert here.losses and here.losses == workers.losses
+    assert not [p for p in multiprocessing.active_children() if p.name.startswith("uamfleet-env-worker")]  # none left
     with pytest.raises(ConfigError, match=r"--env-workers=5 exceeds this rank's 4 envs"):
         train(tiny_args(tmp_path / "five", env_workers=5), env_config=ONE_PASSENGER)
 
