@@ -32,6 +32,12 @@ OTHER_TAXI_FIELDS: tuple[str, ...] = ("others", "others_mask")
 only fields whose shape depends on the fleet size."""
 
 
+def group_sizes(num_groups: int, num_envs: int) -> list[int]:
+    """``num_envs`` envs split into ``num_groups`` contiguous groups as equal as possible, the first ones larger:
+    a mixture's envs per config (and the env workers' shares of a rank's envs, :mod:`uamfleet.env.workers`)."""
+    return [num_envs // num_groups + (g < num_envs % num_groups) for g in range(num_groups)]
+
+
 class MixtureVectorEnv:
     """``num_envs`` envs over ``cfgs`` (group g: envs ``bounds[g]:bounds[g + 1]``, sizes as equal as possible).
 
@@ -47,7 +53,7 @@ class MixtureVectorEnv:
             raise ValueError(
                 f"num_envs={num_envs!r} must be an integer >= the {len(cfgs)} configs (one env each at least)."
             )
-        sizes = [num_envs // len(cfgs) + (g < num_envs % len(cfgs)) for g in range(len(cfgs))]
+        sizes = group_sizes(len(cfgs), num_envs)
         self.envs = [VectorEnv(cfg, num_envs=n) for cfg, n in zip(cfgs, sizes, strict=True)]
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])
         largest = max(self.envs, key=lambda env: env.num_taxis)

@@ -39,6 +39,7 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
+from uamfleet.env.mixture import group_sizes
 
 
 @dataclass(frozen=True)
@@ -57,11 +58,6 @@ class _ArraySpec:
     block: str
     shape: tuple[int, ...]
     dtype: str
-
-
-def group_sizes(num_configs: int, num_envs: int) -> list[int]:
-    """The envs of each config, as :class:`~uamfleet.env.mixture.MixtureVectorEnv` splits them."""
-    return [num_envs // num_configs + (g < num_envs % num_configs) for g in range(num_configs)]
 
 
 def shard_pieces(cfgs: Sequence[EnvConfig], num_envs: int, workers: int) -> list[list[_Piece]]:
