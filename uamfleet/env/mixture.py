@@ -32,6 +32,19 @@ OTHER_TAXI_FIELDS: tuple[str, ...] = ("others", "others_mask")
 only fields whose shape depends on the fleet size."""
 
 
+def checked_configs(owner: str, cfgs: Sequence[EnvConfig], num_envs: int) -> list[EnvConfig]:
+    """``cfgs`` as a list, refused (ValueError naming the fix) when empty or when ``num_envs`` cannot give each of them
+    one env at least: the envs of a mixture, in process (``owner`` MixtureVectorEnv) or in workers."""
+    cfgs = list(cfgs)
+    if not cfgs:
+        raise ValueError(f"{owner} needs at least one EnvConfig.")
+    if int(num_envs) != num_envs or num_envs < len(cfgs):
+        raise ValueError(
+            f"num_envs={num_envs!r} must be an integer >= the {len(cfgs)} configs (one env each at least)."
+        )
+    return cfgs
+
+
 def group_sizes(num_groups: int, num_envs: int) -> list[int]:
     """``num_envs`` envs split into ``num_groups`` contiguous groups as equal as possible, the first ones larger:
     a mixture's envs per config (and the env workers' shares of a rank's envs, :mod:`uamfleet.env.workers`)."""
@@ -46,13 +59,7 @@ class MixtureVectorEnv:
     ``reset(seed)`` seeds global env e with ``seed + e`` as :class:`VectorEnv` does."""
 
     def __init__(self, cfgs: Sequence[EnvConfig], num_envs: int) -> None:
-        cfgs = list(cfgs)
-        if not cfgs:
-            raise ValueError("MixtureVectorEnv needs at least one EnvConfig.")
-        if int(num_envs) != num_envs or num_envs < len(cfgs):
-            raise ValueError(
-                f"num_envs={num_envs!r} must be an integer >= the {len(cfgs)} configs (one env each at least)."
-            )
+        cfgs = checked_configs("MixtureVectorEnv", cfgs, num_envs)
         sizes = group_sizes(len(cfgs), num_envs)
         self.envs = [VectorEnv(cfg, num_envs=n) for cfg, n in zip(cfgs, sizes, strict=True)]
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])

@@ -39,7 +39,7 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
-from uamfleet.env.mixture import group_sizes
+from uamfleet.env.mixture import checked_configs, group_sizes
 
 
 @dataclass(frozen=True)
@@ -231,7 +231,8 @@ class ShardedVectorEnv:
     The same interface as the mixture for a trainer: ``reset(seed)``, ``step(actions)`` (obs, rewards [E, A],
     terminated [E], truncated [E], info with ``reward_terms`` and, where an episode ended, ``_episode``,
     ``episode`` and ``final_obs`` for every env; read them where ``_episode``), ``global_state()`` (with
-    ``global_state=True``), ``set_reward_weights``, the spaces, ``num_envs``, ``num_taxis``, ``taxi_mask``.
+    ``global_state=True``), ``set_reward_weights``, the spaces, ``num_envs``, ``num_taxis`` (one fleet size: no
+    padded taxis, so no ``taxi_mask``).
 
     ``copy=True`` (as Gymnasium's ``AsyncVectorEnv``): the observations returned are copies. ``copy=False`` returns
     views of the shared buffers, which the next ``step`` or ``reset`` overwrites: for a caller that copies them on
@@ -242,13 +243,7 @@ class ShardedVectorEnv:
         self, cfgs: Sequence[EnvConfig], num_envs: int, workers: int, global_state: bool = False,
         fill_tables: bool = False, copy: bool = True,
     ) -> None:  # fmt: skip
-        cfgs = list(cfgs)
-        if not cfgs:
-            raise ValueError("ShardedVectorEnv needs at least one EnvConfig.")
-        if int(num_envs) != num_envs or num_envs < len(cfgs):
-            raise ValueError(
-                f"num_envs={num_envs!r} must be an integer >= the {len(cfgs)} configs (one env each at least)."
-            )
+        cfgs = checked_configs("ShardedVectorEnv", cfgs, num_envs)
         if int(workers) != workers or not 1 <= workers <= num_envs:
             raise ValueError(
                 f"workers={workers!r} must be an integer from 1 to num_envs={num_envs} (each worker steps at "
@@ -292,9 +287,6 @@ class ShardedVectorEnv:
         states = {None if d["state_space"] is None else d["state_space"].shape for d in described}
         self.state_space = described[0]["state_space"] if len(states) == 1 else None
         self.num_taxis = fleets[0]
-        self.taxis_per_env = np.full(self.num_envs, self.num_taxis)
-        self.taxi_mask = np.ones((self.num_envs, self.num_taxis), bool)
-        self.mixed_sizes = False
         if global_state and self.state_space is None:
             self.close()
             raise ValueError(

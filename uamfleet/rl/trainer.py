@@ -37,6 +37,7 @@ from uamfleet.env.world import World
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.paths import table_for
+from uamfleet.paths.distance_table import cache_dir
 from uamfleet.rl.buffer import EpisodeSums, ObservationNormalizer, RewardScaler, RolloutBuffer, compute_gae
 from uamfleet.rl.checkpoint import (
     ARCHITECTURE_FIELDS,
@@ -225,8 +226,8 @@ def _training_envs(
                 f"--env-workers={args.env_workers} exceeds this rank's {local_envs} envs; give at most {local_envs} "
                 "(each worker steps one env at least), or more --num-envs."
             )
-        if fill:  # filled once here and saved to the disk cache, which every worker then loads
-            for c in cfgs:
+        if fill and cache_dir() is not None:  # filled once here and saved to the disk cache, which every worker loads
+            for c in cfgs:  # (without a disk cache each worker fills its own: filling here would be lost)
                 table_for(World(c)).fill()
         try:
             # copy=False: collect_rollout copies each observation into its buffer before it steps again
