@@ -3,13 +3,16 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --family detroit3gpp --count 20 --horizon 60
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20 --finish-beam 16   # + the finisher
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20 --hedge --trace   # over futures
 
 Flies a shipped policy (``--policy``, the generalist ``berlin`` by default) with guided search on the first ``--count``
 test instances of ``--family`` and prints, per search
 (at the start and at each release), the wall-clock and the thread CPU seconds: on a machine shared with other jobs the
 CPU time is the figure that says what one idle core would take. Torch runs on one thread. With ``--finish-beam`` it
 also flies the greedy policy finished by one search once no request can come (uamfleet/baselines/finish.py) and
-prints that search's times.
+prints that search's times. With ``--hedge`` the search is :class:`uamfleet.rl.guided.AnticipatingGuidedSearch` (its
+searches over sampled futures and its one search once nothing can come, together); ``--trace`` runs the policy's
+actor as a TorchScript trace (the same actions, less overhead per call).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import torch
 import uamfleet
 from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.instances import make_instance, split_seeds
-from uamfleet.rl.guided import GuidedSearchPolicy
+from uamfleet.rl.guided import AnticipatingGuidedSearch, GuidedSearchPolicy
 from uamfleet.rollout import fly
 
 
@@ -37,10 +40,16 @@ def main() -> None:
     parser.add_argument("--policy", default="berlin", help="a name of uamfleet.pretrained")
     parser.add_argument("--horizon", type=int, default=None, help="GuidedSearchPolicy(horizon=...); none: full")
     parser.add_argument("--finish-beam", type=int, default=0, help="> 0: also the finisher's search of this width")
+    parser.add_argument("--hedge", action="store_true", help="AnticipatingGuidedSearch with its default settings")
+    parser.add_argument("--trace", action="store_true", help="the policy's actor as a trace (GreedyPolicy.trace_actor)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     policy = uamfleet.pretrained(args.policy)
-    guided = GuidedSearchPolicy(policy, top_k=args.top_k, samples=args.samples, horizon=args.horizon)
+    if args.trace:
+        policy.trace_actor()
+    settings = dict(top_k=args.top_k, samples=args.samples, horizon=args.horizon)
+    guided = (AnticipatingGuidedSearch(policy, args.family, **settings) if args.hedge
+              else GuidedSearchPolicy(policy, **settings))  # fmt: skip
     wall, cpu, greedy_cpu, finish_cpu, finish_wall = [], [], [], [], []
     for seed in split_seeds(args.split, args.count):
         cfg = policy.layout(make_instance(args.family, seed))
@@ -57,7 +66,8 @@ def main() -> None:
             finish_wall += [solve[3] for solve in finisher.solves]
     pct = [50, 95, 100]
     print(
-        f"guided search, {len(cpu)} searches on {args.count} {args.family} {args.split} instances (top-k {args.top_k}, "
+        f"{'hedging' if args.hedge else 'guided'} search{' (traced actor)' if args.trace else ''}, "
+        f"{len(cpu)} searches on {args.count} {args.family} {args.split} instances (top-k {args.top_k}, "
         f"samples {args.samples}, horizon {args.horizon}): CPU s p50/p95/max "
         f"{np.percentile(cpu, pct).round(3).tolist()}, wall s {np.percentile(wall, pct).round(3).tolist()}"
     )

@@ -49,6 +49,8 @@ BAD_VALUES = [
     (render.cli, ["--checkpoint", "/nonexistent.pt"], "checkpoint /nonexistent.pt does not exist; train one with"),
     (benchmark.cli, ["--from-csv", "/nonexistent.csv"], "No such file or directory: '/nonexistent.csv'"),
     (benchmark.cli, ["--checkpoint", "x.pt", "--guided", "--guided-horizon", "-1"], "--guided-horizon >= 0 (0: to"),
+    (benchmark.cli, ["--hedge"], "--hedge searches with a learned policy: give its --checkpoint as well."),
+    (benchmark.cli, ["--checkpoint", "x.pt", "--hedge", "--hedge-futures", "0"], "1 <= futures <= 256, commit >= 1"),
 ]
 
 

@@ -169,3 +169,119 @@ def test_a_cut_candidate_is_ranked_by_moves_plus_its_tour_bound() -> None:
     least = min(by_hand.values())
     assert by_hand[guided.queue[0]] == pytest.approx(least, abs=1e-6)
     assert guided.plans[0][2] == round(least)
+
+
+# ---- AnticipatingGuidedSearch: the rollout algorithm over futures drawn from the demand model ----
+
+
+def _prior(cfg, **kw):  # type: ignore[no-untyped-def]
+    from uamfleet.baselines.anticipation import DemandPrior
+    from uamfleet.env.generator import flyable_sites
+    from uamfleet.env.world import World
+
+    fields = dict(min_requests=1, max_requests=3, window_steps=20, min_trip_m=200.0, sites=flyable_sites(World(cfg)))
+    return DemandPrior(**{**fields, **kw})  # type: ignore[arg-type]
+
+
+def _hedge_config(requests, art: str = OPEN_7, start=(150.0, 150.0)):  # type: ignore[no-untyped-def]
+    return small_config(art, starts_m=(start,), requests=requests, time_limit_steps=80, stop_features=True,
+                        max_passengers=3)  # fmt: skip
+
+
+def _greedy_moves(policy, env: VectorEnv) -> float:  # type: ignore[no-untyped-def]
+    """Moves of the policy's greedy flight (no loop guard) from the env's state until it ends; the time limit adds
+    its steps where someone is left undelivered."""
+    obs, moves = env.observer.observe(env.state), 0.0
+    while True:
+        action = policy.logits_of(policy.network_input(obs)).argmax(-1).numpy()
+        obs, _, terminated, truncated, info = env.step(action[:, None])
+        moves += float(info["events"].moved[0, 0])
+        if terminated[0] or truncated[0]:
+            return moves + (0.0 if terminated[0] else env.cfg.time_limit_steps)
+
+
+def test_where_nothing_can_come_the_hedge_is_guided_search() -> None:
+    """Both requests released at the start and the demand model's most: no future to draw, so it flies guided
+    search's flight, with its one search."""
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    cfg = _hedge_config(INSTANCES[0][1], WALLED_7)
+    guided = GuidedSearchPolicy(_policy(cfg, 1), top_k=3, samples=6, seed=1)
+    hedge = AnticipatingGuidedSearch(_policy(cfg, 1), _prior(cfg, max_requests=2), top_k=3, samples=6, seed=1)
+    a, b = guided.fly(cfg), hedge.fly(cfg)
+    assert [e.actions.tolist() for e in a.events] == [e.actions.tolist() for e in b.events]
+    assert hedge.scores == [] and len(hedge.plans) == len(guided.plans) == 1
+
+
+def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> None:
+    """The first search's mean moves, recomputed one future and one env at a time: the same futures (drawn again
+    from the same seed), each first heading and then the policy's greedy flight to the end (tail None)."""
+    from uamfleet.baselines.step_planner import released_only
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+    from uamfleet.types import FleetState
+
+    cfg = _hedge_config((Request(0, (550.0, 150.0), (550.0, 550.0)),), start=(50.0, 50.0))  # a corner: it may wait
+    prior = _prior(cfg)
+    policy = _policy(cfg, 3)
+    hedge = AnticipatingGuidedSearch(policy, prior, first_headings=3, futures=4, tail=None, seed=5)
+    env = VectorEnv(hedge.layout(cfg), 1, autoreset=False)
+    env.reset(seed=0)
+    hedge.reset(env)
+    first, means = hedge.scores[0]
+    rng = np.random.default_rng(5)
+    known = released_only(env.state)
+    futures = [prior.sample(known, rng) for _ in range(4)]
+    assert any(f is not None for f in futures)  # a request may still come: something to hedge for
+    blocked = np.flatnonzero(~env.state.action_mask[0, 0])
+    assert len(blocked) and len(first) == 4  # headings off the map are forbidden: waiting is the fourth candidate
+    holds = [1, 1, 1, hedge.commit]
+    for heading, hold, mean in zip(first, holds, means, strict=False):
+        moves = []
+        for future in futures:
+            probe = VectorEnv(env.cfg, 1, autoreset=False)
+            probe.reset(seed=0)
+            for name in FleetState._fields:
+                getattr(probe.state, name)[:] = getattr(known if future is None else future, name)
+            flown = 0.0
+            for _ in range(hold):
+                _, _, terminated, _, info = probe.step(np.array([[heading]]))
+                flown += float(info["events"].moved[0, 0])
+                if terminated[0]:
+                    break
+            moves.append(flown if terminated[0] else flown + _greedy_moves(policy, probe))
+        assert mean == pytest.approx(np.mean(moves))
+    logits = policy.logits_of(policy.network_input(env.observer.observe(env.state)))[0]
+    assert first[0] == int(logits.argmax())  # the policy's own heading first: it wins ties
+    best = int(np.argmin(means))
+    assert hedge.queue == [int(first[best])] * holds[best]
+
+
+def test_the_hedge_reads_no_hidden_request() -> None:
+    """Two instances that differ only in a request released at step 8: the same flight and the same searches
+    until then; a search every `commit` steps in the window, and one at the release."""
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    first = Request(0, (550.0, 150.0), (550.0, 550.0))
+    flights, searches = [], []
+    for later in (Request(8, (150.0, 650.0), (650.0, 650.0)), Request(8, (650.0, 350.0), (150.0, 350.0))):
+        cfg = _hedge_config((first, later))
+        hedge = AnticipatingGuidedSearch(_policy(cfg, 0), _prior(cfg), first_headings=3, futures=3, commit=3)
+        traj = hedge.fly(cfg)
+        flights.append([e.actions.tolist() for e in traj.events][:8])
+        searches.append([(p[0], p[2]) for p in hedge.plans if p[0] < 8])
+    assert flights[0] == flights[1] and searches[0] == searches[1]
+    assert [t for t, _ in searches[0]] == [0, 3, 6]
+    assert 8 in [p[0] for p in hedge.plans]
+
+
+def test_the_hedge_checks_its_arguments_and_the_passenger_rows() -> None:
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    cfg = _hedge_config((Request(0, (550.0, 150.0), (550.0, 550.0)),))
+    with pytest.raises(ValueError, match="first_headings"):
+        AnticipatingGuidedSearch(_policy(cfg, 0), _prior(cfg), first_headings=0)
+    with pytest.raises(ValueError, match="unknown"):
+        AnticipatingGuidedSearch(_policy(cfg, 0), "atlantis")
+    hedge = AnticipatingGuidedSearch(_policy(cfg, 0), _prior(cfg, max_requests=6))
+    with pytest.raises(ValueError, match="max_passengers >= 6"):
+        hedge.fly(cfg)

@@ -110,6 +110,18 @@ class Args:
     guided_horizon: int = 0
     """> 0: guided search rolls each candidate at most this many steps, ranks it by its moves plus its tour bound,
     flies that many steps and searches again (a rolling horizon: bounded latency on large maps); 0: to the end"""
+    hedge: bool = False
+    """with --checkpoint: also fly that policy with search over sampled futures (method learned_hedge,
+    uamfleet/rl/guided.py AnticipatingGuidedSearch): while a request may still come, every --hedge-commit steps and
+    at each release, its --hedge-first-headings most likely first headings, each followed by the policy, flown in
+    --hedge-futures futures drawn from the instance family's demand model; the first heading of least mean distance
+    is taken. Once nothing can come, one guided search (the --guided-* settings). Instances only"""
+    hedge_first_headings: int = 4
+    hedge_futures: int = 8
+    hedge_commit: int = 4
+    hedge_tail: int = 10
+    """rollouts end this many steps after the demand model's last possible release, then a tour bound (-1: to the
+    end)"""
     finish_beam: int = 0
     """> 0 with --checkpoint: also fly that policy (and its guided search, with --guided) until the instance family's
     demand model says no request can come, then one step-level search of this width over the then-known requests
@@ -148,9 +160,14 @@ def _config(task: Task) -> EnvConfig:
     return make_instance(source, int(seed), feasibility=rule)  # type: ignore[arg-type]
 
 
+DEFAULT_HEDGE = (4, 8, 4, 10)
+"""learned_hedge's (first headings, futures, commit, tail) unless the job says (``Args.hedge_*``)."""
+
+
 def _policy(
     method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
     guided: tuple[int, int, float, int, int], task: Task, cfg: EnvConfig, finish_beam: int = 0,
+    hedge: tuple[int, int, int, int] = DEFAULT_HEDGE,
 ) -> Any:  # fmt: skip
     if method.endswith(FINISHED):  # the family's demand model says when nothing more can come
         base = _policy(method.removesuffix(FINISHED), checkpoint, beams, replan_beam, guided, task, cfg)
@@ -165,6 +182,16 @@ def _policy(
     if method == "replan":
         return StepPlannerPolicy(method, [SearchSettings(replan_beam, rank_slack=1.0)])
     assert checkpoint is not None
+    if method == "learned_hedge":  # the family's demand model: instances only
+        from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+        top_k, samples, temperature, expert_beam, horizon = guided
+        first_headings, futures, commit, tail = hedge
+        return AnticipatingGuidedSearch(
+            traced_policy(checkpoint), task[1], first_headings=first_headings, futures=futures, commit=commit,
+            tail=None if tail < 0 else tail, top_k=top_k, samples=samples, temperature=temperature,
+            expert_beam=expert_beam, horizon=horizon or None,
+        )  # fmt: skip
     if method == "learned_guided":
         from uamfleet.rl.guided import GuidedSearchPolicy
 
@@ -188,6 +215,18 @@ def learned_policy(checkpoint: Path) -> Any:
     return load_policy(checkpoint)[0]
 
 
+@functools.lru_cache(maxsize=8)
+def traced_policy(checkpoint: Path) -> Any:
+    """A second copy of a checkpoint's greedy policy with its actor traced (the same actions, less overhead per
+    call; ``GreedyPolicy.trace_actor``), for a search that calls the actor thousands of times per release. A copy,
+    so the ``learned`` rows' decision times stay those of the eager policy."""
+    from uamfleet.rl.policy import load_policy
+
+    policy = load_policy(checkpoint)[0]
+    policy.trace_actor()
+    return policy
+
+
 def check_checkpoint(path: Path) -> None:
     """The benchmark's instances have one taxi: refuse a fleet policy (or an unreadable file) before flying."""
     policy = learned_policy(path)
@@ -198,15 +237,19 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int], int]
-"""(task, methods, checkpoint, best_known beams, replan beam, guided-search settings, finish beam); a 6-field job
-has no finish beam (scripts/fly_city.py)."""
+Job = tuple[
+    Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int], int,
+    tuple[int, int, int, int],
+]  # fmt: skip
+"""(task, methods, checkpoint, best_known beams, replan beam, guided-search settings, finish beam, hedge settings);
+a 6-field job has no finish beam and a 7-field one the default hedge (scripts/fly_city.py)."""
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
     """Every method on one instance (one worker process)."""
     task, methods, checkpoint, beams, replan_beam, guided = job[:6]
     finish_beam = job[6] if len(job) > 6 else 0
+    hedge = job[7] if len(job) > 7 else DEFAULT_HEDGE
     try:
         cfg = _config(task)
         validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
@@ -218,12 +261,12 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     bound = instance_lower_bound_m(cfg)
     rows = []
     for method in methods:
-        if (method == "replan_futures" or method.endswith(FINISHED)) and label == "fixed":
+        if (method in ("replan_futures", "learned_hedge") or method.endswith(FINISHED)) and label == "fixed":
             print(f"{method} skipped on {name}: a fixed scenario has no demand model", flush=True)
             continue
         overrides = planner_env_overrides(method) if method in PLANNERS else {}
         run_cfg = cfg.replace(**overrides) if overrides else cfg
-        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg, finish_beam)
+        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg, finish_beam, hedge)
         if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
             windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
             if not windowed and run_cfg.num_passengers > policy.passenger_slots:
@@ -402,8 +445,16 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
 
 def check_guided(args: Args) -> None:
     """The guided-search options make sense (with a checkpoint, within their bounds)."""
-    if args.guided and args.checkpoint is None:
-        raise UsageError("--guided searches with a learned policy: give its --checkpoint as well.")
+    if (args.guided or args.hedge) and args.checkpoint is None:
+        flag = "--guided" if args.guided else "--hedge"
+        raise UsageError(f"{flag} searches with a learned policy: give its --checkpoint as well.")
+    if not (1 <= args.hedge_first_headings <= 16 and 1 <= args.hedge_futures <= 256 and args.hedge_commit >= 1
+            and args.hedge_tail >= -1):  # fmt: skip
+        raise UsageError(
+            f"--hedge-first-headings {args.hedge_first_headings} / --hedge-futures {args.hedge_futures} / "
+            f"--hedge-commit {args.hedge_commit} / --hedge-tail {args.hedge_tail}: need 1 <= first headings <= 16, "
+            "1 <= futures <= 256, commit >= 1 and tail >= -1 (-1: to the end; e.g. 4, 8, 4 and 10)."
+        )
     if (args.finish_beam and args.checkpoint is None) or not 0 <= args.finish_beam <= 4096:
         raise UsageError(f"--finish-beam {args.finish_beam}: a search width 0 <= beam <= 4096 (0: off, e.g. 16), for "
                          "the policy of a --checkpoint.")  # fmt: skip
@@ -452,10 +503,12 @@ def main(args: Args) -> list[dict[str, Any]]:
         return earlier
     learned: tuple[str, ...] = ("learned", "learned_guided") if args.guided else ("learned",)
     learned += tuple(m + FINISHED for m in learned) if args.finish_beam else ()
+    learned += ("learned_hedge",) if args.hedge else ()
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
     guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam,
               args.guided_horizon)  # fmt: skip
-    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided, args.finish_beam)
+    hedge = (args.hedge_first_headings, args.hedge_futures, args.hedge_commit, args.hedge_tail)
+    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided, args.finish_beam, hedge)
             for t in selected]  # fmt: skip
     start = time.perf_counter()
     rows = fly_all(args, jobs)
@@ -498,13 +551,16 @@ def merged(earlier: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[di
 
 
 def guided_flags(args: Args) -> str:
-    """The guided-search options of a run, as its recorded command line gives them ("" without --guided)."""
+    """The guided-search and hedging options of a run, as its recorded command line gives them ("" without
+    --guided or --hedge)."""
+    hedge = (f" --hedge --hedge-first-headings {args.hedge_first_headings} --hedge-futures {args.hedge_futures} "
+             f"--hedge-commit {args.hedge_commit} --hedge-tail {args.hedge_tail}") if args.hedge else ""  # fmt: skip
     if not args.guided:
-        return ""
+        return hedge
     flags = (f" --guided --guided-top-k {args.guided_top_k} --guided-samples {args.guided_samples} "
              f"--guided-temperature {args.guided_temperature:g}")  # fmt: skip
     flags += f" --guided-expert-beam {args.guided_expert_beam}" if args.guided_expert_beam else ""
-    return flags + (f" --guided-horizon {args.guided_horizon}" if args.guided_horizon else "")
+    return flags + (f" --guided-horizon {args.guided_horizon}" if args.guided_horizon else "") + hedge
 
 
 def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:

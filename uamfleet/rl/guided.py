@@ -27,16 +27,19 @@ candidate (the policy's flights win ties): the search alone is then the yardstic
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 import torch
 
+from uamfleet.baselines.anticipation import DemandPrior
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import check_family
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
-from uamfleet.types import HIDDEN
+from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
 
 
 class GuidedSearchPolicy:
@@ -201,4 +204,157 @@ class GuidedSearchPolicy:
         return self.policy(obs)
 
 
-__all__ = ["GuidedSearchPolicy"]
+class AnticipatingGuidedSearch(GuidedSearchPolicy):
+    """Guided search that hedges for the requests still to come: a rollout algorithm over futures sampled from the
+    instance family's demand model (an option beside greedy decoding and :class:`GuidedSearchPolicy`).
+
+    While the demand model says a request may still come (:class:`uamfleet.baselines.anticipation.DemandPrior`),
+    every ``commit`` steps and at every release the taxi draws ``futures`` futures given what is known (the same
+    ones for every candidate, so candidates differ by their flights, not by their luck), and for each of the
+    policy's ``first_headings`` most likely first headings flies the policy greedily from there in every future (the
+    env's own step, so the sampled requests are released to it as they would be). It takes the first heading of
+    least mean moves over the futures (ties to the policy's own), then flies the policy until the next search. With
+    ``wait``, where a heading the rule forbids keeps the taxi in place, staying there ``commit`` steps (then the
+    policy) is one more candidate: a wait flies no distance, and it is how ``replan_futures`` hedges most.
+    Until a sampled request is released the policy's flight in a future is its flight over the known requests, so
+    what is scored is what the taxi does next; after, it is the policy's answer to that future. This is Bertsekas'
+    rollout algorithm with the policy as its base and sample average approximation over the demand model
+    (``replan_futures`` does the same with the step-level search as base, at a minute per instance).
+
+    Once no request can come, it searches once as :class:`GuidedSearchPolicy` does (the known requests are then
+    all the requests) and flies that plan. Like ``replan_futures`` it reads only released requests, the clock and
+    the family's demand model. ``plans`` keeps every search as :class:`GuidedSearchPolicy`'s does (the chosen
+    candidate's mean moves, rounded, in place of its moves)."""
+
+    def __init__(
+        self, policy: GreedyPolicy, demand: str | DemandPrior, first_headings: int = 4, futures: int = 8,
+        commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, **known_search: Any,
+    ) -> None:  # fmt: skip
+        if isinstance(demand, str):
+            check_family(demand)
+        if not (1 <= first_headings <= 16 and futures >= 1 and commit >= 1) or (tail is not None and tail < 0):
+            raise ValueError(
+                f"AnticipatingGuidedSearch(first_headings={first_headings}, futures={futures}, commit={commit}, "
+                f"tail={tail}): need 1 <= first_headings <= 16, futures >= 1, commit >= 1 and tail None or >= 0 "
+                "(e.g. 4, 8, 4 and 10)."
+            )
+        super().__init__(policy, seed=seed, **known_search)
+        self.demand, self.first_headings, self.futures, self.commit = demand, first_headings, futures, commit
+        self.tail = tail  # None: every rollout to its end
+        self.wait = wait  # waiting in place `commit` steps is a candidate where a forbidden heading allows it
+        self.seed = seed
+        self._priors: dict[tuple[str, float, str], DemandPrior] = {}
+        self._futures_envs: dict[int, VectorEnv] = {}
+        self.hedged: list[bool] = []  # per search over futures: a first heading other than the policy's won
+        self.waited: list[bool] = []  # per search over futures: waiting in place won
+        self.scores: list[tuple[np.ndarray, np.ndarray]] = []  # per search over futures: (first headings, mean moves)
+
+    def reset(self, env: VectorEnv) -> None:
+        if isinstance(self.demand, DemandPrior):
+            self.prior = self.demand
+        else:  # the family's model on this map and threshold (its flyable sites), made once per pair
+            key = (env.cfg.scenario, float(env.cfg.sinr_min_db), str(env.cfg.feasibility))
+            if key not in self._priors:
+                self._priors[key] = DemandPrior.of_family(self.demand, env.cfg)
+            self.prior = self._priors[key]
+        rows = int(env.state.pax_exists.shape[1])
+        if rows < self.prior.max_requests:
+            raise ValueError(
+                f"AnticipatingGuidedSearch samples up to {self.prior.max_requests} requests of its demand model, "
+                f"but the env has {rows} passenger rows: lay the instance out with max_passengers >= "
+                f"{self.prior.max_requests} (the policy's layout does for a policy trained on that family)."
+            )
+        self.rng_futures = np.random.default_rng(self.seed)
+        self.hedged, self.waited, self.scores = [], [], []
+        self._countdown = 0
+        self._known_search_done = False
+        super().reset(env)  # its search at the start runs through _search below
+
+    def _search(self) -> list[int]:
+        assert self.env is not None
+        known = released_only(self.env.state)
+        if not known.pax_exists.any():
+            return []
+        samples = [self.prior.sample(known, self.rng_futures) for _ in range(self.futures)]
+        if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
+            self._known_search_done = True
+            return super()._search()
+        self._countdown = self.commit
+        return self._hedge([known if f is None else f for f in samples])
+
+    def _hedge(self, futures: list[FleetState]) -> list[int]:
+        """The candidate of least mean moves over ``futures`` (class docstring): its first heading, or with
+        ``wait`` its ``commit`` steps in place."""
+        assert self.env is not None
+        start, start_cpu = time.perf_counter(), time.thread_time()
+        K, F = self.first_headings, self.futures
+        root_logits = self.policy.logits_of(self.policy.network_input(self.env.observer.observe(self.env.state)))[0]
+        finite = torch.isfinite(root_logits) & (root_logits > -1e8)
+        order = torch.argsort(root_logits, descending=True)[: max(1, min(K, int(finite.sum())))].numpy()
+        first = np.resize(order, K)  # fewer allowed headings than K: the last rows repeat candidates
+        hold = np.ones(K, np.int64)  # steps a candidate keeps its first action before the policy flies
+        blocked = np.flatnonzero(~self.env.state.action_mask[0, 0, :NUM_HEADINGS])
+        if self.wait and len(blocked):  # a heading the rule forbids keeps the taxi in place: waiting flies nothing
+            first, hold = np.append(first, blocked[0]), np.append(hold, self.commit)
+        C = len(first)
+        env = self._futures_env(C * F)
+        for name in FleetState._fields:
+            for f, future in enumerate(futures):  # env c * F + f: candidate c in future f
+                getattr(env.state, name)[f::F] = getattr(future, name)[0]
+        obs = env.observer.observe(env.state)
+        t = int(self.env.state.t[0])
+        limit = int(self.env.cfg.time_limit_steps - t)
+        if self.tail is not None:  # every sampled request is released by the window's end: then a tour bound
+            limit = min(limit, max(0, self.prior.window_steps - t) + self.tail)
+        rows_first, rows_hold = np.repeat(first, F), np.repeat(hold, F)
+        moves, finished, delivered = np.zeros(C * F), np.zeros(C * F, bool), np.zeros(C * F, bool)
+        for depth in range(limit):
+            chosen = rows_first.copy()
+            if depth:
+                greedy = self.policy.logits_of(self.policy.network_input(obs)).argmax(-1).numpy()
+                chosen = np.where(depth < rows_hold, rows_first, greedy)
+            obs, _, terminated, truncated, info = env.step(chosen[:, None])
+            live = ~finished
+            moves[live] += info["events"].moved[live, 0]
+            delivered |= live & terminated
+            finished |= live & (terminated | truncated)
+            if finished.all():
+                break
+        cut = ~finished  # still flying at the tail's end: its moves plus the tour through the stops it has left
+        moves[cut] += self._tour_moves(obs)[cut]
+        moves[finished & ~delivered] += self.env.cfg.time_limit_steps  # cut by the time limit: never preferred
+        means = moves.reshape(C, F).mean(1)
+        best = int(np.argmin(means))  # ties to the lowest index: the policy's own first heading
+        self.hedged.append(bool(best > 0 and first[best] != first[0]))
+        self.waited.append(bool(hold[best] > 1))
+        self.scores.append((first.copy(), means))
+        wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
+        self.plans.append((t, C * F, round(float(means[best])), wall, cpu))
+        return [int(first[best])] * int(hold[best])
+
+    def _futures_env(self, num_envs: int) -> VectorEnv:
+        """The scratch env of ``num_envs`` rows for one search (made once per size and config)."""
+        assert self.env is not None
+        env = self._futures_envs.get(num_envs)
+        if env is None or env.cfg is not self.env.cfg:
+            env = self._futures_envs[num_envs] = VectorEnv(self.env.cfg, num_envs=num_envs, autoreset=True)
+            env.reset(seed=0)
+        return env
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
+        released = self._released_rows()
+        if (released & ~self._released).any():
+            self._released = released
+            self.queue = self._search()
+        elif not self._known_search_done and self._countdown <= 0:  # `commit` steps flown since the last search
+            self.queue = self._search()
+        elif not self.queue and self._replan_when_flown:
+            self.queue = GuidedSearchPolicy._search(self)
+        self._countdown -= 1
+        if self.queue:
+            return np.array([[self.queue.pop(0)]])
+        return self.policy(obs)
+
+
+__all__ = ["AnticipatingGuidedSearch", "GuidedSearchPolicy"]
