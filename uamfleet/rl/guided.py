@@ -222,13 +222,16 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     (``replan_futures`` does the same with the step-level search as base, at a minute per instance).
 
     Once no request can come, it searches once as :class:`GuidedSearchPolicy` does (the known requests are then
-    all the requests) and flies that plan. Like ``replan_futures`` it reads only released requests, the clock and
-    the family's demand model. ``plans`` keeps every search as :class:`GuidedSearchPolicy`'s does (the chosen
-    candidate's mean moves, rounded, in place of its moves)."""
+    all the requests; ``top_k`` 8 and ``samples`` 8 here, so that search too fits a second of one core) and flies
+    that plan. The defaults are the settings tried on 60 validation instances whose every search took at most a
+    second of one core (docs/results.md, "Hedging for the requests to come"). Like ``replan_futures`` it reads only
+    released requests, the clock and the family's demand model. ``plans`` keeps every search as
+    :class:`GuidedSearchPolicy`'s does (the chosen candidate's mean moves, rounded, in place of its moves)."""
 
     def __init__(
         self, policy: GreedyPolicy, demand: str | DemandPrior, first_headings: int = 4, futures: int = 8,
-        commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, **known_search: Any,
+        commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, top_k: int = 8, samples: int = 8,
+        **known_search: Any,
     ) -> None:  # fmt: skip
         if isinstance(demand, str):
             check_family(demand)
@@ -238,7 +241,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
                 f"tail={tail}): need 1 <= first_headings <= 16, futures >= 1, commit >= 1 and tail None or >= 0 "
                 "(e.g. 4, 8, 4 and 10)."
             )
-        super().__init__(policy, seed=seed, **known_search)
+        super().__init__(policy, top_k=top_k, samples=samples, seed=seed, **known_search)
         self.demand, self.first_headings, self.futures, self.commit = demand, first_headings, futures, commit
         self.tail = tail  # None: every rollout to its end
         self.wait = wait  # waiting in place `commit` steps is a candidate where a forbidden heading allows it
