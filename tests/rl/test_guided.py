@@ -78,6 +78,21 @@ def test_guided_search_plans_again_at_a_release() -> None:
     assert np.isfinite(episode_metrics(traj, cfg.radio).td_m)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize(("start", "requests"), INSTANCES)
+def test_guarded_rollouts_fly_the_policys_own_decoding(start, requests, seed) -> None:
+    """One candidate, the greedy one, with guard_rollouts: the search's plan is the policy's own flight, loop guard
+    included, step for step (known at the start: one search, flown to the end)."""
+    cfg = small_config(WALLED_7, starts_m=(start,), requests=requests, time_limit_steps=60, stop_features=True,
+                       max_passengers=3)  # fmt: skip
+    greedy = _policy(cfg, seed)
+    own = [e.actions.tolist() for e in greedy.fly(cfg).events]
+    guided = GuidedSearchPolicy(greedy, top_k=1, samples=0, guard_rollouts=True)
+    flown = [e.actions.tolist() for e in guided.fly(cfg).events]
+    if guided.plans[0][2] >= 0:  # the greedy flight delivered everyone: it is the plan
+        assert flown == own
+
+
 def test_guided_search_checks_its_arguments() -> None:
     with pytest.raises(ValueError, match="top_k"):
         GuidedSearchPolicy(None, top_k=0)  # type: ignore[arg-type]
@@ -189,11 +204,13 @@ def _hedge_config(requests, art: str = OPEN_7, start=(150.0, 150.0)):  # type: i
 
 
 def _greedy_moves(policy, env: VectorEnv) -> float:  # type: ignore[no-untyped-def]
-    """Moves of the policy's greedy flight (no loop guard) from the env's state until it ends; the time limit adds
-    its steps where someone is left undelivered."""
-    obs, moves = env.observer.observe(env.state), 0.0
+    """Moves of the policy's greedy decoding (a loop guard of its own) from the env's state until it ends; the time
+    limit adds its steps where someone is left undelivered."""
+    from uamfleet.rl.loop_guard import LoopGuard
+
+    obs, moves, guard = env.observer.observe(env.state), 0.0, LoopGuard()
     while True:
-        action = policy.logits_of(policy.network_input(obs)).argmax(-1).numpy()
+        action = guard.choose(obs, policy.logits_of(policy.network_input(obs)).numpy())
         obs, _, terminated, truncated, info = env.step(action[:, None])
         moves += float(info["events"].moved[0, 0])
         if terminated[0] or truncated[0]:
@@ -206,7 +223,7 @@ def test_where_nothing_can_come_the_hedge_is_guided_search() -> None:
     from uamfleet.rl.guided import AnticipatingGuidedSearch
 
     cfg = _hedge_config(INSTANCES[0][1], WALLED_7)
-    guided = GuidedSearchPolicy(_policy(cfg, 1), top_k=3, samples=6, seed=1)
+    guided = GuidedSearchPolicy(_policy(cfg, 1), top_k=3, samples=6, seed=1, guard_rollouts=True)
     hedge = AnticipatingGuidedSearch(_policy(cfg, 1), _prior(cfg, max_requests=2), top_k=3, samples=6, seed=1)
     a, b = guided.fly(cfg), hedge.fly(cfg)
     assert [e.actions.tolist() for e in a.events] == [e.actions.tolist() for e in b.events]

@@ -37,6 +37,7 @@ from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import check_family
+from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
@@ -51,7 +52,7 @@ class GuidedSearchPolicy:
 
     def __init__(
         self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
-        expert_beam: int = 0, horizon: int | None = None,
+        expert_beam: int = 0, horizon: int | None = None, guard_rollouts: bool = False,
     ) -> None:  # fmt: skip
         if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0 and expert_beam >= 0) or (
             horizon is not None and horizon < 1
@@ -64,6 +65,9 @@ class GuidedSearchPolicy:
             )
         self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
         self.expert_beam = expert_beam  # > 0: replan's beam search of this width is one more candidate
+        # greedy steps of the rollouts decoded as the policy flies, loop guard included (False: the argmax alone,
+        # as every committed learned_guided row was made)
+        self.guard_rollouts = guard_rollouts
         self.horizon = horizon  # None: candidates rolled to their end; else at most this many steps, then the tour
         self._replan_when_flown = False  # with a horizon: the plan ran out before the episode's end
         self.search: StepSearch | None = None
@@ -132,10 +136,13 @@ class GuidedSearchPolicy:
         self.plans.append((int(self.env.state.t[0]), scratch.num_envs, best_key[0] if best_key else -1, wall, cpu))
         return chosen_plan
 
-    def _headings(self, logits: torch.Tensor, depth: int) -> np.ndarray:
+    def _headings(
+        self, logits: torch.Tensor, depth: int, obs: dict[str, np.ndarray], guard: LoopGuard | None = None
+    ) -> np.ndarray:  # fmt: skip
         """[K] this step's heading of each candidate: its top_k first headings at depth 0 (the greedy one first),
-        then greedy; the sampled candidates draw from the policy at ``temperature`` throughout."""
-        chosen = logits.argmax(-1).numpy()  # [K] greedy
+        then greedy (with ``guard``: the policy's decoding, its loop guard included); the sampled candidates draw
+        from the policy at ``temperature`` throughout."""
+        chosen = logits.argmax(-1).numpy() if guard is None else guard.choose(obs, logits.numpy())  # [K] greedy
         if depth == 0:
             chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
         if self.samples:
@@ -153,8 +160,9 @@ class GuidedSearchPolicy:
         obs = scratch.observer.observe(scratch.state)
         actions: list[list[int]] = [[] for _ in range(K)]
         moves, steps, finished = np.zeros(K, np.int64), np.full(K, -1), np.zeros(K, bool)
+        guard = LoopGuard() if self.guard_rollouts and self.policy.loop_guard is not None else None
         for depth in range(limit):
-            chosen = self._headings(self.policy.logits_of(self.policy.network_input(obs)), depth)  # [K]
+            chosen = self._headings(self.policy.logits_of(self.policy.network_input(obs)), depth, obs, guard)  # [K]
             obs, _, terminated, truncated, info = scratch.step(chosen[:, None])
             live = ~finished
             moves[live] += info["events"].moved[live, 0]
@@ -165,6 +173,8 @@ class GuidedSearchPolicy:
             finished |= ended
             if finished.all():
                 break
+            if not cut and (steps >= 0).any() and (moves[~finished] >= moves[steps >= 0].min()).all():
+                break  # no candidate still flying can win: its moves only grow, and it ends later (more steps)
         if cut and not finished.all():
             flying = ~finished  # cut at the horizon: ranked by moves + the tour still to fly
             estimate = moves.astype(float)
@@ -211,7 +221,8 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     While the demand model says a request may still come (:class:`uamfleet.baselines.anticipation.DemandPrior`),
     every ``commit`` steps and at every release the taxi draws ``futures`` futures given what is known (the same
     ones for every candidate, so candidates differ by their flights, not by their luck), and for each of the
-    policy's ``first_headings`` most likely first headings flies the policy greedily from there in every future (the
+    policy's ``first_headings`` most likely first headings flies the policy's greedy decoding (its loop guard
+    included) from there in every future (the
     env's own step, so the sampled requests are released to it as they would be). It takes the first heading of
     least mean moves over the futures (ties to the policy's own), then flies the policy until the next search. With
     ``wait``, where a heading the rule forbids keeps the taxi in place, staying there ``commit`` steps (then the
@@ -241,6 +252,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
                 f"tail={tail}): need 1 <= first_headings <= 16, futures >= 1, commit >= 1 and tail None or >= 0 "
                 "(e.g. 4, 8, 4 and 10)."
             )
+        known_search.setdefault("guard_rollouts", True)  # its flights are the policy's, loop guard included
         super().__init__(policy, top_k=top_k, samples=samples, seed=seed, **known_search)
         self.demand, self.first_headings, self.futures, self.commit = demand, first_headings, futures, commit
         self.tail = tail  # None: every rollout to its end
@@ -311,10 +323,12 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             limit = min(limit, max(0, self.prior.window_steps - t) + self.tail)
         rows_first, rows_hold = np.repeat(first, F), np.repeat(hold, F)
         moves, finished, delivered = np.zeros(C * F), np.zeros(C * F, bool), np.zeros(C * F, bool)
+        guard = None if self.policy.loop_guard is None else LoopGuard()  # the policy's decoding, loop guard included
         for depth in range(limit):
             chosen = rows_first.copy()
             if depth:
-                greedy = self.policy.logits_of(self.policy.network_input(obs)).argmax(-1).numpy()
+                logits = self.policy.logits_of(self.policy.network_input(obs))
+                greedy = logits.argmax(-1).numpy() if guard is None else guard.choose(obs, logits.numpy())
                 chosen = np.where(depth < rows_hold, rows_first, greedy)
             obs, _, terminated, truncated, info = env.step(chosen[:, None])
             live = ~finished
