@@ -37,6 +37,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=None, help="sampled flights (default: the class's)")
     parser.add_argument("--family", default="berlin", help="instance family (berlin, detroit3gpp, munich)")
     parser.add_argument("--split", default="test", help="instance split (validation, test)")
+    parser.add_argument("--feasibility", default="endpoint_block", help="endpoint_block or segment_raster")
     parser.add_argument("--policy", default="berlin", help="a name of uamfleet.pretrained")
     parser.add_argument("--horizon", type=int, default=None, help="GuidedSearchPolicy(horizon=...); none: full")
     parser.add_argument("--finish-beam", type=int, default=0, help="> 0: also the finisher's search of this width")
@@ -52,12 +53,12 @@ def main() -> None:
     guided = (AnticipatingGuidedSearch(policy, args.family, **settings) if args.hedge
               else GuidedSearchPolicy(policy, **settings))  # fmt: skip
     if args.trace:  # a trace is made at the first call of each batch shape: made before timing, on a train instance
-        warm = policy.layout(make_instance(args.family, split_seeds("train", 1)[0]))
+        warm = policy.layout(make_instance(args.family, split_seeds("train", 1)[0], feasibility=args.feasibility))
         guided.fly(warm)
         guided.fly(warm)
     wall, cpu, greedy_cpu, finish_cpu, finish_wall, known_cpu = [], [], [], [], [], []
     for seed in split_seeds(args.split, args.count):
-        cfg = policy.layout(make_instance(args.family, seed))
+        cfg = policy.layout(make_instance(args.family, seed, feasibility=args.feasibility))
         guided.fly(cfg)
         # the hedge's last search is over the known requests once nothing can come: timed apart
         hedging = len(guided.plans) - int(getattr(guided, "_known_search_done", False))
@@ -75,7 +76,8 @@ def main() -> None:
     pct = [50, 95, 100]
     print(
         f"{'hedging' if args.hedge else 'guided'} search{' (traced actor)' if args.trace else ''}, "
-        f"{len(cpu)} searches on {args.count} {args.family} {args.split} instances (top-k {args.top_k}, "
+        f"{len(cpu)} searches on {args.count} {args.family} {args.split} instances ({args.feasibility}; "
+        f"top-k {args.top_k}, "
         f"samples {guided.samples}, horizon {args.horizon}): CPU s p50/p95/max "
         f"{np.percentile(cpu, pct).round(3).tolist()}, wall s {np.percentile(wall, pct).round(3).tolist()}"
     )

@@ -455,6 +455,23 @@ def test_guided_search_on_the_test_set():
     says(GLANCE, f"still {pct(guided.mean() / replan.mean())} % above `replan` as a ratio of means")
 
 
+def test_hedging_on_the_test_set():
+    hedge_rows = shipped_test_rows("benchmark_berlin_test_hedge.csv", ("learned", "learned_hedge"))
+    hedge, replan = shipped_td("learned_hedge", hedge_rows), td("replan")
+    assert np.array_equal(shipped_td("learned", hedge_rows), shipped_td("learned"))  # the same shipped policy
+    assert all(float(r["pr_pct"]) == 100.0 for r in hedge_rows["learned_hedge"].values())
+    says(GLANCE, f"it flies a mean TD of {m(hedge.mean())} m, {paired(hedge - replan)} m per instance shorter than")
+    says(GLANCE, f"{pct(2 - hedge.mean() / replan.mean())} % below it as a ratio of means")
+    says(GLANCE, f"{pct(float(np.mean(hedge / td('best_known'))))} % above `best_known` as a mean of ratios")
+    futures = np.array([float(r["td_m"]) for r in sorted(rows("benchmark_berlin_test_replan_futures.csv"),
+                                                         key=lambda r: r["instance"])])  # fmt: skip
+    diff = hedge - futures
+    assert abs(diff.mean()) < 1.96 * diff.std(ddof=1) / np.sqrt(len(diff))  # "as short ... within noise"
+    waits = [np.mean([float(r["awt_s"]) for r in table.values()]) for table in (hedge_rows["learned_hedge"],
+             TEST["replan"])]  # fmt: skip
+    says(GLANCE, f"Its riders wait {waits[0] - waits[1]:.1f} s longer than `replan`'s on average")
+
+
 def test_the_separation_shield():
     shielded = rows("fleet_shield_100.csv")  # every episode flown with --separation shield
     assert len(shielded) == 800 and all(int(float(r["separation_violations"])) == 0 for r in shielded)
