@@ -60,8 +60,9 @@ def main() -> None:
     for seed in split_seeds(args.split, args.count):
         cfg = policy.layout(make_instance(args.family, seed, feasibility=args.feasibility))
         guided.fly(cfg)
-        # the hedge's last search is over the known requests once nothing can come: timed apart
-        hedging = len(guided.plans) - int(getattr(guided, "_known_search_done", False))
+        # the hedge's searches over futures come first (one score each); its last, over the known requests once
+        # nothing can come, is timed apart
+        hedging = len(guided.scores) if args.hedge else len(guided.plans)
         wall += [p[3] for p in guided.plans[:hedging]]
         cpu += [p[4] for p in guided.plans[:hedging]]
         known_cpu += [p[4] for p in guided.plans[hedging:]]

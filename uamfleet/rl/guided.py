@@ -142,7 +142,7 @@ class GuidedSearchPolicy:
         """[K] this step's heading of each candidate: its top_k first headings at depth 0 (the greedy one first),
         then greedy (with ``guard``: the policy's decoding, its loop guard included); the sampled candidates draw
         from the policy at ``temperature`` throughout."""
-        chosen = logits.argmax(-1).numpy() if guard is None else guard.choose(obs, logits.numpy())  # [K] greedy
+        chosen = self._greedy(logits, obs, guard)  # [K]
         if depth == 0:
             chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
         if self.samples:
@@ -207,11 +207,20 @@ class GuidedSearchPolicy:
         if (released & ~self._released).any():
             self._released = released
             self.queue = self._search()
-        elif not self.queue and self._replan_when_flown:  # a horizon's plan flown: search from here
+        elif self._search_due():
             self.queue = self._search()
         if self.queue:
             return np.array([[self.queue.pop(0)]])
         return self.policy(obs)
+
+    def _search_due(self) -> bool:
+        """Whether to search again at this step although nothing was released: a horizon's plan was flown."""
+        return not self.queue and self._replan_when_flown
+
+    @staticmethod
+    def _greedy(logits: torch.Tensor, obs: dict[str, np.ndarray], guard: LoopGuard | None) -> np.ndarray:
+        """[B] the greedy heading of each row: the argmax, or with ``guard`` the policy's decoding (its loop guard)."""
+        return logits.argmax(-1).numpy() if guard is None else guard.choose(obs, logits.numpy())
 
 
 class AnticipatingGuidedSearch(GuidedSearchPolicy):
@@ -222,8 +231,8 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     every ``commit`` steps and at every release the taxi draws ``futures`` futures given what is known (the same
     ones for every candidate, so candidates differ by their flights, not by their luck), and for each of the
     policy's ``first_headings`` most likely first headings flies the policy's greedy decoding (its loop guard
-    included) from there in every future (the
-    env's own step, so the sampled requests are released to it as they would be). It takes the first heading of
+    included) from there in every future (the env's own step, so the sampled requests are released to it as they
+    would be). It takes the first heading of
     least mean moves over the futures (ties to the policy's own), then flies the policy until the next search. With
     ``wait``, where a heading the rule forbids keeps the taxi in place, staying there ``commit`` steps (then the
     policy) is one more candidate: a wait flies no distance, and it is how ``replan_futures`` hedges most.
@@ -281,7 +290,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             )
         self.rng_futures = np.random.default_rng(self.seed)
         self.hedged, self.waited, self.scores = [], [], []
-        self._countdown = 0
+        self._next_search_t = 0  # the step of the next search over futures, between releases
         self._known_search_done = False
         super().reset(env)  # its search at the start runs through _search below
 
@@ -294,7 +303,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
             self._known_search_done = True
             return super()._search()
-        self._countdown = self.commit
+        self._next_search_t = int(self.env.state.t[0]) + self.commit
         return self._hedge([known if f is None else f for f in samples])
 
     def _hedge(self, futures: list[FleetState]) -> list[int]:
@@ -327,8 +336,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         for depth in range(limit):
             chosen = rows_first.copy()
             if depth:
-                logits = self.policy.logits_of(self.policy.network_input(obs))
-                greedy = logits.argmax(-1).numpy() if guard is None else guard.choose(obs, logits.numpy())
+                greedy = self._greedy(self.policy.logits_of(self.policy.network_input(obs)), obs, guard)
                 chosen = np.where(depth < rows_hold, rows_first, greedy)
             obs, _, terminated, truncated, info = env.step(chosen[:, None])
             live = ~finished
@@ -358,20 +366,12 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             env.reset(seed=0)
         return env
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
-        released = self._released_rows()
-        if (released & ~self._released).any():
-            self._released = released
-            self.queue = self._search()
-        elif not self._known_search_done and self._countdown <= 0:  # `commit` steps flown since the last search
-            self.queue = self._search()
-        elif not self.queue and self._replan_when_flown:
-            self.queue = GuidedSearchPolicy._search(self)
-        self._countdown -= 1
-        if self.queue:
-            return np.array([[self.queue.pop(0)]])
-        return self.policy(obs)
+    def _search_due(self) -> bool:
+        """`commit` steps flown since the last search over futures, while a request may come (or a horizon's plan
+        flown, once nothing can)."""
+        assert self.env is not None
+        due = not self._known_search_done and int(self.env.state.t[0]) >= self._next_search_t
+        return due or super()._search_due()
 
 
 __all__ = ["AnticipatingGuidedSearch", "GuidedSearchPolicy"]
