@@ -7,6 +7,7 @@ of the package.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -117,3 +118,46 @@ def check_sequence(name: str, value: Any) -> Any:
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
         raise ConfigError(f"{name}={value!r} must be a sequence (tuple or list), not {type(value).__name__}.")
     return value
+
+
+# -- Size limits of what the package reads (docs/inputs.md) --------------------------------------------------------
+# A file declares its size before anything is allocated for it; past a limit the reader refuses with the size it
+# would need and the environment variable that raises the limit. The defaults are generous for a city (a 4,000 x
+# 4,000 raster is 40 km at 10 m cells) and far below what a 24 GB machine would die of.
+
+SIZE_LIMITS: dict[str, tuple[int, str]] = {
+    "map_cells": (16_000_000, "cells of a radio map's raster (or of a ray-traced map's measurement plane)"),
+    "scene_bytes": (512 * 2**20, "bytes of a scene's XML plus every mesh file it names"),
+    "scene_shapes": (100_000, "shapes (plus included files) of one scene"),
+    "scene_extent_m": (50_000, "side of a scene's or a map's area, in metres"),
+}
+"""``name: (default, what it bounds)``; each is overridden by the environment variable ``UAMFLEET_MAX_<NAME>``."""
+
+
+def size_limit(name: str) -> int:
+    """The limit ``name`` of :data:`SIZE_LIMITS`, or the positive integer in ``UAMFLEET_MAX_<NAME>`` when set."""
+    default, _ = SIZE_LIMITS[name]
+    variable = f"UAMFLEET_MAX_{name.upper()}"
+    raw = os.environ.get(variable)
+    if raw is None or raw == "":
+        return default
+    try:
+        value = int(raw)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ConfigError(f"{variable}={raw!r} must be a positive integer (the limit on {SIZE_LIMITS[name][1]}).")
+    return value
+
+
+def check_size(name: str, needed: float, what: str, unit_bytes: float = 0.0) -> None:
+    """Refuse ``needed`` (a count of :data:`SIZE_LIMITS` ``name``) for ``what`` when it is over the limit: the message
+    names the size, the memory it would need when ``unit_bytes`` (bytes per unit) is given, and how to raise the
+    limit."""
+    limit = size_limit(name)
+    if not math.isfinite(needed) or needed > limit:
+        memory = f" ({needed * unit_bytes / 2**30:.1f} GiB)" if unit_bytes and math.isfinite(needed) else ""
+        raise ConfigError(
+            f"{what} needs {needed:,.0f} {SIZE_LIMITS[name][1]}{memory}, over the limit of {limit:,}; "
+            f"if it is meant, raise it with UAMFLEET_MAX_{name.upper()}=<n>."
+        )
