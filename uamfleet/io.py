@@ -1,8 +1,10 @@
-"""Atomic file writes: a crash never leaves a half-written result, checkpoint or figure behind."""
+"""Atomic file writes: a crash never leaves a half-written result, checkpoint or figure behind; and what an
+``OSError`` of a path says, as one line naming the path (:func:`os_error_message`, :class:`PathError`)."""
 
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import os
 import tempfile
@@ -68,6 +70,64 @@ def partial_path(path: str | os.PathLike[str]) -> Path:
     """Where a long run keeps its partial results: ``<stem>.partial<suffix>`` beside ``path``, never over it."""
     path = Path(path)
     return path.with_name(f"{path.stem}.partial{path.suffix}")
+
+
+SHOWN_PATH_CHARS = 160
+"""A longer path is shown by its two ends (a 5,000-character path would otherwise be the whole message)."""
+
+
+def shown_path(path: str | bytes | os.PathLike[str] | None) -> str:
+    """``path`` as a message shows it: whole up to :data:`SHOWN_PATH_CHARS` characters, else its two ends and its
+    length."""
+    text = os.fsdecode(path) if path is not None else "?"
+    if len(text) <= SHOWN_PATH_CHARS:
+        return text
+    half = SHOWN_PATH_CHARS // 2
+    return f"{text[:half]}...{text[-half:]} ({len(text):,} characters)"
+
+
+_FIXES = {
+    errno.EACCES: "choose a folder you may write to (or read from)",
+    errno.EPERM: "choose a folder you may write to (or read from)",
+    errno.EROFS: "it is on a read-only file system; choose a writable folder",
+    errno.ENAMETOOLONG: "shorten the path (its name or one of its folders is longer than the system allows)",
+    errno.ENOTDIR: "a part of the path is a file, not a folder; choose another path",
+    errno.EISDIR: "it is a folder; give a file name",
+    errno.ENOSPC: "the disk is full; free space or write elsewhere",
+    errno.ELOOP: "it is a loop of symbolic links; give the real path",
+}
+
+
+def os_error_message(err: OSError, with_path: bool = True) -> str:
+    """One line for an OSError: ``<reason>: '<path>'[; <fix>]`` (``'<path>' -> '<other>'`` for a rename; without
+    the paths when the caller names them, ``with_path=False``), the path shortened when long (:func:`shown_path`),
+    never ``[Errno N]``; the message itself for one of the package's own (a :class:`PathError`, or a
+    FileNotFoundError raised with a message)."""
+    if isinstance(err, PathError) or err.strerror is None:
+        return " ".join(str(err).split())
+    fix = _FIXES.get(err.errno or 0)
+    if not with_path:
+        return err.strerror + (f"; {fix}" if fix else "")
+    where = "" if err.filename is None else f": '{shown_path(err.filename)}'"
+    if err.filename2 is not None:
+        where += f" -> '{shown_path(err.filename2)}'"
+    return f"{err.strerror}{where}" + (f"; {fix}" if fix else "")
+
+
+class PathError(OSError):
+    """An OSError whose message is one line naming the path and the fix (its errno and filename kept)."""
+
+    def __init__(self, message: str, cause: OSError | None = None, path: str | os.PathLike[str] | None = None) -> None:
+        code = cause.errno if cause is not None else None
+        name = path if path is not None else (cause.filename if cause is not None else None)
+        super().__init__(code, message, name)
+        self.message = " ".join(message.split())
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self) -> tuple[type[PathError], tuple[str, None, Any]]:  # picklable (a torchrun rank's error)
+        return (PathError, (self.message, None, self.filename))
 
 
 def _umask() -> int:

@@ -17,9 +17,10 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 import tyro
 
 from uamfleet.baselines import POLICIES
-from uamfleet.io import has_section
+from uamfleet.io import PathError, has_section, os_error_message, shown_path
 from uamfleet.config import FEASIBILITY_RULES, SCENARIOS
 from uamfleet.instances import FAMILIES, SPLITS
+from uamfleet.rl.distributed import RankZeroError
 from uamfleet.rl.networks import VARIANTS
 
 T = TypeVar("T")
@@ -60,19 +61,42 @@ class UsageError(ValueError):
 
 
 def output_path(path: Path, flag: str) -> Path:
-    """An output file's path, relative to the current folder. Its folder must exist, or be one new folder inside
-    an existing one (created here): a typo such as ``/nonexistent/sub/x.html`` fails instead of making a tree."""
+    """An output file's path, relative to the current folder, checked before any work: its folder must exist, or be
+    one new folder inside an existing one (created here: a typo such as ``/nonexistent/sub/x.html`` fails instead
+    of making a tree), and be writable; the path must not be a folder, a FIFO or another non-file, nor too long
+    (the system's refusal, named). Each refusal is one line naming ``flag`` and the path."""
+    shown = shown_path(path)
     parent = path.parent
-    if not parent.is_dir():
-        if not parent.parent.is_dir():
-            raise UsageError(
-                f"{flag} {path}: neither its folder {parent} nor that folder's parent exists; create the folders "
-                "first or write to an existing one."
-            )
-        parent.mkdir()
-    if path.is_dir():
-        raise UsageError(f"{flag} {path} is a folder; give a file name.")
+    try:
+        if parent.exists() and not parent.is_dir():
+            raise UsageError(f"{flag} {shown}: {shown_path(parent)} is a file, not a folder; write into a folder.")
+        if not parent.is_dir():
+            if not parent.parent.is_dir():
+                raise UsageError(
+                    f"{flag} {shown}: neither its folder {shown_path(parent)} nor that folder's parent exists; "
+                    "create the folders first or write to an existing one."
+                )
+            parent.mkdir()
+        if path.is_dir():
+            raise UsageError(f"{flag} {shown} is a folder; give a file name.")
+        if path.exists() and not path.is_file():
+            raise UsageError(f"{flag} {shown} is not a regular file (a FIFO, socket or device); give a file name.")
+    except OSError as err:  # a path the system refuses to look at (too long, a loop of links, no permission)
+        raise PathError(f"{flag} {shown}: {os_error_message(err, with_path=False)}", err) from None
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise PathError(
+            f"{flag} {shown}: its folder {shown_path(parent)} is not writable (permission or a read-only file "
+            "system); write elsewhere.",
+            path=path,
+        )
     return path
+
+
+def output_paths(paths: dict[str, Path | None]) -> None:
+    """:func:`output_path` of each output file, by its flag (None: not written)."""
+    for flag, path in paths.items():
+        if path is not None:
+            output_path(path, flag)
 
 
 def check_outputs(
@@ -118,7 +142,7 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
         def __post_init__(self) -> None:
             try:
                 super().__post_init__()
-            except (ValueError, FileNotFoundError, FileExistsError) as err:
+            except (ValueError, OSError) as err:
                 object.__setattr__(self, "_cli_error", err)  # also for a frozen dataclass
 
     return dataclasses.dataclass(Checked)
@@ -163,19 +187,25 @@ def run(
     main: Callable[[T], Any], args_type: Callable[..., T], argv: Sequence[str] | None, prog: str, doc: str | None
 ) -> int:
     """Parse ``argv`` into ``args_type`` and call ``main``; the exit status. Bad input (any ``ValueError``, the
-    type of every documented input error of the package, a missing input file, or an existing run) prints ``prog: error:
-    <message>`` on stderr and returns 2; so do tyro's parse errors (as a SystemExit). ``UAMFLEET_TRACEBACK=1``
-    re-raises instead, for debugging."""
+    type of every documented input error of the package, an existing run) and a path or device that cannot be used
+    (any ``OSError``: a missing, unwritable or too long path, a folder given for a file) print ``prog: error:
+    <message>`` on stderr, one line naming the path, and return 2; so do tyro's parse errors (as a SystemExit).
+    Under torchrun a rank other than 0 whose rank 0 failed (:class:`~uamfleet.rl.distributed.RankZeroError`)
+    returns 2 silently: rank 0 prints the error. ``UAMFLEET_TRACEBACK=1`` re-raises instead, for debugging."""
     description = (doc or "").strip()
     try:
         args = _parse(_deferring_checks(args_type), argv, prog, description)
         if (error := getattr(args, "_cli_error", None)) is not None:
             raise error
         status = main(args)
-    except (ValueError, FileNotFoundError, FileExistsError) as err:
+    except RankZeroError:
         if os.environ.get("UAMFLEET_TRACEBACK"):
             raise
-        message = " ".join(str(err).split())  # one line
+        return 2
+    except (ValueError, OSError) as err:
+        if os.environ.get("UAMFLEET_TRACEBACK"):
+            raise
+        message = os_error_message(err) if isinstance(err, OSError) else " ".join(str(err).split())  # one line
         print(f"{prog}: error: {message}", file=sys.stderr)
         return 2
     return status if isinstance(status, int) else 0

@@ -43,6 +43,11 @@ import torch.multiprocessing as mp
 from torch.distributions import Categorical
 
 
+class RankZeroError(RuntimeError):
+    """Raised on the other ranks when rank 0 fails a step that every rank waits for (claiming the run folder):
+    rank 0 raises (and reports) the error itself, so a command line prints it once and these ranks leave quietly."""
+
+
 def _backend(backend: str, use_cuda: bool, local_world: int) -> str:
     """ "auto": NCCL when every local rank has a GPU of its own, else gloo; NCCL only with CUDA."""
     if backend == "auto":
@@ -249,4 +254,4 @@ def launch_local(world_size: int, fn: Callable[..., None], *args: Any) -> None:
 World = Ranks
 """The old name of :class:`Ranks` (kept for imports that use it)."""
 
-__all__ = ["Ranks", "World", "launch_local", "leave_rank", "sample_actions"]
+__all__ = ["RankZeroError", "Ranks", "World", "launch_local", "leave_rank", "sample_actions"]

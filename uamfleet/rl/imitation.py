@@ -41,6 +41,7 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.networks import PRIOR_FLOOR, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.checkpoint import run_config
+from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
 from uamfleet.env.layout import layout_to_dict, observation_layout
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
@@ -138,6 +139,7 @@ class ImitationArgs:
         if not self.thresholds or len(set(self.thresholds)) != len(self.thresholds):
             raise ConfigError(f"--thresholds={list(self.thresholds)} must name one or more distinct dB values.")
         self.run_dir = Path(self.run_dir)
+        check_run_name(self.run_name, self.run_dir)  # the rule of every command that writes a run
         if self.train == "lookahead" and not self.lookahead:
             raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
         self.lookahead_rule = check_number("--lookahead-rule", self.lookahead_rule, minimum=0.0)
@@ -469,10 +471,14 @@ def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: tor
 
 def imitate(args: ImitationArgs) -> dict[str, float]:
     """Run DAgger (module docstring); writes ``best.pt``, ``last.pt`` and ``progress.csv`` in the run folder and
-    returns the best validation row."""
-    folder = args.run_dir / args.run_name
-    if folder.exists() and any(folder.iterdir()) and not args.overwrite:
-        raise ConfigError(f"run folder {folder} exists; pass --overwrite to replace it, or choose another --run-name.")
+    returns the best validation row. The folder is claimed first (:func:`~uamfleet.rl.runs.claim_run`): an existing
+    run is refused without ``overwrite``, and so is a name another command is writing."""
+    with claim_run(args.run_dir, args.run_name, overwrite=args.overwrite, resumable=False) as claim:
+        return _imitate(args, claim)
+
+
+def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
+    folder = claim.folder
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
@@ -488,7 +494,7 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     eval_like = run_config(source_args, training=False)
     groups = _groups(args, run_config(source_args, training=True), family)
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
-    folder.mkdir(parents=True, exist_ok=True)
+    claim.clear()  # every option checked: an earlier run replaced with --overwrite goes now
     first = validation_metrics(policy, family, args.eval_instances, eval_like)
     rows: list[dict[str, float]] = [{"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)}]
     best = dict(rows[-1])

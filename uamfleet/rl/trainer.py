@@ -53,12 +53,12 @@ from uamfleet.rl.checkpoint import (
     set_numpy_rng_state,
     upgrade_checkpoint,
 )
-from uamfleet.rl.distributed import Ranks, sample_actions
+from uamfleet.rl.distributed import RankZeroError, Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo, categorical_kl, ppo_loss
-from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, TrainResult, read_progress, run_folder
+from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, RunClaim, TrainResult, claim_run, read_progress, run_folder
 from uamfleet.rollout import fly
 
 
@@ -458,26 +458,29 @@ def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
     return restore_counters(ckpt)
 
 
-def start(run: Run, learner: Learner) -> tuple[Counters, list[dict[str, float]]]:
-    """Prepare the folder (rank 0), resume from last.pt on every rank, and broadcast rank 0's parameters."""
+def start(run: Run, learner: Learner, claim: RunClaim | None) -> tuple[Counters, list[dict[str, float]]]:
+    """Prepare the claimed folder (rank 0: an earlier run replaced with ``--overwrite`` is deleted now that every
+    option is checked), resume from last.pt on every rank, and broadcast rank 0's parameters."""
     ranks, data, error = run.ranks, None, None
     if ranks.is_main:
         try:
-            run_folder(run.args)
+            if claim is not None:
+                claim.clear()
             data = (run.folder / "last.pt").read_bytes() if run.args.resume else None
         except Exception as err:
             error = err
     if not ranks.broadcast_flag(error is None):
         if error is not None:
             raise error
-        raise RuntimeError("rank 0 could not set up the run folder; its error says why.")
+        raise RankZeroError("rank 0 could not set up the run folder; its error says why.")
     data = ranks.broadcast_bytes(data)
     counters, rows = Counters(), []
     if data is not None:
         counters = restore(Checkpoint.from_bytes(data, str(run.folder / "last.pt"), run.device), run, learner)
         if ranks.is_main:
             # rows logged after the checkpoint belong to iterations that are trained again
-            rows = [r for r in read_progress(run.folder / "progress.csv") if r["iteration"] <= counters.iteration]
+            progress = read_progress(run.folder / "progress.csv", required=("iteration",))
+            rows = [r for r in progress if r["iteration"] <= counters.iteration]
     ranks.broadcast_module(learner.net)
     obs, _ = run.venv.reset(seed=run.args.seed + run.env_offset)  # global env e gets seed + e
     run.obs = run.flat(obs)
@@ -704,18 +707,47 @@ def train(
     if args.threads:
         torch.set_num_threads(args.threads)
     ranks, device = Ranks.from_env(args.device, args.backend)
-    run = make_run(with_init_architecture(args), env_config, ranks, device)
+    args = with_init_architecture(args)
+    claim = claim_folder(args, ranks)  # before any env or table is built: a second run of the name fails at once
     try:
-        return _train(run, on_iteration)
+        run = make_run(args, env_config, ranks, device)
+        try:
+            return _train(run, on_iteration, claim)
+        finally:
+            if isinstance(run.venv, ShardedVectorEnv):
+                run.venv.close()  # the env workers stop with the training, however it ends
     finally:
-        if isinstance(run.venv, ShardedVectorEnv):
-            run.venv.close()  # the env workers stop with the training, however it ends
+        if claim is not None:
+            claim.release()
 
 
-def _train(run: Run, on_iteration: Callable[[int, torch.nn.Module], None] | None) -> TrainResult:
+def claim_folder(args: TrainArgs, ranks: Ranks) -> RunClaim | None:
+    """Rank 0 claims the run folder (:func:`~uamfleet.rl.runs.claim_run`; with ``--resume`` its progress.csv is
+    read, so a damaged one fails now) and every rank learns the outcome: rank 0 raises its error, the others
+    :class:`~uamfleet.rl.distributed.RankZeroError`. The claim on rank 0, None on the others."""
+    claim, error = None, None
+    if ranks.is_main:
+        try:
+            claim = claim_run(args.run_dir, args.name, resume=args.resume, overwrite=args.overwrite)
+            if args.resume:
+                read_progress(claim.folder / "progress.csv", required=("iteration",))
+        except Exception as err:
+            if claim is not None:
+                claim.release()
+            error = err
+    if not ranks.broadcast_flag(error is None):
+        if error is not None:
+            raise error
+        raise RankZeroError(f"rank 0 could not claim the run folder {args.run_dir / args.name}; its error says why.")
+    return claim
+
+
+def _train(
+    run: Run, on_iteration: Callable[[int, torch.nn.Module], None] | None, claim: RunClaim | None
+) -> TrainResult:
     args, ranks = run.args, run.ranks
     learner = make_learner(run)
-    counters, rows = start(run, learner)
+    counters, rows = start(run, learner, claim)
     if args.init_from is not None and counters.iteration == 0 and ranks.is_main:
         rows.append(evaluate_start(run, learner, counters))
     if counters.iteration >= run.num_iterations:
