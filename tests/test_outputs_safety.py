@@ -8,8 +8,11 @@ repository."""
 
 from __future__ import annotations
 
+import errno
+import os
 import shutil
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -201,3 +204,85 @@ def test_msha_table_continues_an_interrupted_run_instead_of_deleting_it(tmp_path
     command = msha_table.train_command(exp, args)
     assert "--resume" in command and "--overwrite" not in command
     assert "--overwrite" in msha_table.train_command(exp, msha_table.Args(run_dir=tmp_path, retrain=True))
+
+
+class Reached(Exception):
+    """Raised by a stand-in for a command's work: the command got past its checks."""
+
+
+def _unwritable(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``folder`` without write permission (as root, who writes anyway, os.access says so too)."""
+    folder.chmod(0o555)
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == folder else real(p, mode, **kw))
+
+
+# (what the path is, how to make it in tmp_path, what the one line says)
+BAD_OUTPUTS = [
+    ("parent is a file", lambda t: (t / "f.txt").write_text("mine") and t / "f.txt" / "x.out", "is a file, not a"),
+    ("a folder", lambda t: (t / "folder").mkdir() or t / "folder", "is a folder; give a file name"),
+    ("a FIFO", lambda t: os.mkfifo(t / "fifo.out") or t / "fifo.out", "is not a regular file (a FIFO"),
+    ("name too long", lambda t: t / ("x" * 300 + ".out"), "File name too long; shorten the path"),
+    ("path too long", lambda t: t.joinpath(*["d" * 200] * 25, "x.out"), "File name too long"),
+    ("unwritable", lambda t: (t / "ro").mkdir() or t / "ro" / "x.out", "is not writable"),
+]
+
+
+@pytest.mark.parametrize(("what", "make", "message"), BAD_OUTPUTS, ids=[b[0] for b in BAD_OUTPUTS])
+def test_an_output_path_that_cannot_be_written_is_one_line_naming_it(tmp_path, monkeypatch, capsys, what, make,
+                                                                      message):  # fmt: skip
+    path = make(tmp_path)
+    if what == "unwritable":
+        _unwritable(tmp_path / "ro", monkeypatch)
+    monkeypatch.setattr(render, "fly", lambda *a, **k: (_ for _ in ()).throw(Reached()))
+    monkeypatch.setattr(benchmark, "fly_all", lambda *a, **k: (_ for _ in ()).throw(Reached()))
+    before = snapshot(tmp_path)
+    for cli, argv in (
+        (render.cli, ["--out", str(path), "--overwrite"]),
+        (benchmark.cli, ["--count", "1", "--methods", "straight", "--jobs", "1", "--out-md", str(tmp_path / "b.md"),
+                         "--out-csv", str(path), "--overwrite"]),
+    ):  # fmt: skip
+        assert exit_status(cli, argv) == 2
+        err = capsys.readouterr().err
+        flag = "--out" if cli is render.cli else "--out-csv"
+        assert err.count("\n") == 1 and message in err and f"error: {flag} " in err, err
+        assert "[Errno" not in err and "Traceback" not in err and len(err) < 600, err  # a long path shown by its ends
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda t: (t / "file.txt").write_text("mine") and t / "file.txt", "file.txt is a file, not a folder"),
+        (lambda t: (t / "file.txt").write_text("mine") and t / "file.txt" / "runs", "Not a directory: '"),
+        (lambda t: t.joinpath(*["d" * 200] * 25), "File name too long"),
+    ],
+    ids=["a file", "below a file", "too long"],
+)
+def test_train_run_dir_that_cannot_be_made_is_one_line_before_any_env(tmp_path, monkeypatch, capsys, make, message):
+    from uamfleet.rl import trainer
+
+    run_dir = make(tmp_path)
+    monkeypatch.setattr(trainer, "make_run", lambda *a, **k: (_ for _ in ()).throw(Reached()))
+    argv = ["--run-dir", str(run_dir), "--run-name", "r", "--total-timesteps", "64", "--num-envs", "1", "--num-steps",
+            "64", "--no-progress", "--no-tensorboard", "--device", "cpu"]  # fmt: skip
+    assert exit_status(train_cli.cli, argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error: --run-dir " in err and message in err, err
+    assert "[Errno" not in err and len(err) < 800, err
+
+
+def test_any_os_error_of_a_command_is_one_line_naming_the_path(capsys):
+    from uamfleet.cli._common import run
+
+    def main(args: object) -> int:
+        raise PermissionError(errno.EACCES, "Permission denied", "/some/where/out.csv")
+
+    @dataclass
+    class Args:
+        x: int = 0
+
+    assert run(main, Args, [], "uamfleet-x", None) == 2
+    err = capsys.readouterr().err
+    fix = "choose a folder you may write to (or read from)"
+    assert err == f"uamfleet-x: error: Permission denied: '/some/where/out.csv'; {fix}\n"

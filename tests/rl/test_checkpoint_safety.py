@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
+import re
 import time
 import warnings
 from pathlib import Path
@@ -206,3 +207,45 @@ def test_normaliser_statistics_must_fit_and_make_sense(tmp_path):
     words = {**stats, field: {**stats[field], "count": "many"}}
     with pytest.raises(CheckpointError, match=rf"normaliser '{field}' count is not numbers"):
         load_policy(altered(tmp_path, "words.pt", obs_normalizer=words))
+
+
+def test_a_folder_fifo_or_too_long_path_is_named_as_what_it_is(tmp_path):
+    os.mkfifo(tmp_path / "fifo.pt")  # opening it would block until a writer comes: it must not be opened
+    long = "x" * 5000
+    for path, message in (
+        (tmp_path, f"checkpoint {tmp_path} is a folder, not a file; give a checkpoint file in it"),
+        (tmp_path / "fifo.pt", f"checkpoint {tmp_path / 'fifo.pt'} is not a regular file (a FIFO"),
+        (long, "File name too long; shorten the path"),
+    ):
+        with pytest.raises(OSError) as caught:
+            load_policy(path)
+        text = str(caught.value)
+        assert message in text and "does not exist" not in text and "[Errno" not in text, text
+        assert "\n" not in text and len(text) < 500  # a 5,000-character path is shown by its ends
+    assert "(5,000 characters)" in text
+
+
+@pytest.mark.parametrize(
+    ("device", "message"),
+    [
+        ("bogus", "device='bogus' is not a torch device; use 'cpu', 'cuda' or 'cuda:<index>'"),
+        ("cuda:7", "device='cuda:7' is not on this machine"),
+    ],
+)
+def test_a_device_is_named_not_blamed_on_the_checkpoint(device, message):
+    from uamfleet.zoo import pretrained
+
+    if device.startswith("cuda") and torch.cuda.is_available() and torch.cuda.device_count() > 7:
+        pytest.skip("this machine has a cuda:7")
+    with pytest.raises(ValueError, match=re.escape(message)) as caught:
+        pretrained(device=device)
+    assert "loads safely" not in str(caught.value)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_policy(SHIPPED, device=device)
+
+
+def test_render_with_a_checkpoint_folder_is_one_line(tmp_path, capsys):
+    code = render.cli(["--checkpoint", str(tmp_path), "--out", str(tmp_path / "x.html")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "is a folder, not a file" in err and "[Errno" not in err, err
+    assert list(tmp_path.iterdir()) == []

@@ -38,7 +38,7 @@ from uamfleet.baselines.assignment_value import (
 )
 from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy, DispatchOptions, shared_fields, split_options
 from uamfleet.checks import check_number
-from uamfleet.cli._common import UsageError, check_outputs, run
+from uamfleet.cli._common import UsageError, check_outputs, output_paths, run
 from uamfleet.cli.fleet_benchmark import setting_size
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
@@ -169,6 +169,7 @@ def main(args: Args) -> dict[str, Any]:
     check_number("--ridge", args.ridge, minimum=0.0)
     if not args.settings:
         raise UsageError("--settings is empty: give at least one <taxis>x<requests> setting.")
+    output_paths({"--out": args.out})
     check_outputs(args.overwrite, [args.out])
     flown = load_value(args.fly_value) if args.fly_value is not None else None
     start, cpu0 = time.perf_counter(), time.process_time()

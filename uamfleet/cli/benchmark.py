@@ -41,6 +41,7 @@ from uamfleet.cli._common import (
     check_outputs,
     earlier_rows,
     fmt,
+    output_paths,
     run,
 )
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
@@ -494,6 +495,7 @@ def check_args(args: Args) -> list[Task]:
         )  # fmt: skip
     if args.checkpoint is not None:
         check_checkpoint(args.checkpoint)
+    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return selected
 

@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, run
+from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
 from uamfleet.baselines import POLICIES, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
@@ -287,6 +287,7 @@ def check_args(args: Args) -> list[Job]:
         raise UsageError(f"--passenger-window {args.passenger_window} applies to learned fleets: give --checkpoints.")
     for checkpoint in args.checkpoints:
         _check_checkpoint_flies(checkpoint, args.settings, args.passenger_window)
+    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
         (

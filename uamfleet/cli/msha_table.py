@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 
 import uamfleet
-from uamfleet.cli._common import UsageError, Variant, check_jobs, check_outputs, run
+from uamfleet.cli._common import UsageError, Variant, check_jobs, check_outputs, output_paths, run
 from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
@@ -281,6 +281,7 @@ def main(args: Args) -> list[dict[str, object]]:
             "no run selected: --only / --scenarios / --no-ablation match none of the experiments; nothing trained "
             "or written."
         )
+    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     if args.train:
         todo = [e for e in chosen if args.retrain or not (args.run_dir / e.name / "best.pt").exists()]

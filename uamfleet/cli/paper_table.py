@@ -24,7 +24,7 @@ import numpy as np
 
 import uamfleet
 from uamfleet.cli._common import fmt as fmt_value
-from uamfleet.cli._common import check_outputs, run
+from uamfleet.cli._common import check_outputs, output_paths, run
 from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import (
     PLANNERS,
@@ -175,6 +175,7 @@ def keep_other_rows(rows: list[dict[str, object]], earlier: list[dict[str, objec
 
 
 def main(args: Args) -> list[dict[str, object]]:
+    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
     check_outputs(args.overwrite, [args.out_csv], args.out_md, "paper_table")
     settings = ((SETTINGS[0][0], SETTINGS[0][1], (-3.0,), SETTINGS[0][3]),) if args.quick else SETTINGS
     rows: list[dict[str, object]] = []

@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import re
+import stat
 import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -34,7 +35,7 @@ from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, make_config
 from uamfleet.env.layout import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
-from uamfleet.io import write_bytes_atomic
+from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config
 
@@ -74,6 +75,73 @@ class CheckpointError(ValueError):
     """A file that is not a checkpoint uamfleet loads safely, or one that does not fit the network or env."""
 
 
+class DeviceError(ValueError):
+    """A torch device that is no device (``'bogus'``) or that this machine lacks (``'cuda:7'``)."""
+
+
+def check_device(device: object) -> torch.device:
+    """``device`` as a ``torch.device``, refused (:class:`DeviceError` naming it and the devices there are) when it
+    names no device or one this machine lacks, before any file is read onto it."""
+    if isinstance(device, torch.device):
+        parsed = device
+    else:
+        try:
+            parsed = torch.device(device)  # type: ignore[call-overload]
+        except (RuntimeError, TypeError, ValueError):
+            raise DeviceError(
+                f"device={device!r} is not a torch device; use 'cpu', 'cuda' or 'cuda:<index>' ({_devices()})."
+            ) from None
+    if parsed.type == "cuda":
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0 or (parsed.index is not None and parsed.index >= count):
+            raise DeviceError(f"device={str(device)!r} is not on this machine ({_devices()}); use one of those.")
+    elif parsed.type not in ("cpu", "meta"):
+        if parsed.type == "mps" and torch.backends.mps.is_available():
+            return parsed
+        raise DeviceError(f"device={str(device)!r}: uamfleet runs on 'cpu' or 'cuda' ({_devices()}).")
+    return parsed
+
+
+def _devices() -> str:
+    count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    if count == 0:
+        return "this machine has the CPU and no CUDA device"
+    return f"this machine has the CPU and CUDA devices cuda:0 ... cuda:{count - 1}"
+
+
+def _unreadable(path: Path, err: OSError) -> PathError:
+    return PathError(f"cannot read checkpoint {shown_path(path)}: {os_error_message(err, with_path=False)}", err, path)
+
+
+def read_checkpoint_file(path: str | Path) -> bytes:
+    """The bytes of the checkpoint file ``path``; an OSError with one line naming it when it is missing, a folder,
+    a FIFO or another non-file, or unreadable (the file is never opened unless it is a regular file: a FIFO would
+    block)."""
+    path = Path(path)
+    shown = shown_path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise FileNotFoundError(
+            f"checkpoint {shown} does not exist; train one with uamfleet-train (or python train/ppo.py)."
+        ) from None
+    except OSError as err:
+        raise _unreadable(path, err) from None
+    if stat.S_ISDIR(mode):
+        raise PathError(
+            f"checkpoint {shown} is a folder, not a file; give a checkpoint file in it (e.g. {shown}/best.pt).",
+            path=path,
+        )
+    if not stat.S_ISREG(mode):
+        raise PathError(
+            f"checkpoint {shown} is not a regular file (a FIFO, socket or device); give a checkpoint file.", path=path
+        )
+    try:
+        return path.read_bytes()
+    except OSError as err:
+        raise _unreadable(path, err) from None
+
+
 @dataclass
 class Checkpoint:
     """Everything to continue a run or fly its policy: tensors, numbers, strings, lists and dicts only, so
@@ -109,16 +177,16 @@ class Checkpoint:
 
     @classmethod
     def load(cls, path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"checkpoint {path} does not exist; train one with uamfleet-train (or python train/ppo.py)."
-            )
-        return cls.from_bytes(path.read_bytes(), str(path), map_location)
+        """The checkpoint file ``path`` (:meth:`from_bytes`). A path that is missing, a folder, a FIFO or another
+        non-file, or that cannot be read is an OSError whose one-line message names it; a device that cannot take
+        the tensors is a ValueError naming the device (:func:`check_device`)."""
+        check_device(map_location)
+        return cls.from_bytes(read_checkpoint_file(path), str(path), map_location)
 
     @classmethod
     def from_bytes(cls, data: bytes, source: str, map_location: str | torch.device = "cpu") -> Checkpoint:
         """The checkpoint in ``data`` (read from ``source``), checked: keys, net_config, finite values."""
+        check_device(map_location)
         try:
             payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)
         except Exception as err:  # torch raises UnpicklingError, RuntimeError or ValueError by cause
@@ -575,6 +643,8 @@ __all__ = [
     "PRETRAINED",
     "Checkpoint",
     "CheckpointError",
+    "DeviceError",
+    "check_device",
     "check_net_config",
     "check_network",
     "check_state_dict",
@@ -582,6 +652,7 @@ __all__ = [
     "checkpoint_source",
     "numpy_rng_state",
     "pretrained_path",
+    "read_checkpoint_file",
     "run_config",
     "set_numpy_rng_state",
     "upgrade_checkpoint",
