@@ -3,6 +3,8 @@ ParallelPettingZooEnv construct around our env and step it (optional extras: ski
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -34,3 +36,23 @@ def test_rllib_parallel_pettingzoo_env_steps_our_env():
     for _ in range(3):
         obs, rewards, terminated, truncated, _ = env.step(allowed_actions(obs))
         assert set(rewards) == {"uam_0", "uam_1"} and "__all__" in terminated and "__all__" in truncated
+
+
+@pytest.mark.parametrize(
+    ("blocked", "call", "install"),
+    [
+        ("ray", lambda: __import__("uamfleet.engines.rllib").engines.rllib.ppo_config("berlin_p4"),
+         "pip install 'ray[rllib]'"),
+        ("torchrl", lambda: __import__("uamfleet.engines.torchrl").engines.torchrl.torchrl_env("berlin_p4"),
+         "pip install 'uamfleet[torchrl]'"),
+        ("tensordict", lambda: __import__("uamfleet.engines.torchrl").engines.torchrl.masked_policy(None),
+         "pip install 'uamfleet[torchrl]'"),
+    ],
+    ids=["rllib", "torchrl", "torchrl policy"],
+)  # fmt: skip
+def test_an_engine_that_is_not_installed_says_how_to_install_it(monkeypatch, blocked, call, install):
+    monkeypatch.setitem(sys.modules, blocked, None)  # import of it fails, installed or not
+    with pytest.raises(ImportError) as caught:
+        call()
+    message = str(caught.value)
+    assert install in message and f"no module {blocked!r}" in message and "\n" not in message, message

@@ -20,6 +20,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from uamfleet.config import EnvConfig, make_config
+from uamfleet.engines import require
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
 
 ENV_NAME = "uamfleet"
@@ -90,7 +91,8 @@ def ppo_config(scenario: str | EnvConfig = "berlin_random", **overrides: Any) ->
     ``ParallelPettingZooEnv`` around :func:`flat_masked_env`), every taxi mapped to the one policy
     :data:`POLICY_ID`, whose module masks the logits with ``action_mask`` (RLlib's
     ``ActionMaskingTorchRLModule``). Chain any further settings (``.env_runners(...)``, ``.training(...)``)
-    before ``.build_algo()``."""
+    before ``.build_algo()``. :class:`~uamfleet.engines.EngineMissingError` without RLlib."""
+    require("rllib", "ray", "ray.rllib")
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec

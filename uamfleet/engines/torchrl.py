@@ -22,6 +22,7 @@ from __future__ import annotations
 from typing import Any
 
 from uamfleet.config import EnvConfig, make_config
+from uamfleet.engines import require
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
 
 GROUP = "uam"
@@ -30,7 +31,9 @@ GROUP = "uam"
 
 def torchrl_env(scenario: str | EnvConfig = "berlin_random", **overrides: Any) -> Any:
     """TorchRL's ``PettingZooWrapper`` around the scenario's ParallelEnv (any :func:`uamfleet.make_config`
-    override); the action mask is read from the observation."""
+    override); the action mask is read from the observation. :class:`~uamfleet.engines.EngineMissingError`
+    without TorchRL."""
+    require("torchrl", "torchrl")
     from torchrl.envs import PettingZooWrapper
 
     cfg = scenario if isinstance(scenario, EnvConfig) else make_config(scenario, **overrides)
@@ -46,6 +49,7 @@ def masked_policy(env: Any, hidden: int = 64, seed: int | None = 0) -> Any:
     """A ``ProbabilisticActor`` for ``env`` (:func:`torchrl_env`): every observation field flattened and
     concatenated per taxi, a two-layer MLP shared by all taxis, logits masked by ``("uam", "action_mask")``
     (``MaskedCategorical``); writes ``("uam", "action")`` and its log-probability."""
+    require("torchrl", "tensordict", "torchrl")
     import torch
     from tensordict.nn import TensorDictModule
     from torchrl.modules import MaskedCategorical, ProbabilisticActor
