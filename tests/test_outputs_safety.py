@@ -254,7 +254,7 @@ def test_an_output_path_that_cannot_be_written_is_one_line_naming_it(tmp_path, m
     ("make", "message"),
     [
         (lambda t: (t / "file.txt").write_text("mine") and t / "file.txt", "file.txt is a file, not a folder"),
-        (lambda t: (t / "file.txt").write_text("mine") and t / "file.txt" / "runs", "Not a directory: '"),
+        (lambda t: (t / "file.txt").write_text("mine") and t / "file.txt" / "runs", "Not a directory; a part of the"),
         (lambda t: t.joinpath(*["d" * 200] * 25), "File name too long"),
     ],
     ids=["a file", "below a file", "too long"],

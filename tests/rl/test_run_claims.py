@@ -205,3 +205,31 @@ def test_torchrun_on_an_existing_run_name_is_one_line_from_rank_0(tmp_path):
     assert code0 == "2" and err0.count("\n") == 1 and f"{folder} already holds a run (progress.csv, last.pt)" in err0
     assert code1 == "2" and err1 == ""  # rank 1 says nothing: no second line, no traceback
     assert sorted(p.name for p in folder.iterdir()) == ["last.pt", "progress.csv"]
+
+
+def test_quickstart_claims_through_train_before_any_env(tmp_path, monkeypatch, capsys):
+    from uamfleet.cli import quickstart
+
+    monkeypatch.setattr(trainer, "make_run", lambda *a, **k: (_ for _ in ()).throw(Reached()))
+    argv = ["--run-dir", str(tmp_path), "--run-name", "mine", "--no-generalist", "--threads", "1"]
+    with claim_run(tmp_path, "mine"):  # a training of that name is running
+        assert exit_status(quickstart.cli, argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{tmp_path / 'mine'} is in use by another run" in err, err
+
+
+def test_a_run_folder_that_cannot_be_made_names_it_and_the_flag(tmp_path, monkeypatch):
+    real = Path.mkdir
+
+    def mkdir(self, *args, **kwargs):
+        if self.name == "r":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", mkdir)
+    with pytest.raises(OSError) as caught:
+        claim_run(tmp_path, "r")
+    assert str(caught.value) == (
+        f"--run-dir {tmp_path}: cannot create the run folder {tmp_path / 'r'}: Permission denied; choose a folder you "
+        "may write to (or read from)."
+    )

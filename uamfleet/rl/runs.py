@@ -151,8 +151,8 @@ def claim_run(
 
 def _unusable(run_dir: Path, folder: Path, err: OSError) -> PathError:
     return PathError(
-        f"--run-dir {shown_path(run_dir)}: cannot create the run folder {shown_path(folder)} "
-        f"({os_error_message(err)}); give --run-dir a folder you can write to.",
+        f"--run-dir {shown_path(run_dir)}: cannot create the run folder {shown_path(folder)}: "
+        f"{os_error_message(err, with_path=False)}.",
         err,
     )
 
