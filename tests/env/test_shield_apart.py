@@ -75,9 +75,10 @@ def test_a_blocked_taxi_in_conflict_moves_apart_on_an_allowed_heading():
 
 
 def test_in_the_env_parted_taxis_are_shield_interventions_not_hovers():
-    # The blocked case in the env: a no-fly block east of the shared start (250, 250). East, 22.5° and 337.5° end
-    # in it; taxi 0 moves apart on 45° (NE), taxi 1 on 225° (SW, 200 m from taxi 0's end). Both asked for a move
-    # that is not allowed: blocked (its penalty), moved by the shield (an intervention), not a hover.
+    # The blocked case in the env: the shared start (150, 250) has a no-fly block (x and y 200-300 m) east of it.
+    # East, 22.5° and 337.5° end in it; taxi 0 moves apart on 45° (NE), taxi 1 on 225° (SW, 200 m from taxi 0's
+    # end). Both asked for a move that is not allowed: blocked (its penalty), moved by the shield (an
+    # intervention), not a hover.
     wall = ".....\n.....\n..#..\n.....\n....."
     cfg = small_config(
         wall, starts_m=((150.0, 250.0),) * 2, separation="shield", min_separation_m=150.0,
@@ -94,7 +95,7 @@ def test_in_the_env_parted_taxis_are_shield_interventions_not_hovers():
     d = 100.0 / math.sqrt(2.0)
     np.testing.assert_allclose(env.state.pos_m[0], [[150.0 + d, 250.0 + d], [150.0 - d, 250.0 - d]])
 
-    # Asking to hover on a shared start: the same parting, an intervention; with the hover kept nobody moves.
+    # Asking to hover on the shared start: parted the same way (east first for a hover), as interventions.
     env.reset(seed=0)
     _, _, _, _, info = env.step(np.array([[HOVER_ACTION, HOVER_ACTION]]))
     ev = info["events"]
@@ -219,7 +220,7 @@ def _fly_fuzz_case(seed: int) -> None:
 
 
 def test_seeded_fuzz_of_start_configurations_parts_everyone_and_delivers_everyone():
-    for seed in range(18):  # 1-2 s; 6 coincident, 6 rings, 6 boxes
+    for seed in range(18):  # 1-2 s: 6 coincident, 6 rings, 6 boxes; 5 refused (1,500 m), 3 at 120 m
         _fly_fuzz_case(seed)
 
 
