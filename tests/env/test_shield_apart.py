@@ -228,3 +228,35 @@ def test_seeded_fuzz_of_start_configurations_parts_everyone_and_delivers_everyon
 def test_seeded_fuzz_of_start_configurations_long():
     for seed in range(18, 618):
         _fly_fuzz_case(seed)
+
+
+def _greedy_packing(points: np.ndarray, min_separation_m: float) -> int:
+    """How many of ``points`` a greedy pass keeps pairwise at least ``min_separation_m`` apart: a packing that
+    exists, so a true bound on the room is never below it."""
+    kept: list[np.ndarray] = []
+    for p in points:
+        if all(np.linalg.norm(p - q) >= min_separation_m for q in kept):
+            kept.append(p)
+    return len(kept)
+
+
+def test_the_room_bounds_are_never_below_a_packing_that_exists():
+    # A refusal must be certain: on random drawn maps, the room of the flyable blocks (corners and centres of the
+    # blocks as candidate points) is at least what a greedy packing places, and the square's bound at least a
+    # square lattice s apart ((floor(L / s) + 1)^2 points). Hand values on the 1,000 m square: 1,414 m fits two
+    # (opposite corners), 1,500 m one.
+    from uamfleet.config import separation_room_bound
+    from uamfleet.env.generator import _flyable_rects, separation_room
+
+    assert (separation_room_bound(1000.0, 1000.0, 1414.0), separation_room_bound(1000.0, 1000.0, 1500.0)) == (2, 1)
+    rng = np.random.default_rng(5)
+    for trial in range(12):
+        art = "\n".join("".join(rng.choice([".", "#"], p=[0.6, 0.4], size=10)) for _ in range(10))
+        world = World(small_config(art, starts_m=None, requests=None))
+        rects = _flyable_rects(world)
+        candidates = np.concatenate([rects[:, :2], rects[:, 2:], (rects[:, :2] + rects[:, 2:]) / 2])
+        for sep in (60.0, 100.0, 141.0, 150.0, 250.0, 400.0, 900.0):
+            sep *= 1.0 + rng.uniform(0, 0.1)
+            assert separation_room(rects, sep) >= _greedy_packing(rng.permutation(candidates), sep), (trial, sep)
+            side = math.floor(1000.0 / sep) + 1
+            assert separation_room_bound(1000.0, 1000.0, sep) >= side * side
