@@ -9,6 +9,7 @@ objects). Checks that need only the config live in ``__post_init__``; checks tha
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import InitVar, dataclass, field
 from typing import Any, Literal
@@ -211,6 +212,7 @@ class EnvConfig:
                 f"max_passengers={self.max_passengers} is smaller than the {self.num_requests_max} requests "
                 "this config can generate; raise it or leave it None."
             )
+        self._check_separation_room()
 
     def _check_numbers(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -281,6 +283,22 @@ class EnvConfig:
             raise ConfigError(
                 f"separation={self.separation!r} is unknown; use 'shield' (moves deconflicted before they are "
                 "flown) or 'none' (losses of separation only recorded)."
+            )
+
+    def _check_separation_room(self) -> None:
+        """Under the shield the taxis must fit ``min_separation_m`` apart on the map at all, or it could never
+        separate them: at most :func:`separation_room_bound` of the square map. A necessary condition only; the
+        flyable blocks are checked when the env is built (:func:`uamfleet.env.generator.check_separation_room`)."""
+        sep, taxis = self.min_separation_m, self.num_taxis
+        if self.separation != "shield" or taxis < 2 or sep <= 0:
+            return
+        room = separation_room_bound(self.side_m, self.side_m, sep)
+        if taxis > room:
+            raise ConfigError(
+                f"min_separation_m={sep:g} leaves room for at most {room} taxi(s) that far apart on the "
+                f"{self.side_m:g} m square map, but num_taxis={taxis} fly under separation='shield', which could "
+                f"never separate them; lower min_separation_m (two taxis fit up to the map's diagonal, "
+                f"{self.side_m * math.sqrt(2.0):.0f} m), fly fewer taxis, or use separation='none'."
             )
 
     def _check_requests(self) -> None:
@@ -589,6 +607,26 @@ def make_config(scenario: str | EnvConfig = "berlin_p4", **overrides: Any) -> En
 
 def _fields(cfg: EnvConfig) -> dict[str, Any]:
     return {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
+
+
+def separation_room_bound(width_m: float, height_m: float, min_separation_m: float, area_m2: float | None = None,
+                          perimeter_m: float | None = None) -> int:  # fmt: skip
+    """At most how many points of a ``width_m`` x ``height_m`` rectangle (or of a convex set of that bounding box,
+    ``area_m2`` and ``perimeter_m``) can lie pairwise ``min_separation_m`` apart: the fewest of one per square of
+    side ``min_separation_m / sqrt(2)`` (two points in one half-open square are closer than its diagonal; the
+    squares of a grid laid from a corner), Oler's bound ``2 / sqrt(3) * A / s^2 + P / (2 s) + 1`` for a convex set
+    of area A and perimeter P, and 1 when the diagonal is shorter than the separation. Never below the true
+    number (a refusal on it is certain), often above it."""
+    area = width_m * height_m if area_m2 is None else area_m2
+    perimeter = 2.0 * (width_m + height_m) if perimeter_m is None else perimeter_m
+    s = min_separation_m
+    if math.hypot(width_m, height_m) < s:
+        return 1
+    cell = s / math.sqrt(2.0)
+    slack = 1.0 + 1e-9  # rounding never lowers a bound
+    grid = (math.floor(width_m / cell * slack) + 1) * (math.floor(height_m / cell * slack) + 1)
+    oler = math.floor((2.0 / math.sqrt(3.0) * area / (s * s) + perimeter / (2.0 * s) + 1.0) * slack)
+    return min(grid, oler)
 
 
 def heading_vectors() -> np.ndarray:

@@ -3,8 +3,9 @@
 Order within a step (all taxis move simultaneously, one slot of ``slot_s`` seconds):
 0. with ``EnvConfig.separation == "shield"``, conflicts are resolved first: a move whose end would come within
    ``min_separation_m`` of another taxi is replaced by the nearest clear allowed heading, else by a hover (the
-   taxi stays: time passes, no distance flown); events ``heading_flown``, ``shield_intervened``, ``hovered``
-   (docs/rules.md "Separation shield");
+   taxi stays: time passes, no distance flown), and a taxi that would stay closer than ``min_separation_m`` to
+   another (taxis sharing a start) is moved apart where it can be; events ``heading_flown``,
+   ``shield_intervened``, ``hovered`` (docs/rules.md "Separation shield");
 1. each taxi flies one step along its heading if the move is allowed (``state.action_mask``); a move that is
    not allowed leaves the taxi in place (event ``blocked``: never a teleport, never a bounce); with
    ``EnvConfig.hover_action``, action 16 (``HOVER_ACTION``) hovers: the taxi stays, always allowed (``hovered``);

@@ -9,8 +9,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
-from uamfleet.config import Request
+from uamfleet.config import Request, separation_room_bound
 from uamfleet.env.world import World
 from uamfleet.types import HIDDEN, NUM_HEADINGS, WAITING, FleetState
 
@@ -61,6 +62,120 @@ def _check_point(world: World, point: np.ndarray, label: str, fix: str) -> None:
             f"{label} at {tuple(point.tolist())} is in a block with SINR {sinr:.2f} dB, below "
             f"sinr_min_db={world.threshold_db} dB ({world.cfg.feasibility} rule); {fix}."
         )
+
+
+# ---- room to separate ----------------------------------------------------------------------------------
+
+_MAX_ROOM_GRID = 4_000_000
+"""Cells of the largest grid :func:`separation_room` marks (a separation far below the block size: its bound is
+then the sum over the rectangles instead, looser but never below the true room)."""
+
+
+_RASTER_TILES = 128
+"""Raster cells are grouped into at most this many tiles per side for :func:`check_separation_room`."""
+
+
+def separation_room(rects: np.ndarray, min_separation_m: float) -> int:
+    """At most how many points of the union of closed rectangles ``rects`` ([R, 4]: x0, y0, x1, y1) can lie
+    pairwise ``min_separation_m`` apart: :func:`~uamfleet.config.separation_room_bound` of its bounding box and
+    convex hull, and at most one point per half-open square of side ``min_separation_m / sqrt(2)`` that the union
+    touches (two points in one are closer than its diagonal; the fewest over four placements of the squares'
+    grid). An upper bound: a union past it certainly has no room."""
+    if not len(rects):
+        return 0
+    lo, hi = rects[:, :2].min(axis=0), rects[:, 2:].max(axis=0)
+    width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    corners = np.concatenate([rects[:, [0, 1]], rects[:, [2, 1]], rects[:, [0, 3]], rects[:, [2, 3]]])
+    try:
+        hull = ConvexHull(corners)
+        best = separation_room_bound(width, height, min_separation_m, hull.volume, hull.area)  # 2-D: area, perimeter
+    except QhullError:  # a union of zero area (blocks cut to a map edge): the bounding box alone
+        best = separation_room_bound(width, height, min_separation_m)
+    cell = min_separation_m / np.sqrt(2.0)
+    rects = rects + np.array([-1e-6, -1e-6, 1e-6, 1e-6])  # a micrometre more: rounding never drops a square
+    for ox, oy in ((0.0, 0.0), (cell / 2, 0.0), (0.0, cell / 2), (cell / 2, cell / 2)):
+        i0, i1 = np.floor((rects[:, 0] - ox) / cell), np.floor((rects[:, 2] - ox) / cell)
+        j0, j1 = np.floor((rects[:, 1] - oy) / cell), np.floor((rects[:, 3] - oy) / cell)
+        lo_i, lo_j = i0.min(), j0.min()
+        ni, nj = int(i1.max() - lo_i) + 1, int(j1.max() - lo_j) + 1
+        if ni * nj > _MAX_ROOM_GRID:
+            count = int(((i1 - i0 + 1) * (j1 - j0 + 1)).sum())
+        else:  # mark the touched squares: a 2-D difference array, then its running sums
+            i0, i1, j0, j1 = (
+                np.asarray(v - lo, np.int64) for v, lo in ((i0, lo_i), (i1, lo_i), (j0, lo_j), (j1, lo_j))
+            )
+            diff = np.zeros((ni + 1, nj + 1), np.int64)
+            for di, dj, sign, ii, jj in ((0, 0, 1, i0, j0), (1, 0, -1, i1, j0), (0, 1, -1, i0, j1), (1, 1, 1, i1, j1)):
+                np.add.at(diff, (ii + di, jj + dj), sign)
+            count = int((diff.cumsum(0).cumsum(1) > 0).sum())
+        best = min(best, count)
+    return best
+
+
+def _flyable_rects(world: World, blocks: np.ndarray | None = None) -> np.ndarray:
+    """[R, 4] closed rectangles (x0, y0, x1, y1) covering every point a taxi may be at: the flyable blocks
+    (``blocks``: a bool mask of some of them) under ``endpoint_block``; under ``segment_raster`` the tiles of
+    raster cells (each point's nearest) with a cell at the threshold; cut to the map."""
+    side = world.side_m
+    if world.cfg.feasibility == "endpoint_block":
+        b = world.blocks.block_m
+        bx, by = np.nonzero(world.block_ok if blocks is None else blocks)
+        lo = np.stack([bx * b, by * b], axis=-1)
+        hi = lo + b
+    else:  # raster cells, in tiles of f x f cells (a tile with one flyable cell counts whole: a larger area)
+        radio = world.radio
+        with np.errstate(invalid="ignore"):
+            ok = np.asarray(radio.sinr_db) >= world.threshold_db
+        f = -(-max(ok.shape) // _RASTER_TILES)
+        padded = np.zeros((-(-ok.shape[0] // f) * f, -(-ok.shape[1] // f) * f), bool)
+        padded[: ok.shape[0], : ok.shape[1]] = ok
+        tx, ty = np.nonzero(padded.reshape(padded.shape[0] // f, f, padded.shape[1] // f, f).any(axis=(1, 3)))
+        res = radio.resolution_m
+        lo = np.asarray(radio.origin_m, float) - res / 2 + np.stack([tx, ty], axis=-1) * f * res
+        hi = lo + f * res
+    rects = np.concatenate([np.clip(lo, 0.0, side), np.clip(hi, 0.0, side)], axis=-1).astype(float)
+    return rects.reshape(-1, 4)
+
+
+def check_separation_room(world: World, starts_m: np.ndarray | None, sites: np.ndarray | None) -> None:
+    """Under the separation shield, refuse taxis that could never be ``min_separation_m`` apart on the flyable
+    area: raise :class:`InfeasibleInstanceError` naming the taxis, the room and the fix.
+
+    Taxis in one 8-connected area of flyable blocks stay in it where a move cannot leap a block (``endpoint_block``
+    with ``block_m >= step_m``): fixed starts are counted per area, random starts (drawn from ``sites``, the largest
+    area) all in that one. Otherwise all taxis count against the whole flyable area. The room is the upper bound
+    of :func:`separation_room`, so a refusal is certain; a fleet within it may still be too tight to separate."""
+    cfg = world.cfg
+    sep, taxis = cfg.min_separation_m, cfg.num_taxis
+    if cfg.separation != "shield" or taxis < 2 or sep <= 0:
+        return
+    per_area = cfg.feasibility == "endpoint_block" and world.blocks.block_m >= cfg.step_m
+    if not per_area:
+        groups = [(np.arange(taxis), None)]
+    elif starts_m is not None:
+        labels = world.component_of(np.asarray(starts_m, float))
+        groups = [(np.flatnonzero(labels == lab), world.components == lab) for lab in np.unique(labels)]
+    else:
+        assert sites is not None
+        groups = [(np.arange(taxis), world.components == world.component_of(sites[:1])[0])]
+    for members, area in groups:
+        if len(members) < 2:
+            continue
+        room = separation_room(_flyable_rects(world, area), sep)
+        if len(members) > room:
+            where = "the flyable area" if area is None else "one flyable area"
+            if starts_m is None:
+                who = f"the {taxis} taxis (random starts)"
+            else:
+                who = (
+                    f"taxis {members.tolist()} (starts from {tuple(np.asarray(starts_m, float)[members[0]].tolist())})"
+                )
+            raise InfeasibleInstanceError(
+                f"{who} cannot all be min_separation_m={sep:g} m apart in {where} of {world.radio.label} at "
+                f"sinr_min_db={world.threshold_db} dB: it has room for at most {room} taxi(s) that far apart, so the "
+                "separation shield could never separate them; lower min_separation_m, fly fewer taxis, start them in "
+                "a larger flyable area, or use separation='none'."
+            )
 
 
 # ---- random instances ---------------------------------------------------------------------------------
@@ -223,6 +338,7 @@ class InstanceSource:
 
         self._check_sites()
         self._check_vertiports()
+        check_separation_room(world, self.fixed_starts, None if self.fixed_starts is not None else self.sites)
 
     def _check_sites(self) -> None:
         """Random parts are drawn from the flyable sites: too few of them would fail inside NumPy at the first

@@ -48,13 +48,15 @@ already turned aside (the move then yields: the taxi hovers, docs/rules.md "Sepa
 
 @njit(cache=True)
 def _conflict(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray, turned: np.ndarray,
-              pos: np.ndarray, min_separation_m: float) -> int:  # fmt: skip
+              pos: np.ndarray, min_separation_m: float, apart: bool) -> int:  # fmt: skip
     """Whether taxi a's move from pos[a] to (x, y) keeps its separation from every other taxi b, which flies from
     pos[b] to ends[b] once resolved, else is taken to stay at pos[b]: the end is at least ``min_separation_m`` from
     b's end (the same distance and comparison as :func:`separation`, so an accepted end is never a violation), and,
     when the two start at least that far apart, they stay so throughout the slot (closest approach of two
-    straight flights at constant speed; two taxis never swap places through each other). Returns :data:`CLEAR`,
-    :data:`CONFLICT`, or :data:`YIELD` when one of the taxis in conflict is resolved and was turned aside."""
+    straight flights at constant speed; two taxis never swap places through each other). With ``apart``, a pair
+    that starts the slot closer than ``min_separation_m`` is also clear when the move takes the two apart
+    (:func:`_separating`), wherever it ends. Returns :data:`CLEAR`, :data:`CONFLICT`, or :data:`YIELD` when one of
+    the taxis in conflict is resolved and was turned aside."""
     ax, ay = pos[a, 0], pos[a, 1]
     found = CLEAR
     for b in range(pos.shape[0]):
@@ -71,11 +73,24 @@ def _conflict(a: int, x: float, y: float, ends: np.ndarray, resolved: np.ndarray
             t = min(max(-(sx * vx + sy * vy) / vv, 0.0), 1.0) if vv > 0.0 else 0.0
             cx, cy = sx + t * vx, sy + t * vy
             close = math.sqrt(cx * cx + cy * cy) < min_separation_m
+        elif close and apart and math.sqrt(sx * sx + sy * sy) < min_separation_m:
+            close = not _separating(sx, sy, (x - ax) - (ex - bx), (y - ay) - (ey - by), min_separation_m)
         if close:
             if resolved[b] and turned[b]:
                 return YIELD
             found = CONFLICT
     return found
+
+
+@njit(cache=True, inline="always")
+def _separating(sx: float, sy: float, vx: float, vy: float, min_separation_m: float) -> bool:
+    """Two taxis s = (sx, sy) apart at the start of the slot (b -> a), a moving by v = (vx, vy) relative to b,
+    move apart: their distance never shrinks during the slot (s . v >= 0; |s + t v| then grows with t) and grows
+    by the end (v is not zero). The tolerances only absorb rounding: two taxis flying one heading side by side
+    (v zero up to rounding) do not separate, a move at right angles to s (s . v zero up to rounding) does."""
+    vv = vx * vx + vy * vy
+    tiny = 1e-6 * min_separation_m
+    return vv > tiny * tiny and sx * vx + sy * vy >= -1e-9 * math.sqrt((sx * sx + sy * sy) * vv)
 
 
 @njit(cache=True)
@@ -86,7 +101,7 @@ def passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, min_sep
     pos, ends = np.empty((2, 2)), np.empty((2, 2))
     pos[0], pos[1], ends[1] = start, point, point
     none = np.zeros(2, np.bool_)
-    return _conflict(0, end[0], end[1], ends, none, none, pos, min_separation_m) != CLEAR
+    return _conflict(0, end[0], end[1], ends, none, none, pos, min_separation_m, False) != CLEAR
 
 
 @njit(cache=True)
@@ -124,6 +139,13 @@ def shield_headings(
     allowed heading in angle that is clear (22.5° counter-clockwise, then clockwise, then 45°, ...), else hovers.
     Staying is clear whenever the current positions are separated: each earlier taxi's move was checked against
     this taxi staying where it is, and each later one is checked against what this one does.
+
+    Then, once every taxi is resolved, a taxi that stays (a requested hover, a blocked move, a yield, no clear
+    heading) and would end the slot closer than ``min_separation_m`` to another is moved apart when it can be
+    (:func:`_move_apart`, checked against every other taxi's final move): staying keeps the conflict, and a pair
+    in conflict whose every move ends within the separation (``min_separation_m`` above ``step_m``) would
+    otherwise never part. With every pair separated at the start of the slot no taxi ends one in conflict, so the
+    headings are those of the rules above alone.
     """
     num_taxis = pos.shape[0]
     ends = pos.copy()
@@ -141,7 +163,7 @@ def shield_headings(
                 if not allowed[a, h]:
                     continue
                 x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
-                found = _conflict(a, x, y, ends, resolved, turned, pos, w.min_separation_m)
+                found = _conflict(a, x, y, ends, resolved, turned, pos, w.min_separation_m, False)
                 if found == YIELD and d == 0:
                     break
                 if found == CLEAR:
@@ -150,6 +172,54 @@ def shield_headings(
                     ends[a, 0], ends[a, 1] = x, y
                     break
         resolved[a] = True
+    for a in order:  # rule 7: a taxi that would stay in conflict moves apart, checked against every final move
+        if flown[a] < 0 and _stays_in_conflict(a, pos, ends, w.min_separation_m):
+            k = requested[a]
+            h = _move_apart(a, k if k < NUM_HEADINGS else 0, ends, resolved, turned, pos, allowed, w)
+            if h >= 0:
+                flown[a] = h
+                ends[a, 0], ends[a, 1] = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
+
+
+@njit(cache=True)
+def _stays_in_conflict(a: int, pos: np.ndarray, ends: np.ndarray, min_separation_m: float) -> bool:
+    """Taxi a, staying at pos[a], ends the slot closer than ``min_separation_m`` to another taxi's end."""
+    for b in range(pos.shape[0]):
+        if b != a:
+            dx, dy = pos[a, 0] - ends[b, 0], pos[a, 1] - ends[b, 1]
+            if math.sqrt(dx * dx + dy * dy) < min_separation_m:
+                return True
+    return False
+
+
+@njit(cache=True)
+def _move_apart(a: int, first: int, ends: np.ndarray, resolved: np.ndarray, turned: np.ndarray, pos: np.ndarray,
+                allowed: np.ndarray, w: WorldArrays) -> int:  # fmt: skip
+    """The heading that moves taxi a, about to stay in conflict, apart (docs/rules.md "Separation shield" rule 7):
+    of the allowed headings clear of every other taxi when moves that take a pair in conflict apart count as
+    clear (:func:`_conflict` with ``apart``), the one whose end is farthest from the nearest end of the taxis a
+    starts the slot closer than ``min_separation_m`` to (ties, to a micrometre: nearest in angle to ``first``,
+    counter-clockwise first); -1 when there is none."""
+    sep = w.min_separation_m
+    half = NUM_HEADINGS // 2
+    best, best_gap = -1, -1.0
+    for turn in range(2 * half):  # offsets 0, +1, -1, +2, -2, ..., +half, as in shield_headings
+        d = (turn + 1) // 2 if turn % 2 else -(turn // 2)
+        h = (first + d) % NUM_HEADINGS
+        if not allowed[a, h]:
+            continue
+        x, y = pos[a, 0] + w.moves_m[h, 0], pos[a, 1] + w.moves_m[h, 1]
+        if _conflict(a, x, y, ends, resolved, turned, pos, sep, True) != CLEAR:
+            continue
+        gap = math.inf
+        for b in range(pos.shape[0]):
+            sx, sy = pos[a, 0] - pos[b, 0], pos[a, 1] - pos[b, 1]
+            if b != a and math.sqrt(sx * sx + sy * sy) < sep:
+                dx, dy = x - ends[b, 0], y - ends[b, 1]
+                gap = min(gap, math.sqrt(dx * dx + dy * dy))
+        if gap > best_gap + 1e-6:  # ties within a micrometre (rounding of the moves) go to the first in angle
+            best, best_gap = h, gap
+    return best
 
 
 @njit(cache=True)
@@ -208,8 +278,10 @@ def _headings_flown(
     intervened: np.ndarray, hovered: np.ndarray,
 ) -> None:  # fmt: skip
     """Env e's heading flown per taxi (-1: stays): the requested one if it is an allowed move; with the shield,
-    the one it resolves, and whether it changed (intervened) or held an allowed move. Hovered: the taxi asked to
-    hover (:data:`HOVER_ACTION`, never changed by the shield: staying is clear) or the shield held it."""
+    the one it resolves, and whether it changed what the taxi would have done without it (intervened: another
+    heading or a hover instead of an allowed move, or a move apart instead of a hover or a blocked move). Hovered:
+    the taxi stayed on a hover: it asked for one (:data:`HOVER_ACTION`; the shield changes it only to move a taxi
+    in conflict apart) or the shield held an allowed move."""
     num_taxis = flown.shape[1]
     for a in range(num_taxis):
         k = actions[e, a]
@@ -221,8 +293,8 @@ def _headings_flown(
         for a in range(num_taxis):
             k = actions[e, a]
             move = k != HOVER_ACTION and s.action_mask[e, a, k]  # an allowed move asked for
-            intervened[e, a] = move and flown[e, a] != k
-            hovered[e, a] = k == HOVER_ACTION or (move and flown[e, a] < 0)
+            intervened[e, a] = flown[e, a] != (k if move else -1)
+            hovered[e, a] = flown[e, a] < 0 and (k == HOVER_ACTION or move)
 
 
 @njit(cache=True, inline="always")
