@@ -15,9 +15,16 @@ from typing import Any
 
 import pytest
 
+from uamfleet.checks import SIZE_LIMITS
 from uamfleet.cli import radio_map as radio_map_cli
 from uamfleet.radio import BaseStation, raytrace
-from uamfleet.radio.scene_check import UnsafeSceneError, check_scene
+from uamfleet.radio.scene_check import (
+    ELEMENTS_PER_SHAPE,
+    MAX_INCLUDE_DEPTH,
+    PLUGIN_TYPES,
+    UnsafeSceneError,
+    check_scene,
+)
 
 SECRET = "root:x:0:0:SECRET-LINE-OF-AN-OUTSIDE-FILE"
 _opened: list[str] | None = None
@@ -423,3 +430,17 @@ def test_the_command_refuses_in_one_line(
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and err.startswith("uamfleet-radio-map: error: ")
     assert not (city.parent / "x.npz").exists()
+
+
+def test_the_docs_list_the_allowlist_and_the_limits() -> None:
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "inputs.md").read_text(encoding="utf-8")
+    section = docs.partition("## Scenes")[2].partition("\n## ")[0]
+    for tag, types in PLUGIN_TYPES.items():
+        assert f"`{tag}`" in section, tag
+        for kind in types:
+            assert f"`{kind}`" in section, (tag, kind)
+    for name in ("scene_bytes", "scene_shapes", "scene_extent_m", "map_cells"):
+        default, _ = SIZE_LIMITS[name]
+        assert f"| `{name}` | {default:,}" in section, name
+    assert f"at most {MAX_INCLUDE_DEPTH} includes deep" in section
+    assert f"at most {ELEMENTS_PER_SHAPE} XML elements per allowed shape" in section

@@ -8,6 +8,10 @@ averaged over each cell (Monte-Carlo rays, LoS + specular reflections + refracti
 interactions); the SINR is the best server's, with every other GBS interfering (scaled by its ``loading``) plus
 thermal noise, as in the Berlin WinProp map and :func:`uamfleet.radio.channel_3gpp.expected_sinr_db`.
 
+A user's XML scene is data, never code: :mod:`uamfleet.radio.scene_check` checks it against an allowlist before
+Sionna sees it, and Sionna loads the checked XML (docs/inputs.md, "Scenes"). The map's area (at most
+``scene_extent_m`` on a side) and raster (at most ``map_cells`` cells) are bounded before anything is allocated.
+
 Frame: the map's usual one (``radio_map.py``): world (0, 0) is the centre of the raster's first cell (min x,
 min y of the measurement area), x east = the scene's x, y north = the scene's y, arrays indexed ``[ix, iy]``.
 ``scene_origin_m`` in the provenance is the scene point of world (0, 0), so ``scene = world + scene_origin_m``.
