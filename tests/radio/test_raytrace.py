@@ -375,3 +375,18 @@ def test_a_checked_scene_with_a_mesh_and_an_include_loads_and_traces(tmp_path: P
     )  # fmt: skip
     assert radio.shape == (17, 10)  # the default area: the bounding box, 170 m x 100 m
     assert np.isfinite(radio.sinr_db).mean() > 0.9
+
+
+def test_a_checked_scene_sionna_cannot_load_fails_in_one_line(tmp_path: Path) -> None:
+    require_sionna()
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "broken.ply").write_text(CHECKED_PLY.replace("-50 -50 0", "-50 x 0"))
+    scene = tmp_path / "broken.xml"
+    scene.write_text(
+        '<scene version="2.1.0">\n  <shape type="ply" id="m">\n'
+        '    <string name="filename" value="meshes/broken.ply"/>\n  </shape>\n</scene>\n'
+    )
+    pattern = r"broken\.xml' passed the scene check but Sionna could not load it: .*PLY"
+    with pytest.raises(ValueError, match=pattern) as err:
+        raytrace.load_scene(scene)
+    assert "\n" not in str(err.value)

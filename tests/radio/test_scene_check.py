@@ -331,6 +331,29 @@ def test_a_mesh_over_the_byte_limit_is_refused(city: Path, monkeypatch: pytest.M
     refused(path, opened, f"needs {xml_bytes:,} bytes")
 
 
+def test_a_mesh_header_declaring_more_than_its_file_holds_is_refused(city: Path, opened: list[str]) -> None:
+    # Mitsuba allocates what a PLY header declares: 2e9 vertices of 3 floats is 24 GB, from a file of a few bytes.
+    header = (
+        "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    (city / "meshes" / "bomb.ply").write_bytes(header.encode() + bytes(49))
+    path = write(city, ply_shape("meshes/bomb.ply"))
+    refused(path, opened, "line 7", "'bomb.ply'", "declares at least 24,000,000,001 bytes", "holds 50")
+    # ascii: at least 2 bytes a value: 400 vertices x 3 floats and 2 faces x 1 list = 2,404 bytes, in a file of 53
+    text = PLY.replace("element vertex 4", "element vertex 400")
+    (city / "meshes" / "bomb.ply").write_text(text)
+    refused(path, opened, "declares at least 2,404 bytes", "holds 53")
+    (city / "meshes" / "bomb.ply").write_text("solid ascii stl\n")
+    refused(path, opened, "which is no PLY file")
+    assert check_scene(write(city, ply_shape("meshes/ground.ply"))).shapes == 1  # 4 vertices, 2 faces: fine
+
+
+def test_deep_nesting_is_refused(city: Path, opened: list[str]) -> None:
+    deep = '<bsdf type="twosided" id="a">' + '<bsdf type="twosided">' * 40 + "</bsdf>" * 41
+    refused(write(city, deep), opened, "<bsdf>", "is nested 33 deep; elements nest at most 32")
+
+
 # -- what passes, and what Sionna is then given ----------------------------------------------------------------------
 
 

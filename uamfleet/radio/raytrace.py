@@ -41,6 +41,7 @@ import io
 import json
 import math
 import os
+import re
 import time
 import zipfile
 from collections.abc import Sequence
@@ -178,7 +179,15 @@ def load_scene(scene: str | os.PathLike[str]) -> Any:
             )
         return rt.load_scene(getattr(rt.scene, scene))
     checked = check_scene(Path(scene))  # before Sionna (Mitsuba) is even imported
-    return _sionna_rt().load_scene_from_string(checked.xml)
+    rt = _sionna_rt()
+    try:
+        return rt.load_scene_from_string(checked.xml)
+    except RuntimeError as err:  # e.g. a broken mesh inside the folder: Mitsuba's reason, in one line
+        reason = re.sub(r"\[[\w.]+:\d+\] |At string \(line \d+, col \d+\): ", "", " ".join(str(err).split()))
+        raise ValueError(
+            f"scene {str(checked.folder / Path(scene).name)!r} passed the scene check but Sionna could not load it: "
+            f"{reason[:300]}"
+        ) from None
 
 
 def scene_extent(scene: Any) -> Extent:

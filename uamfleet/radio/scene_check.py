@@ -82,6 +82,14 @@ _ATTRIBUTES: dict[str, frozenset[str]] = {
 # Attributes whose value is a number (or numbers), where a $parameter may stand.
 _NUMERIC_ATTRIBUTES = frozenset({"value", "x", "y", "z", "angle", "origin", "target", "up"})
 MAX_INCLUDE_DEPTH = 8
+_PLY_HEADER_BYTES = 1 << 16
+_PLY_BYTES = {
+    **dict.fromkeys(("char", "uchar", "int8", "uint8"), 1),
+    **dict.fromkeys(("short", "ushort", "int16", "uint16"), 2),
+    **dict.fromkeys(("int", "uint", "float", "int32", "uint32", "float32"), 4),
+    **dict.fromkeys(("double", "float64"), 8),
+}
+MAX_NESTING = 32  # elements inside elements (a city scene needs about 5: scene, shape, bsdf, bsdf, texture)
 ELEMENTS_PER_SHAPE = 16
 """XML elements allowed per shape of ``size_limit("scene_shapes")``: bounds the parsed tree of any XML file."""
 
@@ -115,13 +123,21 @@ class _Builder(ET.TreeBuilder):
         super().__init__()
         self.checker, self.file = checker, file
         self.parser: DefusedXMLParser | None = None
+        self.depth = 0
 
     def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
         element = super().start(tag, attrs)
         line = self.parser.parser.CurrentLineNumber if self.parser is not None else 0
         self.checker.where[element] = (self.file, line)
         self.checker.count(element, tag)
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise self.checker.fail(element, f"is nested {self.depth} deep; elements nest at most {MAX_NESTING}")
         return element
+
+    def end(self, tag: str) -> ET.Element:
+        self.depth -= 1
+        return super().end(tag)
 
 
 class _Checker:
@@ -252,6 +268,36 @@ class _Checker:
             parent[k : k + 1] = new
             k += len(new)
 
+    def check_ply(self, element: ET.Element, path: Path) -> None:
+        """Refuse a PLY mesh whose header declares more elements than its file can hold: Mitsuba allocates what
+        the header declares before it reads the data (a 400-byte file declaring 2e9 vertices asks for 24 GB)."""
+        with path.open("rb") as stream:
+            head = stream.read(_PLY_HEADER_BYTES)
+        end = head.find(b"end_header")
+        if not head.startswith(b"ply") or end < 0:
+            raise self.fail(element, f"names {path.name!r}, which is no PLY file (no 'ply' ... 'end_header' header)")
+        lines = head[:end].decode("ascii", "replace").split("\n")
+        binary = any(line.split()[:2] in (["format", "binary_little_endian"], ["format", "binary_big_endian"])
+                     for line in lines)  # fmt: skip
+        needed, count = 0, 0
+        try:
+            for words in (line.split() for line in lines):
+                if words[:1] == ["element"]:
+                    count = int(words[2])
+                elif words[:1] == ["property"] and count:
+                    # the least a value takes: its bytes in a binary file, a digit and a separator in text
+                    size = _PLY_BYTES.get(words[2] if words[1] == "list" else words[1], 1) if binary else 2
+                    needed += count * size
+        except (IndexError, ValueError):
+            raise self.fail(element, f"names {path.name!r}, whose PLY header is malformed") from None
+        body = path.stat().st_size - (end + len("end_header"))
+        if needed > body:
+            raise self.fail(
+                element,
+                f"names {path.name!r}, whose header declares at least {needed:,} bytes of data but whose file holds "
+                f"{max(body, 0):,}; Mitsuba would allocate what the header says",
+            )
+
     # -- the walk ---------------------------------------------------------------------------------------------------
 
     def check_attributes(self, element: ET.Element) -> None:
@@ -298,6 +344,8 @@ class _Checker:
         if tag == "string" and element.get("name", "").lower() == "filename":
             target = self.reference(element, element.get("value", ""), self.folder, "filename")
             self.add_bytes(target, target.stat().st_size)
+            if target.suffix.lower() == ".ply":
+                self.check_ply(element, target)
             element.set("value", str(target))
         if tag == "transform":
             for op in element:
