@@ -21,6 +21,7 @@ from uamfleet.radio import BaseStation, raytrace
 from uamfleet.radio.scene_check import (
     ELEMENTS_PER_SHAPE,
     MAX_INCLUDE_DEPTH,
+    MAX_NESTING,
     PLUGIN_TYPES,
     UnsafeSceneError,
     check_scene,
@@ -467,3 +468,4 @@ def test_the_docs_list_the_allowlist_and_the_limits() -> None:
         assert f"| `{name}` | {default:,}" in section, name
     assert f"at most {MAX_INCLUDE_DEPTH} includes deep" in section
     assert f"at most {ELEMENTS_PER_SHAPE} XML elements per allowed shape" in section
+    assert f"nested at most {MAX_NESTING} deep" in section

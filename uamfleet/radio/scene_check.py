@@ -13,10 +13,12 @@ against an allowlist (docs/inputs.md, "Scenes"):
   the attributes Mitsuba reads from it;
 - file references (a ``<string name="filename">``, an ``<include filename>``): relative paths that resolve, after
   symlinks, to an existing regular file inside the scene's folder; ``<include>`` depth at most
-  :data:`MAX_INCLUDE_DEPTH`;
+  :data:`MAX_INCLUDE_DEPTH`; a PLY mesh whose header declares more data than its file holds is refused (Mitsuba
+  allocates what the header declares);
 - ``$name`` parameters only in numbers, resolved from the scene's ``<default>`` elements;
 - sizes: the XML files plus every file they name within ``size_limit("scene_bytes")``, shapes plus includes
-  within ``size_limit("scene_shapes")`` (and at most :data:`ELEMENTS_PER_SHAPE` XML elements per allowed shape),
+  within ``size_limit("scene_shapes")`` (and at most :data:`ELEMENTS_PER_SHAPE` XML elements per allowed shape,
+  nested at most :data:`MAX_NESTING` deep),
   and the primitive shapes (rectangle, cube, disk, sphere, cylinder under their ``to_world``) within
   ``size_limit("scene_extent_m")`` on every side.
 
