@@ -347,6 +347,8 @@ def test_a_mesh_header_declaring_more_than_its_file_holds_is_refused(city: Path,
     refused(path, opened, "declares at least 2,404 bytes", "holds 53")
     (city / "meshes" / "bomb.ply").write_text("solid ascii stl\n")
     refused(path, opened, "which is no PLY file")
+    (city / "meshes" / "bomb.dat").write_bytes(header.encode() + bytes(49))  # a ply shape reads any name as PLY
+    refused(write(city, ply_shape("meshes/bomb.dat")), opened, "'bomb.dat'", "declares at least 24,000,000,001 bytes")
     assert check_scene(write(city, ply_shape("meshes/ground.ply"))).shapes == 1  # 4 vertices, 2 faces: fine
 
 

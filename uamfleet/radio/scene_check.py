@@ -346,8 +346,6 @@ class _Checker:
         if tag == "string" and element.get("name", "").lower() == "filename":
             target = self.reference(element, element.get("value", ""), self.folder, "filename")
             self.add_bytes(target, target.stat().st_size)
-            if target.suffix.lower() == ".ply":
-                self.check_ply(element, target)
             element.set("value", str(target))
         if tag == "transform":
             for op in element:
@@ -359,6 +357,10 @@ class _Checker:
             self.walk(child, tag)
         if tag == "shape":
             self.place(element)
+            if element.get("type") == "ply":  # whatever the file's name: Mitsuba reads it as PLY
+                for child in element.findall("string"):
+                    if child.get("name", "").lower() == "filename":
+                        self.check_ply(child, Path(child.get("value", "")))  # the checked absolute path
 
     def check_type(self, element: ET.Element, parent: str) -> None:
         kind = element.get("type", "")
