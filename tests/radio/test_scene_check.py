@@ -320,6 +320,10 @@ def test_too_many_shapes_are_refused(city: Path, monkeypatch: pytest.MonkeyPatch
     assert check_scene(write(city, body)).shapes == 3
     body += "\n" + plane("10").replace('id="ground"', 'id="g3"')
     refused(write(city, body), opened, "4 shapes (plus included files)", "UAMFLEET_MAX_SCENE_SHAPES")
+    # The XML elements in all are bounded too, 16 per allowed shape: 48 here. The scene, the material's 3 and a
+    # rectangle with 44 properties make 49.
+    floats = "".join(f'<float name="f{k}" value="1"/>' for k in range(44))
+    refused(write(city, f'<shape type="rectangle">{floats}</shape>'), opened, "<float>", "is element 49, over 16 per")
 
 
 def test_a_mesh_over_the_byte_limit_is_refused(city: Path, monkeypatch: pytest.MonkeyPatch, opened: list[str]) -> None:
