@@ -13,6 +13,9 @@ import importlib.metadata
 import json
 import math
 import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -24,6 +27,7 @@ from uamfleet.config import make_config
 from uamfleet.radio import BaseStation, RadioMap, load_radio_map, read_radio_map_npz, save_radio_map_npz
 from uamfleet.radio import raytrace
 from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
+from uamfleet.radio.scene_check import UnsafeSceneError, check_scene
 
 SPEED_OF_LIGHT = 299_792_458.0
 
@@ -275,3 +279,114 @@ def test_command_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert record["altitude_m"] == 60.0 and radio.resolution_m == 5.0
     assert radio.base_stations[0].x_m == 90.0 and radio.base_stations[0].height_m == 52.0
     assert np.isfinite(radio.sinr_db).mean() > 0.9  # above the roofs (51 m) the GBS reaches nearly every cell
+
+
+# -- scenes are data, never code (uamfleet/radio/scene_check.py; tests/radio/test_scene_check.py without Sionna) -----
+
+
+def test_every_built_in_scene_passes_the_scene_check() -> None:
+    rt = require_sionna()
+    folder = Path(rt.scene.__file__).parent / "scenes"
+    scenes = sorted(folder.glob("*/*.xml"))
+    assert len(scenes) >= 10  # munich, etoile, florence, san_francisco, simple_street_canyon, ...
+    for path in scenes:
+        checked = check_scene(path)  # the allowlist holds everything Sionna's own scenes use
+        assert checked.shapes >= 1 and checked.files[0] == path.resolve(), path
+
+
+def evil_scene(folder: Path, marker: Path) -> Path:
+    """``folder/scene.xml`` whose shape type climbs from ``plugins/`` to ``meshes/evil.so``, a library whose
+    constructor writes ``marker``; skipped where no C compiler is found."""
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        pytest.skip("no C compiler (cc) to build the library a crafted scene points at")
+    (folder / "meshes").mkdir(parents=True)
+    (folder / "plugins").mkdir()  # Mitsuba looks for plugins/<type>.so in each folder of its search path
+    source = folder / "evil.c"
+    source.write_text(
+        "#include <stdio.h>\n__attribute__((constructor)) static void mark(void) {\n"
+        f'  FILE *f = fopen("{marker}", "w"); if (f) {{ fputs("ran", f); fclose(f); }}\n}}\n'
+    )
+    subprocess.run([compiler, "-shared", "-fPIC", "-o", str(folder / "meshes" / "evil.so"), str(source)], check=True)
+    scene = folder / "scene.xml"
+    scene.write_text('<scene version="2.1.0">\n  <shape type="../meshes/evil"/>\n</scene>\n')
+    return scene
+
+
+def test_a_scene_pointing_at_a_library_runs_nothing(tmp_path: Path) -> None:
+    require_sionna()
+    marker = tmp_path / "marker"
+    scene = evil_scene(tmp_path / "city", marker)
+    # The scene is armed: Sionna's own loader, in another process, runs the library's constructor.
+    loader = f"import sionna.rt as rt\ntry:\n    rt.load_scene({str(scene)!r})\nexcept Exception:\n    pass\n"
+    subprocess.run([sys.executable, "-c", loader], check=True, capture_output=True, timeout=600)
+    assert marker.read_text() == "ran"
+    marker.unlink()
+    with pytest.raises(UnsafeSceneError, match=r"line 2: <shape> type '\.\./meshes/evil' is a path"):
+        raytrace.load_scene(scene)
+    with pytest.raises(UnsafeSceneError, match="is a path"):
+        raytrace.ray_traced_radio_map(scene, base_stations=[FREE_SPACE_GBS], extent=FREE_SPACE_EXTENT)
+    assert not marker.exists()
+
+
+CHECKED_PLY = """ply
+format ascii 1.0
+element vertex 4
+property float x
+property float y
+property float z
+element face 2
+property list uchar int vertex_indices
+end_header
+-50 -50 0
+50 -50 0
+50 50 0
+-50 50 0
+3 0 1 2
+3 0 2 3
+"""
+
+
+def test_a_checked_scene_with_a_mesh_and_an_include_loads_and_traces(tmp_path: Path) -> None:
+    require_sionna()
+    folder = tmp_path / "city"
+    (folder / "meshes").mkdir(parents=True)
+    (folder / "meshes" / "ground.ply").write_text(CHECKED_PLY)  # a 100 m square at z = 0, centred on the origin
+    (folder / "parts").mkdir()
+    (folder / "parts" / "roof.xml").write_text(
+        '<scene version="2.1.0">\n  <shape type="rectangle" id="roof">\n'
+        '    <transform name="to_world"><scale value="$half"/><translate x="100" z="$height"/></transform>\n'
+        '    <ref id="metal" name="bsdf"/>\n  </shape>\n</scene>\n'
+    )  # a 40 m square 30 m up, centred at x = 100
+    scene = folder / "scene.xml"
+    scene.write_text(
+        '<scene version="2.1.0">\n  <default name="half" value="20"/>\n  <default name="height" value="30"/>\n'
+        '  <bsdf type="itu-radio-material" id="metal">\n    <string name="type" value="metal"/>\n'
+        '    <float name="thickness" value="0.1"/>\n  </bsdf>\n'
+        '  <shape type="ply" id="ground">\n    <string name="filename" value="meshes/ground.ply"/>\n'
+        '    <ref id="metal" name="bsdf"/>\n  </shape>\n  <include filename="parts/roof.xml"/>\n</scene>\n'
+    )
+    loaded = raytrace.load_scene(scene)
+    box = loaded.mi_scene.bbox()
+    np.testing.assert_allclose([list(box.min), list(box.max)], [[-50, -50, 0], [120, 50, 30]], atol=1e-4)
+    radio = raytrace.ray_traced_radio_map(
+        scene, cell_m=10.0, base_stations=[BaseStation(x_m=30.0, y_m=50.0, height_m=20.0)],
+        params=raytrace.RayTracingParams(samples_per_tx=10**5),
+    )  # fmt: skip
+    assert radio.shape == (17, 10)  # the default area: the bounding box, 170 m x 100 m
+    assert np.isfinite(radio.sinr_db).mean() > 0.9
+
+
+def test_a_checked_scene_sionna_cannot_load_fails_in_one_line(tmp_path: Path) -> None:
+    require_sionna()
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "broken.ply").write_text(CHECKED_PLY.replace("-50 -50 0", "-50 x 0"))
+    scene = tmp_path / "broken.xml"
+    scene.write_text(
+        '<scene version="2.1.0">\n  <shape type="ply" id="m">\n'
+        '    <string name="filename" value="meshes/broken.ply"/>\n  </shape>\n</scene>\n'
+    )
+    pattern = r"broken\.xml' passed the scene check but Sionna could not load it: .*PLY"
+    with pytest.raises(ValueError, match=pattern) as err:
+        raytrace.load_scene(scene)
+    assert "\n" not in str(err.value)

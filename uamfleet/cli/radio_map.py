@@ -4,7 +4,8 @@
     uamfleet-radio-map --scene my_city.xml --gbs-m 200 300 25 900 650 30 --out my_city.npz
 
 ``--scene``: a built-in Sionna scene (munich, etoile, florence, san_francisco, simple_street_canyon, ..., or
-``empty``: free space) or a Mitsuba XML file (OpenStreetMap -> Blender -> Mitsuba export). Writes the map
+``empty``: free space) or a Mitsuba XML file (OpenStreetMap -> Blender -> Mitsuba export), checked before it is
+loaded (docs/inputs.md, "Scenes": what a scene may contain, its size limits). Writes the map
 (``.npz``: raster, GBS, provenance with scene, parameters, sionna-rt version and seed) and a preview
 ``<out stem>.png`` beside it, atomically; fly it with ``uamfleet.make_config("berlin_random", radio="munich.npz")``.
 The map's frame: world (0, 0) is the centre of the first cell (min x, min y of ``--extent-m``, by default the

@@ -8,6 +8,10 @@ averaged over each cell (Monte-Carlo rays, LoS + specular reflections + refracti
 interactions); the SINR is the best server's, with every other GBS interfering (scaled by its ``loading``) plus
 thermal noise, as in the Berlin WinProp map and :func:`uamfleet.radio.channel_3gpp.expected_sinr_db`.
 
+A user's XML scene is data, never code: :mod:`uamfleet.radio.scene_check` checks it against an allowlist before
+Sionna sees it, and Sionna loads the checked XML (docs/inputs.md, "Scenes"). The map's area (at most
+``scene_extent_m`` on a side) and raster (at most ``map_cells`` cells) are bounded before anything is allocated.
+
 Frame: the map's usual one (``radio_map.py``): world (0, 0) is the centre of the raster's first cell (min x,
 min y of the measurement area), x east = the scene's x, y north = the scene's y, arrays indexed ``[ix, iy]``.
 ``scene_origin_m`` in the provenance is the scene point of world (0, 0), so ``scene = world + scene_origin_m``.
@@ -37,6 +41,7 @@ import io
 import json
 import math
 import os
+import re
 import time
 import zipfile
 from collections.abc import Sequence
@@ -46,9 +51,11 @@ from typing import Any
 
 import numpy as np
 
+from uamfleet.checks import check_number, check_size, size_limit
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio.channel_3gpp import DEFAULT_BANDWIDTH_MHZ, DEFAULT_NOISE_FIGURE_DB, noise_power_dbm
 from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple
+from uamfleet.radio.scene_check import check_scene
 
 EMPTY_SCENE = "empty"  # free space: no object at all (the physics check against Friis)
 ANTENNA_PATTERNS: tuple[str, ...] = ("iso", "dipole", "hw_dipole", "tr38901")  # Sionna's registered patterns
@@ -155,21 +162,32 @@ def builtin_scenes() -> tuple[str, ...]:
 
 
 def load_scene(scene: str | os.PathLike[str]) -> Any:
-    """A Sionna scene: a built-in one by name (:func:`builtin_scenes`) or a Mitsuba XML file by path."""
-    rt = _sionna_rt()
+    """A Sionna scene: a built-in one by name (:func:`builtin_scenes`) or a Mitsuba XML file by path.
+
+    A file is checked first (:func:`uamfleet.radio.scene_check.check_scene`: data only, every file it names inside
+    its folder, bounded sizes) and Sionna loads the checked XML, never the file itself; a built-in scene is
+    Sionna's own and trusted.
+    """
     if isinstance(scene, str) and scene == EMPTY_SCENE:
-        return rt.load_scene()
+        return _sionna_rt().load_scene()
     if isinstance(scene, str) and not scene.endswith(".xml"):
+        rt = _sionna_rt()
         if scene not in builtin_scenes():
             raise ValueError(
                 f"scene {scene!r} is neither a built-in Sionna scene ({', '.join(builtin_scenes())}) nor a "
                 "Mitsuba .xml file; pass one of those names or the path to your scene's XML"
             )
         return rt.load_scene(getattr(rt.scene, scene))
-    path = Path(scene)
-    if not path.is_file():
-        raise FileNotFoundError(f"scene file {str(path)!r} does not exist; pass a Mitsuba XML or a built-in name")
-    return rt.load_scene(str(path))
+    checked = check_scene(Path(scene))  # before Sionna (Mitsuba) is even imported
+    rt = _sionna_rt()
+    try:
+        return rt.load_scene_from_string(checked.xml)
+    except RuntimeError as err:  # e.g. a broken mesh inside the folder: Mitsuba's reason, in one line
+        reason = re.sub(r"\[[\w.]+:\d+\] |At string \(line \d+, col \d+\): ", "", " ".join(str(err).split()))
+        raise ValueError(
+            f"scene {str(checked.folder / Path(scene).name)!r} passed the scene check but Sionna could not load it: "
+            f"{reason[:300]}"
+        ) from None
 
 
 def scene_extent(scene: Any) -> Extent:
@@ -178,7 +196,20 @@ def scene_extent(scene: Any) -> Extent:
     lo, hi = [float(v) for v in box.min][:2], [float(v) for v in box.max][:2]
     if not all(math.isfinite(v) for v in (*lo, *hi)) or hi[0] <= lo[0] or hi[1] <= lo[1]:
         raise ValueError("the scene has no objects to take the map's area from; pass extent=(x0, y0, x1, y1)")
-    return Extent(lo[0], lo[1], hi[0], hi[1])
+    area = Extent(lo[0], lo[1], hi[0], hi[1])
+    check_extent(area, "the scene's bounding box (the map's default area)")
+    return area
+
+
+def check_extent(area: Extent, what: str) -> None:
+    """Refuse an area with a side over ``size_limit("scene_extent_m")`` (docs/inputs.md)."""
+    side = max(area.x_max - area.x_min, area.y_max - area.y_min)
+    limit = size_limit("scene_extent_m")
+    if side > limit:
+        raise ValueError(
+            f"{what} {dataclasses.astuple(area)} is {side:,.0f} m wide, over the limit of {limit:,} m on a side; "
+            "pass a smaller extent, or if it is meant raise the limit with UAMFLEET_MAX_SCENE_EXTENT_M=<n>"
+        )
 
 
 def surface_height_m(scene: Any, xy: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -209,10 +240,12 @@ class MapGrid:
     @classmethod
     def covering(cls, extent: Extent, cell_m: float) -> MapGrid:
         """The cells of ``cell_m`` that cover ``extent`` from its min corner (the last ones reach past it)."""
-        if not (math.isfinite(cell_m) and cell_m > 0):
-            raise ValueError(f"cell_m must be > 0 (e.g. 10), got {cell_m!r}")
-        nx = max(2, math.ceil((extent.x_max - extent.x_min) / cell_m - 1e-9))
-        ny = max(2, math.ceil((extent.y_max - extent.y_min) / cell_m - 1e-9))
+        cell_m = check_number("cell_m", cell_m, positive=True)
+        width, height = extent.x_max - extent.x_min, extent.y_max - extent.y_min
+        nx = max(2, math.ceil(width / cell_m - 1e-9))
+        ny = max(2, math.ceil(height / cell_m - 1e-9))
+        # Before anything is allocated for it: the ray tracer's raster (and Dr.Jit's) has one value per cell.
+        check_size("map_cells", nx * ny, f"a map of {width:g} m x {height:g} m on {cell_m:g} m cells", 8.0)
         return cls((nx, ny), float(cell_m), (extent.x_min + cell_m / 2, extent.y_min + cell_m / 2))
 
     def plane_center(self, altitude_m: float) -> tuple[float, float, float]:
@@ -327,11 +360,15 @@ def ray_traced_radio_map(
     """
     if not (math.isfinite(altitude_m) and altitude_m > 0):
         raise ValueError(f"altitude_m must be > 0 (the flight altitude, e.g. 100), got {altitude_m!r}")
+    given = None if extent is None else extent if isinstance(extent, Extent) else Extent(*extent)
+    if given is not None:  # the area and its raster are checked before the scene is loaded
+        check_extent(given, "the extent")
+        MapGrid.covering(given, cell_m)
     started = time.perf_counter()
     loaded = load_scene(scene)
     load_s = time.perf_counter() - started
-    area = scene_extent(loaded) if extent is None else extent if isinstance(extent, Extent) else Extent(*extent)
-    grid = MapGrid.covering(area, float(cell_m))
+    area = scene_extent(loaded) if given is None else given
+    grid = MapGrid.covering(area, cell_m)
     stations = (
         grid_base_stations(loaded, grid, params)
         if base_stations is None
