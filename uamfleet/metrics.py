@@ -19,7 +19,8 @@ in seconds (steps × ``slot_s``), distances in metres.
   whose allowed move the shield replaced, its hovers included), over the same span as TD; per taxi-hour
   ``count / (taxis * completion_s / 3600)``.
 - Hovers: taxi-steps spent in place by a hover, chosen (the hover action, ``EnvConfig.hover_action``) or the
-  shield's; ``hover_actions`` counts the chosen ones, so the shield's are ``hovers - hover_actions``. Same span as
+  shield's; ``hover_actions`` counts the chosen ones. The shield's are ``hovers - hover_actions`` except where it
+  moved a taxi in conflict apart instead of the hover it chose (docs/rules.md "Separation shield", rule 7). Same span as
   TD; hover seconds are ``hovers * slot_s`` (the time an energy model prices, docs/rules.md "Motion").
 """
 

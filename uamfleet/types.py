@@ -172,5 +172,5 @@ class StepEvents(NamedTuple):
     all_delivered: np.ndarray  # [E] bool, every passenger of the instance has been delivered
     t: np.ndarray  # [E] int64 step index after the transition
     heading_flown: np.ndarray  # [E, A] int64, the heading flown (the shield may change it), -1: stayed in place
-    shield_intervened: np.ndarray  # [E, A] bool, the separation shield replaced the allowed move asked for
+    shield_intervened: np.ndarray  # [E, A] bool, the shield replaced the move asked for or moved the taxi apart
     hovered: np.ndarray  # [E, A] bool, the taxi hovered: it took HOVER_ACTION, or the shield held its allowed move

@@ -31,8 +31,8 @@ total wait (pick-up − request), sequenced exactly for that cost: a service tha
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
 ``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
 separation shield an idle taxi in the way of a busy taxi's next move steps aside (:func:`make_way`): the shield
-never moves a hovering taxi, so one idle taxi hovering in a narrow passage otherwise held a taxi with a rider
-back until the time limit (:func:`fleet_actions`).
+moves a hovering taxi only when it is already in conflict, so one idle taxi hovering in a narrow passage otherwise
+held a taxi with a rider back until the time limit (:func:`fleet_actions`).
 
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
