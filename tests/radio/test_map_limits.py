@@ -175,3 +175,26 @@ def test_a_winprop_file_is_bounded_by_its_lines_and_bytes(tmp_path: Path, monkey
     padded = winprop(tmp_path, rows=[*ROWS[:3], ROWS[3] + " " * 300])
     with pytest.raises(ConfigError, match=r"map\.txt' \([0-9]{3} bytes, at most 256 per grid point\)"):
         read_winprop(padded)
+
+
+def test_docs_name_each_map_limit_with_its_default_and_variable() -> None:
+    from uamfleet.checks import SIZE_LIMITS
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "inputs.md").read_text(encoding="utf-8")
+    section = text.split("## Size limits of maps", 1)[1].split("\n## ", 1)[0]
+    for name in ("map_cells", "scene_extent_m"):
+        default = SIZE_LIMITS[name][0]
+        assert f"| `{name}` | {default:,} | `UAMFLEET_MAX_{name.upper()}` |" in section
+
+
+def test_a_synthetic_map_is_bounded_before_its_grid_is_made() -> None:
+    from uamfleet.radio import BaseStation
+    from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(ConfigError, match=r"^radio map '3gpp' \(a 1000001 x 1000001 raster\).*\(7450\.6 GiB\)"):
+            expected_sinr_map_3gpp([BaseStation(0.0, 0.0, 20.0)], side_m=1e6, resolution_m=1.0)
+        assert tracemalloc.get_traced_memory()[1] < 16 * MiB
+    finally:
+        tracemalloc.stop()
