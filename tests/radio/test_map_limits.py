@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from uamfleet.checks import ConfigError
-from uamfleet.radio import RadioMap, read_radio_map_npz, read_winprop, save_radio_map_npz
+from uamfleet.radio import RadioMap, WinPropFormatError, read_radio_map_npz, read_winprop, save_radio_map_npz
 from uamfleet.radio import raytrace
 
 MiB = 2**20
@@ -158,22 +158,28 @@ def winprop(tmp_path: Path, corners: str = "", res: float = 10.0, rows: list[str
 
 def test_a_winprop_header_declaring_a_huge_grid_is_refused_before_the_data(tmp_path: Path) -> None:
     corners = "LOWER_LEFT\t-5 -5\nUPPER_RIGHT\t999995 999995"  # 10^5 x 10^5 cells of 10 m: 74.5 GiB
-    with pytest.raises(ConfigError) as err:
-        read_winprop(winprop(tmp_path, corners))
+    tracemalloc.start()
+    try:
+        with pytest.raises(WinPropFormatError) as err:
+            read_winprop(winprop(tmp_path, corners))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
     message = str(err.value)
-    assert "map.txt" in message and "line 3" in message and "LOWER_LEFT..UPPER_RIGHT" in message
-    assert "10,000,000,000 cells" in message and "(74.5 GiB)" in message and "\n" not in message
+    assert message.startswith(f"{tmp_path / 'map.txt'}: line 3: LOWER_LEFT..UPPER_RIGHT (1e+06 x 1e+06 m of 10 m ")
+    assert "10,000,000,000 cells" in message and "(74.5 GiB)" in message and "UAMFLEET_MAX_MAP_CELLS" in message
+    assert err.value.lineno == 3 and "\n" not in message and peak < 16 * MiB
 
 
 def test_a_winprop_file_is_bounded_by_its_lines_and_bytes(tmp_path: Path, monkeypatch) -> None:
     path = winprop(tmp_path)
     assert read_winprop(path).shape == (2, 2)
     monkeypatch.setenv("UAMFLEET_MAX_MAP_CELLS", "3")
-    with pytest.raises(ConfigError, match=r"map\.txt' \(4 data lines\) needs 4 cells.*limit of 3"):
+    with pytest.raises(WinPropFormatError, match=r"map\.txt: line 5: the data \(4 data lines\) needs 4 cells.*of 3"):
         read_winprop(path)
     monkeypatch.setenv("UAMFLEET_MAX_MAP_CELLS", "1")  # 1 cell: at most 256 bytes of file
     padded = winprop(tmp_path, rows=[*ROWS[:3], ROWS[3] + " " * 300])
-    with pytest.raises(ConfigError, match=r"map\.txt' \([0-9]{3} bytes, at most 256 per grid point\)"):
+    with pytest.raises(WinPropFormatError, match=r"map\.txt: line 1: the file \([0-9]{3} bytes, at most 256 per grid"):
         read_winprop(padded)
 
 

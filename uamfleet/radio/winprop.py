@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uamfleet.checks import check_size
+from uamfleet.checks import ConfigError, check_size
 from uamfleet.radio.radio_map import BaseStation, RadioMap
 
 NOT_COMPUTED = "N.C."
@@ -226,11 +226,11 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
     """
     path = Path(path)
     size = path.stat().st_size
-    check_size("map_cells", size / BYTES_PER_POINT, f"WinProp file {str(path)!r} ({size:,} bytes, at most "
-               f"{BYTES_PER_POINT} per grid point)")  # fmt: skip
+    what = f"the file ({size:,} bytes, at most {BYTES_PER_POINT} per grid point)"
+    _check_size(path, 1, size / BYTES_PER_POINT, what, 0)
     lines = _read_lines(path)
     begin, end = _split_sections(path, lines)
-    check_size("map_cells", end - begin - 1, f"WinProp file {str(path)!r} ({end - begin - 1:,} data lines)", 8)
+    _check_size(path, begin + 2, end - begin - 1, f"the data ({end - begin - 1:,} data lines)")
     header = _Header()
     for i in range(begin):
         header.read(path, i + 1, lines[i])
@@ -261,14 +261,21 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
 
 def _check_declared_grid(path: Path, header: _Header, res: float) -> None:
     """Refuse a LOWER_LEFT..UPPER_RIGHT grid over the ``map_cells`` limit before the data are parsed (whether it is
-    a whole number of cells is checked with the data)."""
+    a whole number of cells is checked with the data), naming the first of its two lines."""
     if "LOWER_LEFT" in header.values and "UPPER_RIGHT" in header.values:
         (e_lo, n_lo), (e_hi, n_hi) = header.values["LOWER_LEFT"][2], header.values["UPPER_RIGHT"][2]
         cells = max((e_hi - e_lo) / res, 0.0) * max((n_hi - n_lo) / res, 0.0)
         first = min(header.values["LOWER_LEFT"][0], header.values["UPPER_RIGHT"][0])
         area = f"{e_hi - e_lo:g} x {n_hi - n_lo:g} m"
-        what = f"WinProp file {str(path)!r} (line {first}: LOWER_LEFT..UPPER_RIGHT, {area} of {res:g} m cells)"
-        check_size("map_cells", cells, what, 8)
+        _check_size(path, first, cells, f"LOWER_LEFT..UPPER_RIGHT ({area} of {res:g} m cells)")
+
+
+def _check_size(path: Path, lineno: int, cells: float, what: str, unit_bytes: float = 8) -> None:
+    """:func:`~uamfleet.checks.check_size` of ``map_cells`` as a :class:`WinPropFormatError` naming the line."""
+    try:
+        check_size("map_cells", cells, what, unit_bytes)
+    except ConfigError as err:
+        raise WinPropFormatError(f"{path}: line {lineno}: {err}", lineno) from None
 
 
 def _read_lines(path: Path) -> list[str]:
