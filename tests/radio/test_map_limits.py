@@ -204,3 +204,14 @@ def test_a_synthetic_map_is_bounded_before_its_grid_is_made() -> None:
         assert tracemalloc.get_traced_memory()[1] < 16 * MiB
     finally:
         tracemalloc.stop()
+
+
+def test_a_heading_table_is_bounded_before_its_padded_raster_is_made() -> None:
+    radio = small_map()  # 11 x 11 cells of 10 m
+    with pytest.raises(
+        ConfigError, match=r"heading table .*step_m=1e\+06: a raster padded by 100,001\).*\(298\.1 GiB\)"
+    ):
+        radio.heading_segment_min_sinr(1e6)  # (11 + 2 x 100,001)^2 cells of float64
+    with pytest.raises(ValueError, match=r"num_headings=1000000000 is too large: at most 360"):
+        radio.heading_segment_min_sinr(10.0, 10**9)
+    assert radio.heading_segment_min_sinr(10.0).shape == (16, 11, 11)

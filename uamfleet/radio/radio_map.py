@@ -333,6 +333,12 @@ class RadioMap:
             raise ValueError(f"step_m must be > 0, got {step_m}")
         if int(num_headings) != num_headings or num_headings < 1:
             raise ValueError(f"num_headings must be a positive integer, got {num_headings!r}")
+        if num_headings > 360:
+            raise ValueError(f"num_headings={num_headings!r} is too large: at most 360 (the env flies 16)")
+        nx, ny = self.shape
+        pad = math.ceil(step_m / self.resolution_m) + 1  # the raster is padded by the longest shift of a sample
+        what = f"the heading table of {self.label or 'a radio map'!r} (step_m={step_m:g}: a raster padded by {pad:,})"
+        check_size("map_cells", float(nx + 2 * pad) * (ny + 2 * pad), what, 8)
         key = ("heading", step_m, int(num_headings))
         if key not in self._cache:
             self._cache[key] = _read_only(self._heading_table(step_m, int(num_headings)))
