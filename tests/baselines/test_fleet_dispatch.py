@@ -421,3 +421,30 @@ def test_make_policy_checks_its_numbers():
         make_policy("batch_assignment_value", num_taxis=2, arrival_window_s=0)
     with pytest.raises(ConfigError, match=r"^--policy None is a NoneType; name a policy"):
         make_policy(None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["--dispatchers", "insertion", "batch_assignment", "insertion"],
+            "--dispatchers names insertion more than once; name each dispatcher once.",
+        ),
+        (
+            ["--dispatchers", "batch_assignment+price=1+price=2"],
+            "dispatcher 'batch_assignment+price=1+price=2': "
+            "+price=1 and +price=2 both set price; give each option once",
+        ),
+    ],
+)
+def test_the_fleet_benchmark_refuses_repeated_dispatchers_and_options_in_one_line(argv, message, capsys, tmp_path):
+    from uamfleet.cli import fleet_benchmark
+
+    try:
+        status = fleet_benchmark.cli([*argv, "--settings", "2x12", "--count", "1", "--out-csv",
+                                      str(tmp_path / "out.csv")])  # fmt: skip
+    except SystemExit as done:
+        status = int(done.code or 0)
+    err = capsys.readouterr().err
+    assert status == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.csv").exists()
