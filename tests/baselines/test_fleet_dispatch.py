@@ -343,3 +343,108 @@ def test_the_fleet_benchmark_checks_dispatcher_names_at_the_fleet_sizes_it_flies
         _check_names(Args(settings=("4x24",), dispatchers=("replan",)))
     with pytest.raises(ValueError, match="unknown option 'fast'"):
         _check_names(Args(settings=("1x6",), dispatchers=("insertion+fast",)))
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        (
+            "batch_assignment+price=1+price=2",
+            r"'batch_assignment\+price=1\+price=2': \+price=1 and \+price=2 both set "
+            r"price; give each option once",
+        ),
+        ("batch_assignment+release+wait=1+release", r"\+release and \+release both set release"),
+        ("insertion+wait=1+wait=1", r"\+wait=1 and \+wait=1 both set wait"),
+        ("batch_assignment+price=9+guard=1+guard=2", r"\+guard=1 and \+guard=2 both set guard"),
+        ("batch_assignment+wait=1e300", r"\+wait=<…> takes a finite number in \[0, 1000\]"),
+        ("batch_assignment+price=1e300", r"\+price=<…> takes a finite number in \[0, 1e\+09\]"),
+        ("batch_assignment+price=9+guard=1e12", r"\+guard=<…> takes a finite number in \[0, 1e\+09\]"),
+        ("batch_assignment_value:1e300", r"batch_assignment_value:<price_s> with a finite price in \[0, 1e\+09\]"),
+    ],
+)
+def test_a_dispatcher_name_with_an_option_repeated_or_out_of_range_is_refused(name, message):
+    from uamfleet.checks import ConfigError
+
+    with pytest.raises(ConfigError, match=message) as err:
+        make_policy(name, num_taxis=2)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("cls", "option", "value", "message"),
+    [
+        (InsertionPolicy, "exact_limit", 2.5, r"^exact_limit=2\.5 must be a whole number in \[1, 8\]"),
+        (InsertionPolicy, "wait_weight", float("inf"), r"^wait_weight=inf must be a finite number"),
+        (InsertionPolicy, "wait_weight", 1e6, r"^wait_weight=1000000\.0 is too large: at most 1000 "),
+        (BatchAssignmentPolicy, "wait_weight", "1", r"^wait_weight='1' is a str, not a number"),
+        (BatchAssignmentPolicy, "period", 1.5, r"^period=1\.5 must be a whole number in \[1, 16777215\]"),
+        (BatchAssignmentPolicy, "period", 2**40, r"^period=1099511627776 is too large: at most 16777215 "),
+        (
+            BatchAssignmentPolicy,
+            "max_requests_per_taxi",
+            10**4,
+            r"^max_requests_per_taxi=10000 is too large: at "
+            "most 32 ",
+        ),
+        (BatchAssignmentPolicy, "max_requests_per_taxi", 0, r"^max_requests_per_taxi=0 must be an integer in "),
+        (BatchAssignmentPolicy, "penalty_s", float("nan"), r"^penalty_s=nan must be a finite number"),
+        (BatchAssignmentPolicy, "penalty_s", 0.0, r"^penalty_s=0 must be > 0"),
+        (BatchAssignmentPolicy, "penalty_s", 1e300, r"^penalty_s=1e\+300 is too large: at most 1e\+09 s"),
+        (BatchAssignmentPolicy, "unassigned_price_s", 1e300, r"^unassigned_price_s=1e\+300 is too large"),
+        (BatchAssignmentPolicy, "unassigned_price_s", True, r"^unassigned_price_s=True is a bool, not a number"),
+        (BatchAssignmentPolicy, "assign_on_release", "yes", r"^assign_on_release='yes' must be True or False"),
+        (
+            BatchAssignmentPolicy,
+            "unassigned_guard_s",
+            600.0,
+            r"^unassigned_guard_s=600\.0 bounds the wait "
+            r"unassigned_price_s prices, which is None: give both",
+        ),
+        (BatchAssignmentPolicy, "value", "shipped", r"^value='shipped' is a str; pass a LinearValue or None"),
+    ],
+)
+def test_the_dispatchers_check_each_option_in_the_api(cls, option, value, message):
+    from uamfleet.checks import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        cls(**{option: value})
+
+
+def test_make_policy_checks_its_numbers():
+    from uamfleet.checks import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^num_taxis=0 must be an integer in \[1, 1024\]"):
+        make_policy("batch_assignment", num_taxis=0)
+    with pytest.raises(ConfigError, match=r"^seed=-1 must be an integer"):
+        make_policy("random", seed=-1)
+    with pytest.raises(ConfigError, match=r"^arrival_window_s=0 must be a positive number"):
+        make_policy("batch_assignment_value", num_taxis=2, arrival_window_s=0)
+    with pytest.raises(ConfigError, match=r"^--policy None is a NoneType; name a policy"):
+        make_policy(None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["--dispatchers", "insertion", "batch_assignment", "insertion"],
+            "--dispatchers names insertion more than once; name each dispatcher once.",
+        ),
+        (
+            ["--dispatchers", "batch_assignment+price=1+price=2"],
+            "dispatcher 'batch_assignment+price=1+price=2': "
+            "+price=1 and +price=2 both set price; give each option once",
+        ),
+    ],
+)
+def test_the_fleet_benchmark_refuses_repeated_dispatchers_and_options_in_one_line(argv, message, capsys, tmp_path):
+    from uamfleet.cli import fleet_benchmark
+
+    try:
+        status = fleet_benchmark.cli([*argv, "--settings", "2x12", "--count", "1", "--out-csv",
+                                      str(tmp_path / "out.csv")])  # fmt: skip
+    except SystemExit as done:
+        status = int(done.code or 0)
+    err = capsys.readouterr().err
+    assert status == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out.csv").exists()

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from uamfleet.checks import ConfigError
 from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
@@ -92,3 +93,33 @@ def test_the_fleet_design_trains_end_to_end_and_flies_another_size(tmp_path) -> 
     cfg = make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=3)
     traj = policy.for_fleet(3).fly(cfg)
     assert traj.num_steps > 0 and traj.start_pos_m.shape == (3, 2)
+
+
+def test_for_fleet_names_the_fleet_sizes_its_passenger_axis_fits() -> None:
+    """6 passenger rows per taxi (12 on 2 taxis) and at most 1024 rows: fleets of 1 to 170 taxis (6 x 170 = 1020,
+    6 x 171 = 1026); a window or explicit slots fly a larger fleet."""
+    policy = _untrained_fleet_policy(2)
+    fits = r"it reads 6 passenger rows per taxi, so fleets of 1 to 170 taxi\(s\) fit .* at most 1024 rows"
+    for taxis in (171, 1024):
+        with pytest.raises(ConfigError, match=rf"^num_taxis={taxis} is out of range for this policy: {fits}"):
+            policy.for_fleet(taxis)
+    assert policy.for_fleet(170).passenger_slots == 1020
+    assert policy.for_fleet(171, passenger_slots=1024).passenger_slots == 1024
+    assert policy.for_fleet(171, passenger_window=12).passenger_slots == 12
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("passenger_slots", 0, r"^passenger_slots=0 must be an integer in \[1, 1024\]"),
+        ("passenger_slots", 2.5, r"^passenger_slots=2\.5 must be a whole number in \[1, 1024\]"),
+        ("passenger_slots", 4096, r"^passenger_slots=4096 is too large: at most 1024 "),
+        ("passenger_slots", "24", r"^passenger_slots='24' is a str, not a number"),
+        ("passenger_window", True, r"^passenger_window=True is a bool, not a number"),
+        ("passenger_window", 10**6, r"^passenger_window=1000000 is too large: at most 1024 "),
+        ("passenger_window", float("nan"), r"^passenger_window=nan must be a whole number"),
+    ],
+)
+def test_for_fleet_checks_its_passenger_axis(option, value, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        _untrained_fleet_policy(2).for_fleet(3, **{option: value})

@@ -10,6 +10,7 @@ import pytest
 import torch
 from conftest import small_config
 
+from uamfleet.checks import ConfigError
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
@@ -302,3 +303,60 @@ def test_the_hedge_checks_its_arguments_and_the_passenger_rows() -> None:
     hedge = AnticipatingGuidedSearch(_policy(cfg, 0), _prior(cfg, max_requests=6))
     with pytest.raises(ValueError, match="max_passengers >= 6"):
         hedge.fly(cfg)
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("top_k", 17, r"^top_k=17 is too large: at most 16 "),
+        ("top_k", 2.5, r"^top_k=2\.5 must be a whole number in \[1, 16\]"),
+        ("top_k", "8", r"^top_k='8' is a str, not a number"),
+        ("samples", 10**6, r"^samples=1000000 is too large: at most 1024 "),
+        ("samples", -1, r"^samples=-1 must be an integer in \[0, 1024\]"),
+        ("temperature", float("inf"), r"^temperature=inf must be a finite number"),
+        ("temperature", float("nan"), r"^temperature=nan must be a finite number"),
+        ("expert_beam", 10**9, r"^expert_beam=1000000000 is too large: at most 4096 "),
+        ("horizon", 0, r"^horizon=0 must be an integer in \[1, 16777215\] or None"),
+        ("horizon", 1.5, r"^horizon=1\.5 must be a whole number"),
+        ("seed", -1, r"^seed=-1 must be an integer"),
+        ("guard_rollouts", "no", r"^guard_rollouts='no' must be True or False"),
+    ],
+)
+def test_guided_search_checks_each_option_in_the_api(option, value, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        GuidedSearchPolicy(None, **{option: value})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("futures", 10**6, r"^futures=1000000 is too large: at most 256 "),  # hung before: 17 x 10^6 scratch envs
+        ("futures", 0, r"^futures=0 must be an integer in \[1, 256\]"),
+        ("first_headings", 17, r"^first_headings=17 is too large: at most 16 "),
+        ("first_headings", True, r"^first_headings=True is a bool, not a number"),
+        ("commit", 2**40, r"^commit=1099511627776 is too large: at most 16777215 "),
+        ("commit", 0.5, r"^commit=0\.5 must be a whole number"),
+        ("tail", -1, r"^tail=-1 must be an integer in \[0, 16777215\] or None"),
+        ("tail", float("nan"), r"^tail=nan must be a whole number"),
+        ("wait", 1, r"^wait=1 must be True or False"),
+        ("samples", 2048, r"^samples=2048 is too large: at most 1024 "),
+        ("seed", 2**64, r"^seed=18446744073709551616 is too large"),
+    ],
+)
+def test_the_hedge_checks_each_option_in_the_api(option, value, message) -> None:
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    with pytest.raises(ConfigError, match=message):
+        AnticipatingGuidedSearch(None, "berlin", **{option: value})  # type: ignore[arg-type]
+    with pytest.raises(
+        ValueError, match=r"^demand=3 is no instance family's name or DemandPrior; pass one, e\.g\. 'berlin'"
+    ):
+        AnticipatingGuidedSearch(None, 3)  # type: ignore[arg-type]
+
+
+def test_the_search_caps_are_the_command_line_s() -> None:
+    from uamfleet.cli import benchmark
+    from uamfleet.rl import guided
+
+    assert benchmark.MAX_FUTURES is guided.MAX_FUTURES and benchmark.MAX_SAMPLES is guided.MAX_SAMPLES
+    assert benchmark.MAX_EXPERT_BEAM is guided.MAX_EXPERT_BEAM and benchmark.MAX_STEPS is guided.MAX_STEPS

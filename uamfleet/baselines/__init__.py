@@ -17,6 +17,7 @@ from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import STEP_PLANNERS, StepPlannerPolicy
+from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
 
 POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", *DISPATCHERS, "random")
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
@@ -37,6 +38,12 @@ def make_policy(
 
     Fly a planner under the ``flown`` config of :func:`planner_configs` (one seat for CPTSP, SINR ignored for the
     straight line) and score it against the ``scored`` one."""
+    if not isinstance(name, str):
+        raise ConfigError(f"--policy {name!r} is a {type(name).__name__}; name a policy, one of {POLICIES}.")
+    seed = check_integer("seed", seed, 0, MAX_SEED)
+    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
+    if arrival_window_s is not None:
+        arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
     if name in PLANNERS or name in STEP_PLANNERS:
         if num_taxis != 1:
             raise ValueError(

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from uamfleet.checks import ConfigError, is_number
 from uamfleet.io import write_text_atomic
 
 FEATURES: tuple[str, ...] = ("bias", "open_share", "open_share_sq", "remoteness_x_open_share", "remoteness")
@@ -54,6 +55,9 @@ the later time. A first fit without this rule, with a column of the time until t
 routes: priced at 400 s, riders waited until the time limit (docs/results.md, "A learned value inside
 batch_assignment")."""
 
+MAX_SECONDS = 1e9
+"""Upper bound of every time and price in seconds of the dispatchers (``price_s``, ``penalty_s``, ``+price=<s>``,
+``+guard=<s>``; 32 years): costs stay far from float overflow, so an assignment never compares infinities."""
 VALUE_DISPATCHER = "batch_assignment_value"
 """The dispatcher name of ``batch_assignment`` with a learned value; ``batch_assignment_value:<price_s>`` prices it
 other than its file does (:func:`value_for_dispatcher`)."""
@@ -115,8 +119,10 @@ class LinearValue:
             )
         for name in ("price_s", "horizon_s", "arrival_window_s"):
             value = getattr(self, name)
-            if not math.isfinite(value) or value < 0 or (name != "price_s" and value == 0):
+            if not is_number(value) or not math.isfinite(value) or value < 0 or (name != "price_s" and value == 0):
                 raise ValueError(f"{name}={value!r} must be finite and {'>= 0' if name == 'price_s' else '> 0'}.")
+            if value > MAX_SECONDS:
+                raise ConfigError(f"{name}={value!r} is too large: at most {MAX_SECONDS:g} s.")
 
     def with_price(self, price_s: float) -> LinearValue:
         return LinearValue(self.weights, price_s, self.horizon_s, self.arrival_window_s, self.meta)
@@ -199,9 +205,9 @@ def value_for_dispatcher(
         try:
             value = value.with_price(float(price))
         except ValueError as err:
-            raise ValueError(
-                f"dispatcher {name!r}: give {VALUE_DISPATCHER}:<price_s> with a finite price >= 0 in seconds of "
-                f"ride time per unit of value (e.g. {VALUE_DISPATCHER}:60); {err}"
+            raise ConfigError(
+                f"dispatcher {name!r}: give {VALUE_DISPATCHER}:<price_s> with a finite price in [0, {MAX_SECONDS:g}] "
+                f"in seconds of ride time per unit of value (e.g. {VALUE_DISPATCHER}:60); {err}"
             ) from None
     if arrival_window_s is not None:
         value = dataclasses.replace(value, arrival_window_s=arrival_window_s)
@@ -211,6 +217,7 @@ def value_for_dispatcher(
 __all__ = [
     "FEATURES",
     "INCREASING",
+    "MAX_SECONDS",
     "VALUE_DISPATCHER",
     "LinearValue",
     "PostState",

@@ -50,8 +50,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from uamfleet.baselines.assignment_value import LinearValue, SiteRemoteness
+from uamfleet.baselines.assignment_value import MAX_SECONDS, LinearValue, SiteRemoteness
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
+from uamfleet.checks import MAX_TIME_LIMIT_STEPS, ConfigError, check_flag, check_integer, check_number
 from uamfleet.config import heading_vectors
 from uamfleet.env.generator import flyable_sites
 from uamfleet.env.motion import passes_within
@@ -71,6 +72,29 @@ with ``+guard=<s>`` (past ``<s>`` of wait, ``penalty_s`` again); e.g. ``insertio
 ``batch_assignment_value:100+wait=1+release``, ``batch_assignment_value:100+wait=1+release+price=1000+guard=600``."""
 
 
+MAX_WAIT_WEIGHT = 1000.0
+"""Upper bound of the wait weight β (``wait_weight``, ``+wait=<β>``): a second of wait at most 1,000 s of ride."""
+MAX_REQUESTS_PER_TAXI = 32
+"""Upper bound of ``max_requests_per_taxi``: a batch builds every trip of up to ``seats`` of that many requests per
+taxi (496 pairs, 35,960 quadruples at this bound), each sequenced exactly."""
+
+
+def _seconds(name: str, value: float, fix: str = "") -> float:
+    """``value`` as a finite number of seconds in ``[0, MAX_SECONDS]``; ConfigError naming ``name`` otherwise."""
+    value = check_number(name, value, minimum=0.0)
+    if value > MAX_SECONDS:
+        raise ConfigError(f"{name}={value!r} is too large: at most {MAX_SECONDS:g} s{fix}.")
+    return value
+
+
+def check_wait_weight(name: str, value: float) -> float:
+    """``value`` as a wait weight β in ``[0, MAX_WAIT_WEIGHT]``; ConfigError naming ``name`` otherwise."""
+    value = check_number(name, value, minimum=0.0)
+    if value > MAX_WAIT_WEIGHT:
+        raise ConfigError(f"{name}={value!r} is too large: at most {MAX_WAIT_WEIGHT:g} (0: plain total ride time).")
+    return value
+
+
 @dataclass(frozen=True)
 class DispatchOptions:
     """The options a dispatcher's name carries (:data:`OPTION_SEPARATOR`); the defaults are the plain dispatcher."""
@@ -81,27 +105,42 @@ class DispatchOptions:
     unassigned_guard_s: float | None = None  # with a price: a request that has waited longer costs penalty_s again
 
 
-def _option_number(name: str, base: str, option: str, text: str, meaning: str, example: str) -> float:
-    """The finite number >= 0 of ``+option=<text>`` in the dispatcher ``name``; ValueError naming the fix else."""
+def _option_number(
+    name: str, base: str, option: str, text: str, meaning: str, example: str, most: float = MAX_SECONDS
+) -> float:
+    """The finite number in ``[0, most]`` of ``+option=<text>`` in the dispatcher ``name``; ConfigError naming the
+    fix else."""
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(
-            f"dispatcher {name!r}: +{option}=<…> takes a finite number >= 0 ({meaning}), e.g. {base}+{option}={example}"
+    if not (np.isfinite(value) and 0 <= value <= most):
+        raise ConfigError(
+            f"dispatcher {name!r}: +{option}=<…> takes a finite number in [0, {most:g}] ({meaning}), e.g. "
+            f"{base}+{option}={example}"
         )
     return value
 
 
 def split_options(name: str) -> tuple[str, DispatchOptions]:
-    """(dispatcher name without its options, the options) of a name such as ``batch_assignment+wait=1+release``."""
+    """(dispatcher name without its options, the options) of a name such as ``batch_assignment+wait=1+release``;
+    an option given twice is refused."""
+    if not isinstance(name, str):
+        raise ConfigError(f"dispatcher {name!r} is a {type(name).__name__}; name one, e.g. 'batch_assignment'.")
     base, *given = name.split(OPTION_SEPARATOR)
     wait_weight, on_release, price, guard = 0.0, False, None, None
+    seen: dict[str, str] = {}
     for option in given:
         key, sep, text = option.partition("=")
+        if key in seen:
+            raise ConfigError(
+                f"dispatcher {name!r}: +{seen[key]} and +{option} both set {key}; give each option once "
+                f"(e.g. {base}+{seen[key]})"
+            )
+        seen[key] = option
         if key == "wait" and sep:
-            wait_weight = _option_number(name, base, key, text, "seconds of ride time per second of wait", "1")
+            meaning = "seconds of ride time per second of wait"
+            wait_weight = _option_number(name, base, key, text, meaning, "1", MAX_WAIT_WEIGHT)
         elif key == "price" and sep:
             price = _option_number(name, base, key, text, "seconds per request left unassigned", "1000")
         elif key == "guard" and sep:
@@ -215,12 +254,9 @@ class ScheduleFleetPolicy:
     """
 
     def __init__(self, exact_limit: int = 6, wait_weight: float = 0.0) -> None:
-        if not 1 <= exact_limit <= MAX_PASSENGERS:
-            raise ValueError(f"exact_limit={exact_limit} must lie in [1, {MAX_PASSENGERS}] (solve_pdp's limit).")
-        if not (np.isfinite(wait_weight) and wait_weight >= 0):
-            raise ValueError(f"wait_weight={wait_weight} must be a finite number >= 0 (0: plain total ride time).")
-        self.exact_limit = exact_limit
-        self.wait_weight = float(wait_weight)  # β: a schedule costs its total ride time + β · its total wait
+        self.exact_limit = check_integer("exact_limit", exact_limit, 1, MAX_PASSENGERS, fix=" (solve_pdp's limit)")
+        # β: a schedule costs its total ride time + β · its total wait
+        self.wait_weight = check_wait_weight("wait_weight", wait_weight)
         self.env: VectorEnv | None = None
 
     # ---- episode start -------------------------------------------------------------------------------
@@ -586,30 +622,31 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         # A trip's cost counts its riders' waits since their release, so a flat finite price would make a request
         # dearer to serve at every batch it waits and, once dearer than the price, never served; the wait so far
         # added to its price leaves only what is still to come to be weighed.
-        if unassigned_price_s is not None and not (np.isfinite(unassigned_price_s) and unassigned_price_s >= 0):
-            raise ValueError(f"unassigned_price_s={unassigned_price_s} must be a finite number of seconds >= 0")
+        if unassigned_price_s is not None:
+            unassigned_price_s = _seconds("unassigned_price_s", unassigned_price_s, " or None (penalty_s)")
         self.unassigned_price_s = unassigned_price_s
         # A finite price can still starve a request whose remaining trip costs more than the price at every batch
         # (a long ride, few taxis); past the guard its price is penalty_s again, so it is taken as soon as a taxi can.
-        if unassigned_guard_s is not None and (
-            unassigned_price_s is None or not (np.isfinite(unassigned_guard_s) and unassigned_guard_s >= 0)
-        ):
-            raise ValueError(
-                f"unassigned_guard_s={unassigned_guard_s} must be a finite number of seconds >= 0, and it bounds "
-                "unassigned_price_s: give both"
-            )
+        if unassigned_guard_s is not None:
+            if unassigned_price_s is None:
+                raise ConfigError(
+                    f"unassigned_guard_s={unassigned_guard_s!r} bounds the wait unassigned_price_s prices, which is "
+                    "None: give both, or neither."
+                )
+            unassigned_guard_s = _seconds("unassigned_guard_s", unassigned_guard_s, " or None (no guard)")
         self.unassigned_guard_s = unassigned_guard_s
         # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
-        self.assign_on_release = assign_on_release
+        self.assign_on_release = check_flag("assign_on_release", assign_on_release)
+        if value is not None and not isinstance(value, LinearValue):
+            raise ConfigError(f"value={value!r} is a {type(value).__name__}; pass a LinearValue or None.")
         self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
-        if period < 1 or max_requests_per_taxi < 1 or penalty_s <= 0:
-            raise ValueError(
-                f"period={period}, max_requests_per_taxi={max_requests_per_taxi} must be >= 1 and "
-                f"penalty_s={penalty_s} > 0."
-            )
-        self.period = period
-        self.max_requests_per_taxi = max_requests_per_taxi
-        self.penalty_s = penalty_s
+        self.period = check_integer("period", period, 1, MAX_TIME_LIMIT_STEPS, fix=" (steps between batches)")
+        self.max_requests_per_taxi = check_integer(
+            "max_requests_per_taxi", max_requests_per_taxi, 1, MAX_REQUESTS_PER_TAXI, fix=" (e.g. 6)"
+        )
+        self.penalty_s = _seconds("penalty_s", penalty_s)
+        if self.penalty_s == 0:
+            raise ConfigError("penalty_s=0 must be > 0: a request left unassigned must cost something (e.g. 1e6).")
 
     def batch_due(self, released: list[int]) -> bool:
         """Whether a batch runs at this step: every ``period`` steps, and with ``assign_on_release`` at every step

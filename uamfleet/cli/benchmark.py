@@ -59,7 +59,9 @@ from uamfleet.env.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS
 from uamfleet.rollout import fly
+from uamfleet.types import NUM_HEADINGS
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
 """The methods flown by default."""
@@ -452,24 +454,27 @@ def check_guided(args: Args) -> None:
     if (args.guided or args.hedge) and args.checkpoint is None:
         flag = "--guided" if args.guided else "--hedge"
         raise UsageError(f"{flag} searches with a learned policy: give its --checkpoint as well.")
-    if not (1 <= args.hedge_first_headings <= 16 and 1 <= args.hedge_futures <= 256 and args.hedge_commit >= 1
-            and args.hedge_tail >= -1 and 0 <= args.hedge_samples <= 1024):  # fmt: skip
+    if not (1 <= args.hedge_first_headings <= NUM_HEADINGS and 1 <= args.hedge_futures <= MAX_FUTURES
+            and 1 <= args.hedge_commit <= MAX_STEPS and -1 <= args.hedge_tail <= MAX_STEPS
+            and 0 <= args.hedge_samples <= MAX_SAMPLES):  # fmt: skip
         raise UsageError(
             f"--hedge-first-headings {args.hedge_first_headings} / --hedge-futures {args.hedge_futures} / "
             f"--hedge-commit {args.hedge_commit} / --hedge-tail {args.hedge_tail} / --hedge-samples "
-            f"{args.hedge_samples}: need 1 <= first headings <= 16, 1 <= futures <= 256, commit >= 1, tail >= -1 "
-            "(-1: to the end) and 0 <= samples <= 1024 (e.g. 4, 8, 4, 10 and 8)."
+            f"{args.hedge_samples}: need 1 <= first headings <= {NUM_HEADINGS}, 1 <= futures <= {MAX_FUTURES}, "
+            f"commit >= 1, tail >= -1 (-1: to the end), both at most {MAX_STEPS}, and 0 <= samples <= {MAX_SAMPLES} "
+            "(e.g. 4, 8, 4, 10 and 8)."
         )
     if (args.finish_beam and args.checkpoint is None) or not 0 <= args.finish_beam <= 4096:
         raise UsageError(f"--finish-beam {args.finish_beam}: a search width 0 <= beam <= 4096 (0: off, e.g. 16), for "
                          "the policy of a --checkpoint.")  # fmt: skip
-    if not (1 <= args.guided_top_k <= 16 and 0 <= args.guided_samples <= 1024 and args.guided_temperature > 0
-            and 0 <= args.guided_expert_beam <= 4096 and args.guided_horizon >= 0):  # fmt: skip
+    if not (1 <= args.guided_top_k <= NUM_HEADINGS and 0 <= args.guided_samples <= MAX_SAMPLES
+            and math.isfinite(args.guided_temperature) and args.guided_temperature > 0
+            and 0 <= args.guided_expert_beam <= MAX_EXPERT_BEAM and 0 <= args.guided_horizon <= MAX_STEPS):  # fmt: skip
         raise UsageError(
             f"--guided-top-k {args.guided_top_k} / --guided-samples {args.guided_samples} / --guided-temperature "
-            f"{args.guided_temperature} / --guided-horizon {args.guided_horizon}: need 1 <= top-k <= 16, "
-            "0 <= samples <= 1024, a temperature > 0 (e.g. 8, 24 and 2), 0 <= --guided-expert-beam <= 4096 and "
-            "--guided-horizon >= 0 (0: to the end)."
+            f"{args.guided_temperature} / --guided-horizon {args.guided_horizon}: need 1 <= top-k <= {NUM_HEADINGS}, "
+            f"0 <= samples <= {MAX_SAMPLES}, a finite temperature > 0 (e.g. 8, 24 and 2), 0 <= --guided-expert-beam "
+            f"<= {MAX_EXPERT_BEAM} and --guided-horizon >= 0 (0: to the end), at most {MAX_STEPS}."
         )
 
 

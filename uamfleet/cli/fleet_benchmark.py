@@ -311,6 +311,9 @@ def _check_names(args: Args) -> None:
     """Every setting and dispatcher named is known."""
     for setting in args.settings:
         setting_size(setting)
+    repeated = sorted({d for d in args.dispatchers if list(args.dispatchers).count(d) > 1})
+    if repeated:
+        raise UsageError(f"--dispatchers names {', '.join(repeated)} more than once; name each dispatcher once.")
     bases = {d: split_options(d)[0] for d in args.dispatchers}
     unknown = [d for d, b in bases.items() if b not in POLICIES and b.partition(":")[0] != VALUE_DISPATCHER]
     if unknown:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple
+from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple, check_map_size
 
 THERMAL_NOISE_DBM_PER_HZ = -174.0  # kT at 290 K
 DEFAULT_BANDWIDTH_MHZ = 10.0
@@ -222,6 +222,7 @@ def expected_sinr_map_3gpp(
     if not (math.isfinite(side_m) and side_m > 0 and math.isfinite(resolution_m) and resolution_m > 0):
         raise ValueError(f"side_m and resolution_m must be > 0, got side_m={side_m}, resolution_m={resolution_m}")
     n = math.ceil(side_m / resolution_m - 1e-9) + 1
+    check_map_size(f"radio map {name!r}", (n, n), resolution_m, side_m, (0.0, 0.0))  # before the n x n grid
     axis = np.arange(n) * resolution_m
     xx, yy = np.meshgrid(axis, axis, indexing="ij")  # [ix, iy]
     sinr = expected_sinr_db(

@@ -14,6 +14,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from uamfleet.checks import check_size
 from uamfleet.radio._sampling import segment_min_batch
 
 NC_RULES: tuple[str, ...] = ("global_min", "nanmean")
@@ -46,6 +47,34 @@ def _threshold(threshold_db: float) -> float:
     if math.isnan(threshold_db):
         raise ValueError("threshold_db is NaN; pass a threshold in dB such as -3.0")
     return threshold_db
+
+
+def check_map_size(
+    what: str, shape: tuple[int, ...], resolution_m: float, side_m: float | None, origin_m: tuple[float, float]
+) -> None:
+    """Refuse a map whose raster, area or origin is over the size limits (:data:`uamfleet.checks.SIZE_LIMITS`,
+    docs/inputs.md "Size limits of maps"), before anything of that size is allocated: the raster's cells
+    (``map_cells``), its span, ``side_m`` and the origin's distance from world (0, 0) (``scene_extent_m``), and the
+    cells of a grid of ``resolution_m`` over the operating square ``[0, side_m]^2`` (``map_cells``), the finest
+    block map and path graph the map allows. ``what`` names the map in the message; the numbers must be finite and
+    positive (checked by the caller)."""
+    cells = math.prod(int(n) for n in shape)
+    check_size("map_cells", cells, f"{what} (a {' x '.join(str(int(n)) for n in shape)} raster)", 8)
+    span = max(int(n) - 1 for n in shape) * resolution_m if shape else 0.0
+    check_size("scene_extent_m", span, f"{what} (its raster of {resolution_m:g} m cells spans {span:g} m)")
+    if side_m is None:
+        side_m = min(int(n) - 1 for n in shape) * resolution_m if shape else 0.0
+    check_size("scene_extent_m", side_m, f"{what} (side_m={side_m:g})")
+    far = max(abs(origin_m[0]), abs(origin_m[1]))
+    check_size("scene_extent_m", far, f"{what} (origin_m=({origin_m[0]:g}, {origin_m[1]:g}) lies {far:g} m out)")
+    n = math.ceil(side_m / resolution_m - 1e-9) + 1
+    check_size(
+        "map_cells",
+        float(n) * n,
+        f"{what} (side_m={side_m:g} at resolution_m={resolution_m:g}: block maps and path graphs of {n:,} x {n:,} "
+        "cells)",
+        8,
+    )
 
 
 def _read_only(arr: np.ndarray) -> np.ndarray:
@@ -166,6 +195,10 @@ class RadioMap:
     _cache: dict[tuple[Any, ...], Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        what = f"radio map {self.name!r}" if self.name else "RadioMap"
+        declared = np.shape(self.sinr_db) if isinstance(self.sinr_db, np.ndarray) else None
+        if declared is not None and len(declared) == 2:  # before the private copy below
+            check_size("map_cells", math.prod(declared), f"{what} (a {declared[0]} x {declared[1]} raster)", 8)
         arr = np.array(self.sinr_db, dtype=np.float64)  # a private copy: the caller's array stays theirs
         if arr.ndim != 2 or 0 in arr.shape:
             raise ValueError(f"RadioMap.sinr_db must be a non-empty 2-D array [nx, ny], got shape {arr.shape}")
@@ -188,6 +221,7 @@ class RadioMap:
             side = _finite(self.side_m, "side_m")
             if side <= 0:
                 raise ValueError(f"side_m must be > 0, got {side}")
+        check_map_size(what, arr.shape, res, side, self.origin_m)
         object.__setattr__(self, "side_m", side)
         object.__setattr__(self, "altitude_m", _finite(self.altitude_m, "altitude_m"))
         if self.utm_origin_m is not None:
@@ -299,6 +333,12 @@ class RadioMap:
             raise ValueError(f"step_m must be > 0, got {step_m}")
         if int(num_headings) != num_headings or num_headings < 1:
             raise ValueError(f"num_headings must be a positive integer, got {num_headings!r}")
+        if num_headings > 360:
+            raise ValueError(f"num_headings={num_headings!r} is too large: at most 360 (the env flies 16)")
+        nx, ny = self.shape
+        pad = math.ceil(step_m / self.resolution_m) + 1  # the raster is padded by the longest shift of a sample
+        what = f"the heading table of {self.label or 'a radio map'!r} (step_m={step_m:g}: a raster padded by {pad:,})"
+        check_size("map_cells", float(nx + 2 * pad) * (ny + 2 * pad), what, 8)
         key = ("heading", step_m, int(num_headings))
         if key not in self._cache:
             self._cache[key] = _read_only(self._heading_table(step_m, int(num_headings)))
@@ -340,6 +380,9 @@ class RadioMap:
         block_m = _finite(block_m, "block_m")
         if block_m <= 0:
             raise ValueError(f"block_m must be > 0, got {block_m}")
+        nb = math.ceil(self._side / block_m - 1e-9)
+        what = f"the block map of {self.label or 'a radio map'!r} ({nb:,} x {nb:,} blocks of {block_m:g} m)"
+        check_size("map_cells", float(nb) * nb, what, 8)
         key = ("block", block_m, nc_rule)
         if key not in self._cache:
             self._cache[key] = self._block_map(block_m, nc_rule)

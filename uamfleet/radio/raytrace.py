@@ -54,7 +54,7 @@ import numpy as np
 from uamfleet.checks import check_number, check_size, size_limit
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio.channel_3gpp import DEFAULT_BANDWIDTH_MHZ, DEFAULT_NOISE_FIGURE_DB, noise_power_dbm
-from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple
+from uamfleet.radio.radio_map import BaseStation, RadioMap, base_station_tuple, check_map_size
 from uamfleet.radio.scene_check import check_scene
 
 EMPTY_SCENE = "empty"  # free space: no object at all (the physics check against Friis)
@@ -453,27 +453,65 @@ def save_radio_map_npz(radio: RadioMap, path: str | os.PathLike[str]) -> Path:
     return write_bytes_atomic(path, buffer.getvalue())
 
 
+def _npz_arrays(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """``{name: (shape, dtype)}`` of every array of the ``.npz`` at ``path``, from each member's ``.npy`` header
+    alone (nothing of an array's data is read)."""
+    arrays: dict[str, tuple[tuple[int, ...], np.dtype]] = {}
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+                elif version == (2, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+                else:
+                    raise ValueError(f"its array {info.filename!r} has .npy format {version}; expected 1.0 or 2.0")
+            arrays[info.filename.removesuffix(".npy")] = (tuple(int(n) for n in shape), dtype)
+    return arrays
+
+
 def read_radio_map_npz(path: str | os.PathLike[str]) -> RadioMap:
-    """A map written by :func:`save_radio_map_npz` (``uamfleet-radio-map``); needs no Sionna."""
+    """A map written by :func:`save_radio_map_npz` (``uamfleet-radio-map``); needs no Sionna.
+
+    Every array's size is read from its header first: a raster or any other array over the size limits
+    (:func:`~uamfleet.radio.radio_map.check_map_size`, docs/inputs.md "Size limits of maps") is refused with
+    the size it would need before anything of it is read."""
+    label = f"radio map {str(path)!r}"
     try:
+        declared = _npz_arrays(Path(path))
         archive = np.load(Path(path), allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:  # not an archive numpy can read
         raise ValueError(f"cannot read radio map {str(path)!r}: {err}") from err
     if not isinstance(archive, np.lib.npyio.NpzFile) or "format" not in archive.files:
         raise ValueError(f"{str(path)!r} is not a uamfleet radio map ({NPZ_FORMAT}); write one with uamfleet-radio-map")
     with archive as z:
+        for name, (shape, dtype) in sorted(declared.items(), key=lambda item: item[0] == "sinr_db"):
+            # every array in units of a float64 raster cell, the raster last (its cells are checked below)
+            units = math.prod(shape) * dtype.itemsize / 8
+            if name != "sinr_db" or dtype.itemsize > 8:
+                check_size("map_cells", units, f"{label} (its array {name!r}: {shape} of {dtype})", 8)
         if str(z["format"]) != NPZ_FORMAT:
             raise ValueError(f"{str(path)!r} is a {z['format']} file; this uamfleet reads {NPZ_FORMAT} maps")
         try:
+            shape = declared["sinr_db"][0]
+            check_size("map_cells", math.prod(shape), f"{label} (a {' x '.join(map(str, shape))} raster)", 8)
+            resolution_m, side_m = float(z["resolution_m"]), float(z["side_m"])
+            origin = z["origin_m"]
+            origin_m = (float(origin[0]), float(origin[1]))
+            if len(shape) == 2 and all(map(math.isfinite, (resolution_m, side_m, *origin_m))) and resolution_m > 0:
+                check_map_size(label, shape, resolution_m, side_m, origin_m)  # before the raster is read
             stations = tuple(
                 BaseStation(**dict(zip(_BS_FIELDS, row, strict=True)), name=str(n))
                 for row, n in zip(z["bs_values"].tolist(), z["bs_name"].tolist(), strict=True)
             )
             return RadioMap(
                 sinr_db=z["sinr_db"],
-                resolution_m=float(z["resolution_m"]),
-                origin_m=(float(z["origin_m"][0]), float(z["origin_m"][1])),
-                side_m=float(z["side_m"]),
+                resolution_m=resolution_m,
+                origin_m=origin_m,
+                side_m=side_m,
                 name=str(z["name"]),
                 is_estimate=bool(z["is_estimate"]),
                 altitude_m=float(z["altitude_m"]),

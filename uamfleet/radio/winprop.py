@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uamfleet.checks import ConfigError, check_size
 from uamfleet.radio.radio_map import BaseStation, RadioMap
 
 NOT_COMPUTED = "N.C."
@@ -34,6 +35,9 @@ _GRID_KEYS = {"HEIGHT": 1, "RESOLUTION": 1, "LOWER_LEFT": 2, "UPPER_RIGHT": 2}  
 # Coordinates are printed with 5 decimals; anything further than this fraction of a cell from a grid node is
 # a malformed file, not round-off.
 _GRID_TOLERANCE = 1e-3
+BYTES_PER_POINT = 256
+"""Bytes a data line may take on average (the Berlin file: 36): a file larger than this many bytes per cell of
+the ``map_cells`` limit is refused before it is read (docs/inputs.md "Size limits of maps")."""
 
 
 class WinPropFormatError(ValueError):
@@ -221,8 +225,12 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
     :class:`WinPropFormatError` (a ValueError) naming the offending line for any malformed input.
     """
     path = Path(path)
+    size = path.stat().st_size
+    what = f"the file ({size:,} bytes, at most {BYTES_PER_POINT} per grid point)"
+    _check_size(path, 1, size / BYTES_PER_POINT, what, 0)
     lines = _read_lines(path)
     begin, end = _split_sections(path, lines)
+    _check_size(path, begin + 2, end - begin - 1, f"the data ({end - begin - 1:,} data lines)")
     header = _Header()
     for i in range(begin):
         header.read(path, i + 1, lines[i])
@@ -236,6 +244,7 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
             f"{path}: line {begin + 1}: no HEIGHT line before BEGIN_DATA; add 'HEIGHT h'", begin + 1
         )
 
+    _check_declared_grid(path, header, res)
     data, linenos = _parse_data(path, lines, begin, end)
     e0, n0 = float(data[:, 0].min()), float(data[:, 1].min())
     sinr = _place_on_grid(path, lines, data, linenos, res, (e0, n0), header.extent(path, res))
@@ -248,6 +257,25 @@ def read_winprop(path: str | os.PathLike[str]) -> RadioMap:
         utm_origin_m=(e0, n0),
         source=f"WinProp ASCII file {path.name}",
     )
+
+
+def _check_declared_grid(path: Path, header: _Header, res: float) -> None:
+    """Refuse a LOWER_LEFT..UPPER_RIGHT grid over the ``map_cells`` limit before the data are parsed (whether it is
+    a whole number of cells is checked with the data), naming the first of its two lines."""
+    if "LOWER_LEFT" in header.values and "UPPER_RIGHT" in header.values:
+        (e_lo, n_lo), (e_hi, n_hi) = header.values["LOWER_LEFT"][2], header.values["UPPER_RIGHT"][2]
+        cells = max((e_hi - e_lo) / res, 0.0) * max((n_hi - n_lo) / res, 0.0)
+        first = min(header.values["LOWER_LEFT"][0], header.values["UPPER_RIGHT"][0])
+        area = f"{e_hi - e_lo:g} x {n_hi - n_lo:g} m"
+        _check_size(path, first, cells, f"LOWER_LEFT..UPPER_RIGHT ({area} of {res:g} m cells)")
+
+
+def _check_size(path: Path, lineno: int, cells: float, what: str, unit_bytes: float = 8) -> None:
+    """:func:`~uamfleet.checks.check_size` of ``map_cells`` as a :class:`WinPropFormatError` naming the line."""
+    try:
+        check_size("map_cells", cells, what, unit_bytes)
+    except ConfigError as err:
+        raise WinPropFormatError(f"{path}: line {lineno}: {err}", lineno) from None
 
 
 def _read_lines(path: Path) -> list[str]:

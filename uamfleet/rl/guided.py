@@ -34,6 +34,7 @@ import torch
 
 from uamfleet.baselines.anticipation import DemandPrior
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
+from uamfleet.checks import MAX_SEED, MAX_TIME_LIMIT_STEPS, check_flag, check_integer, check_number
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import check_family
@@ -41,6 +42,16 @@ from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
+
+MAX_SAMPLES = 1024
+"""Upper bound of the sampled flights of one search (``samples``; ``uamfleet-benchmark --guided-samples`` and
+``--hedge-samples``): each is a scratch env rolled to its end."""
+MAX_EXPERT_BEAM = 4096
+"""Upper bound of ``expert_beam``, the width of replan's beam search as one more candidate."""
+MAX_FUTURES = 256
+"""Upper bound of ``futures`` (``--hedge-futures``): one scratch env per future and candidate (up to 17 candidates)."""
+MAX_STEPS = MAX_TIME_LIMIT_STEPS
+"""Upper bound of the step counts ``horizon``, ``commit`` and ``tail``: an episode's longest."""
 
 
 class GuidedSearchPolicy:
@@ -54,15 +65,14 @@ class GuidedSearchPolicy:
         self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
         expert_beam: int = 0, horizon: int | None = None, guard_rollouts: bool = False,
     ) -> None:  # fmt: skip
-        if not (1 <= top_k <= 16 and samples >= 0 and temperature > 0 and expert_beam >= 0) or (
-            horizon is not None and horizon < 1
-        ):
-            raise ValueError(
-                f"GuidedSearchPolicy(top_k={top_k}, samples={samples}, temperature={temperature}, expert_beam="
-                f"{expert_beam}, horizon={horizon}): need 1 <= top_k <= 16, samples >= 0, temperature > 0, "
-                "expert_beam >= 0 and horizon None or >= 1 (e.g. top_k=8, samples=24, temperature=2, expert_beam=0, "
-                "horizon=None)."
-            )
+        top_k = check_integer("top_k", top_k, 1, NUM_HEADINGS, fix=" (the policy's likeliest first headings, e.g. 8)")
+        samples = check_integer("samples", samples, 0, MAX_SAMPLES, fix=" (flights sampled per search, e.g. 24)")
+        temperature = check_number("temperature", temperature, positive=True)
+        seed = check_integer("seed", seed, 0, MAX_SEED)
+        expert_beam = check_integer("expert_beam", expert_beam, 0, MAX_EXPERT_BEAM, fix=" (0: no beam search)")
+        if horizon is not None:
+            horizon = check_integer("horizon", horizon, 1, MAX_STEPS, fix=" or None (every candidate to its end)")
+        guard_rollouts = check_flag("guard_rollouts", guard_rollouts)
         self.policy, self.top_k, self.samples, self.temperature = policy, top_k, samples, temperature
         self.expert_beam = expert_beam  # > 0: replan's beam search of this width is one more candidate
         # greedy steps of the rollouts decoded as the policy flies, loop guard included (False: the argmax alone,
@@ -255,12 +265,15 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     ) -> None:  # fmt: skip
         if isinstance(demand, str):
             check_family(demand)
-        if not (1 <= first_headings <= 16 and futures >= 1 and commit >= 1) or (tail is not None and tail < 0):
-            raise ValueError(
-                f"AnticipatingGuidedSearch(first_headings={first_headings}, futures={futures}, commit={commit}, "
-                f"tail={tail}): need 1 <= first_headings <= 16, futures >= 1, commit >= 1 and tail None or >= 0 "
-                "(e.g. 4, 8, 4 and 10)."
-            )
+        elif not isinstance(demand, DemandPrior):
+            raise ValueError(f"demand={demand!r} is no instance family's name or DemandPrior; pass one, e.g. 'berlin'.")
+        first_headings = check_integer("first_headings", first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
+        futures = check_integer("futures", futures, 1, MAX_FUTURES, fix=" (futures drawn per search, e.g. 8)")
+        commit = check_integer("commit", commit, 1, MAX_STEPS, fix=" (steps between searches, e.g. 4)")
+        if tail is not None:
+            tail = check_integer("tail", tail, 0, MAX_STEPS, fix=" or None (every rollout to its end), e.g. 10")
+        wait = check_flag("wait", wait)
+        seed = check_integer("seed", seed, 0, MAX_SEED)
         known_search.setdefault("guard_rollouts", True)  # its flights are the policy's, loop guard included
         super().__init__(policy, top_k=top_k, samples=samples, seed=seed, **known_search)
         self.demand, self.first_headings, self.futures, self.commit = demand, first_headings, futures, commit

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from uamfleet.checks import MAX_PASSENGERS, ConfigError
 from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
 from uamfleet.env.layout import (
     PASSENGER_AXIS_FIELDS,
@@ -131,6 +132,12 @@ class GreedyPolicy:
         so their normaliser statistics are pooled over the rows even at the trained row count (which is the K to
         choose: its training read that many rows)."""
         num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS, fix=" (the fleet size to fly)")
+        if passenger_slots is not None:
+            fix = " (the passenger rows of the whole fleet; at most MAX_PASSENGERS)"
+            passenger_slots = check_integer("passenger_slots", passenger_slots, 1, MAX_PASSENGERS, fix=fix)
+        if passenger_window is not None:
+            fix = " (the passenger rows each taxi reads, e.g. 24)"
+            passenger_window = check_integer("passenger_window", passenger_window, 1, MAX_PASSENGERS, fix=fix)
         if passenger_slots is not None and passenger_window is not None:
             raise ValueError(
                 f"passenger_slots={passenger_slots} and passenger_window={passenger_window}: give one (the window "
@@ -140,7 +147,15 @@ class GreedyPolicy:
         if window is not None:
             slots = window
         else:
-            slots = passenger_slots or math.ceil((self.passenger_slots or 1) * num_taxis / (self.num_taxis or 1))
+            per_taxi = (self.passenger_slots or 1) / (self.num_taxis or 1)
+            slots = passenger_slots or math.ceil(per_taxi * num_taxis)
+            if slots > MAX_PASSENGERS:  # the passenger axis grows with the fleet: name the fleet sizes that fit
+                most = max(n for n in range(1, MAX_TAXIS + 1) if math.ceil(per_taxi * n) <= MAX_PASSENGERS)
+                raise ConfigError(
+                    f"num_taxis={num_taxis} is out of range for this policy: it reads {per_taxi:g} passenger rows per "
+                    f"taxi, so fleets of 1 to {most} taxi(s) fit the passenger axis of at most {MAX_PASSENGERS} rows; "
+                    "for a larger fleet give passenger_slots=<rows> or passenger_window=<K> (e.g. 24)."
+                )
         if num_taxis == self.num_taxis and slots == self.passenger_slots and window == self.passenger_window:
             return self
         if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
