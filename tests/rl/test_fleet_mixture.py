@@ -143,9 +143,10 @@ def test_what_cannot_start_from_the_shipped_fleet_is_refused_with_the_fix(tmp_pa
     policy, _ = load_policy(result.run_dir / "last.pt")
     assert policy.net.cfg.critic_state_dim == 2 * len(STATE_TAXI_FEATURES) + 24 * len(STATE_PASSENGER_FEATURES) + 1 + 2
     assert 4 * len(STATE_TAXI_FEATURES) + 24 * len(STATE_PASSENGER_FEATURES) + 1 + 4 == 237  # the start's, as logged
-    # no one global state holds a mixture of sizes
+    # no one global state holds a mixture of sizes (a new run name: the run folder is claimed before the envs that
+    # tell the sizes are built, and "mix" now holds the run above)
     with pytest.raises(ConfigError, match=r"states of different sizes.*--no-centralised-critic"):
-        train(_mixture_args(tmp_path, centralised_critic=True))
+        train(_mixture_args(tmp_path, centralised_critic=True, run_name="mix-critic"))
     # nor may --centralised-critic silently differ from the start's without --reinit-critic
     with pytest.raises(ConfigError, match=r"--centralised-critic=False differs.*--reinit-critic"):
         train(_mixture_args(tmp_path, reinit_critic=False))
