@@ -45,6 +45,7 @@ TINY_IMITATE = (
 TINY_QUICKSTART = "--total-timesteps 2048 --minutes 0.2 --no-generalist".split()  # one iteration of 32 envs x 64
 TINY_RENDER = "--scenario berlin_p4 --policy random".split()
 TINY_BENCHMARK = "--count 1 --methods straight --jobs 1".split()
+TINY_FLEET_BENCHMARK = "--settings 1x6 --count 1 --dispatchers insertion --jobs 1".split()
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -475,7 +476,7 @@ def race(ctx: Ctx, row: Row) -> Row:
             verdicts.append(f"trial {trial + 1}: exits {codes[-1]}: {last_line(done[0].stderr + done[1].stderr)}")
         if not row.first_line:
             row.first_line = first_line(done[0].stderr) or first_line(done[1].stderr)
-    row.command = " ".join(argv[1:]).replace("same1", "same<trial>") + "  (x2 at once, 2 trials)"
+    row.command = "python " + " ".join(argv[1:]).replace("same1", "same<trial>") + "  (x2 at once, 2 trials)"
     row.exit_code, row.seconds = " ".join(codes), time.monotonic() - started
     row.verdict = "bad" if verdicts else "good"
     row.reason = "; ".join(verdicts) if verdicts else "one ran, the other refused in one line naming the folder"
@@ -518,6 +519,11 @@ def quickstart_abs(ctx: Ctx, row: Row) -> Row:
     target = ctx.tmp / "elsewhere" / "abs_run"
     (ctx.tmp / "elsewhere").mkdir()
     return _run_name_case(ctx, row, "quickstart", TINY_QUICKSTART, str(target), target, timeout=150)
+
+
+@case("run folder", "quickstart --run-name ../x")
+def quickstart_dotdot(ctx: Ctx, row: Row) -> Row:
+    return _run_name_case(ctx, row, "quickstart", TINY_QUICKSTART, "../x", ctx.tmp / "x", timeout=150)
 
 
 # --- shield -----------------------------------------------------------------------------------------------------
@@ -582,6 +588,11 @@ def shield_eight_greedy(ctx: Ctx, row: Row) -> Row:
 @case("shield", "8 taxis start on one point, min_separation_m 50 (batch_assignment, another start)")
 def shield_eight_batch(ctx: Ctx, row: Row) -> Row:
     return shield_case(ctx, row, 8, 50.0, "batch_assignment", 1)
+
+
+@case("shield", "8 taxis start on one point, min_separation_m 50 (greedy, the start of seed 2)")
+def shield_eight_greedy_2(ctx: Ctx, row: Row) -> Row:
+    return shield_case(ctx, row, 8, 50.0, "greedy", 2)
 
 
 # --- map size ---------------------------------------------------------------------------------------------------
@@ -738,6 +749,25 @@ def _register_paths() -> None:
 
         CASES.append(("paths and devices", f"render --out: {kind}", render))
         CASES.append(("paths and devices", f"benchmark --out-csv: {kind}", benchmark))
+    for kind in ("unwritable", "too long"):
+
+        def fleet_benchmark(ctx: Ctx, row: Row, kind: str = kind) -> Row:
+            out, must = bad_output(ctx, kind, "fleet.csv")
+            args = [*TINY_FLEET_BENCHMARK, "--out-csv", str(out), "--out-md", str(ctx.tmp / "fleet.md")]
+            return judge_cli(row, cli(ctx, "fleet_benchmark", args), must=must)
+
+        def radio_map(ctx: Ctx, row: Row, kind: str = kind) -> Row:
+            if ctx.rt_python is None:
+                row.verdict, row.reason = "skipped", "no Sionna RT interpreter (--rt-python)"
+                return row
+            out, must = bad_output(ctx, kind, "map.npz")
+            (ctx.tmp / "city").mkdir()
+            (ctx.tmp / "city" / "scene.xml").write_text(scene_xml())
+            args = ["--scene", "city/scene.xml", "--out", str(out), *RT_ARGS]
+            return judge_cli(row, cli(ctx, "radio_map", args, python=ctx.rt_python), must=must)
+
+        CASES.append(("paths and devices", f"fleet-benchmark --out-csv: {kind}", fleet_benchmark))
+        CASES.append(("paths and devices", f"radio-map --out (a valid scene): {kind}", radio_map))
     for kind in ("unwritable", "parent is a file", "too long", "a FIFO"):
 
         def train_dir(ctx: Ctx, row: Row, kind: str = kind) -> Row:
@@ -747,6 +777,8 @@ def _register_paths() -> None:
 
         CASES.append(("paths and devices", f"train --run-dir: {kind}", train_dir))
 
+
+def _register_loads() -> None:
     def load(ctx: Ctx, row: Row, path: Path, must: list[list[str]], forbid: Sequence[str] = ()) -> Row:
         row.command = f"load_policy({_short(str(path))!r})"
         p = api(ctx, f"return load_policy({str(path)!r})", prelude="from uamfleet.rl.policy import load_policy")
@@ -791,6 +823,7 @@ def _register_paths() -> None:
 
 
 _register_paths()
+_register_loads()
 
 
 @case("paths and devices", "train --resume with a corrupt progress.csv")
@@ -814,16 +847,8 @@ def torchrun_existing(ctx: Ctx, row: Row) -> Row:
     held = ctx.tmp / "runs" / "held"
     held.mkdir(parents=True)
     (held / "progress.csv").write_text("global_step\n0\n")
-    argv = [
-        TORCHRUN,
-        "--standalone",
-        "--nproc_per_node=2",
-        "-m",
-        "uamfleet.cli.train",
-        *TINY_TRAIN,
-        "--run-name",
-        "held",
-    ]
+    tiny = [*TINY_TRAIN, "--num-envs", "2", "--total-timesteps", "128"]  # the global env count divides among 2 ranks
+    argv = [TORCHRUN, "--standalone", "--nproc_per_node=2", "-m", "uamfleet.cli.train", *tiny, "--run-name", "held"]
     p = run(ctx, argv, 150)
     row = judge_cli(row, p, must=[["held"]])
     if p.code not in (None, 0) and row.reason.startswith("exit "):  # torchrun's own status is 1 when a rank fails
@@ -885,13 +910,36 @@ def cleanup(tmp: Path) -> None:
     shutil.rmtree(tmp, ignore_errors=True)
 
 
+def summarize(paths: Sequence[Path]) -> str:
+    """A Markdown table of the bad answers by class in each CSV (e.g. before.csv after.csv), for the closing note."""
+    tables = [list(csv.DictReader(path.open())) for path in paths]
+    classes = list(dict.fromkeys(row["class"] for rows in tables for row in rows))
+    head = "| class | cases | " + " | ".join(f"bad in {path.name}" for path in paths) + " |"
+    lines = [head, "| --- " * (2 + len(paths)) + "|"]
+    for cls in [*classes, "all"]:
+        picked = [[r for r in rows if cls in ("all", r["class"])] for rows in tables]
+        cells = []
+        for rows in picked:
+            bad = sum(r["verdict"] == "bad" for r in rows)
+            other = sum(r["verdict"] not in ("good", "bad") for r in rows)
+            cells.append(f"{bad} of {len(rows)}" + (f" ({other} skipped or errors)" if other else ""))
+        lines.append(f"| {cls} | {max(len(rows) for rows in picked)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--checkout", type=Path, required=True, help="the uamfleet checkout to probe")
-    parser.add_argument("--out", type=Path, required=True, help="the CSV to write (one row per case)")
+    parser.add_argument("--summarize", type=Path, nargs="+", help="print the bad answers by class of these CSVs")
+    parser.add_argument("--checkout", type=Path, help="the uamfleet checkout to probe")
+    parser.add_argument("--out", type=Path, help="the CSV to write (one row per case)")
     parser.add_argument("--rt-python", default=RT_PYTHON, help="an interpreter with sionna-rt (scene cases)")
     parser.add_argument("--only", default="", help="run only the cases whose class or name holds this text")
     args = parser.parse_args(argv)
+    if args.summarize:
+        print(summarize(args.summarize))
+        return 0
+    if args.checkout is None or args.out is None:
+        parser.error("give --checkout PATH --out CSV (or --summarize CSV ...)")
     checkout = args.checkout.resolve()
     if imports_checkout(checkout, PYTHON) is None:
         print(f"probe: error: {PYTHON} with PYTHONPATH={checkout} does not import that checkout's uamfleet",
@@ -901,6 +949,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (rt_python and Path(rt_python).exists() and imports_checkout(checkout, rt_python)):
         print(f"probe: no Sionna RT interpreter importing {checkout} ({rt_python}): scene cases skipped")
         rt_python = None
+    # numba compiles the kernels of a fresh checkout into its cache once: not inside a case's timeout
+    warm_env = dict(os.environ, PYTHONPATH=str(checkout), UAMFLEET_CACHE="off")
+    warm = subprocess.run([PYTHON, "-m", "uamfleet.warmup"], cwd=tempfile.gettempdir(), env=warm_env,
+                          capture_output=True, text=True, timeout=900)  # fmt: skip
+    if warm.returncode != 0:
+        print(f"probe: warning: python -m uamfleet.warmup failed: {last_line(warm.stderr)}", file=sys.stderr)
     rows: list[Row] = []
     selected = [c for c in CASES if args.only.lower() in f"{c[0]} {c[1]}".lower()]
     started = time.monotonic()
