@@ -75,7 +75,8 @@ def usage(prog: str = "uamfleet") -> str:
     """What ``uamfleet --help`` prints: the commands, one line each, and how to reach their options."""
     pad = max(map(len, COMMANDS)) + 2
     lines = [f"{name:<{pad}}{command_summary(name)}" for name in COMMANDS]
-    aliases = ", ".join(f"{old} ({new})" for old, new in ALIASES.items())
+    renamed = " and ".join(ALIASES.values())
+    scripts = " and ".join(f"uamfleet-{name}" for name in ALIASES)
     return "\n".join([
         f"usage: {prog} <command> [options]",
         "",
@@ -88,8 +89,8 @@ def usage(prog: str = "uamfleet") -> str:
         "  -h, --help     show this listing and exit",
         "  -V, --version  show the package's version and exit",
         "",
-        f"'{prog} <command> --help' lists a command's options. The scripts uamfleet-<command> are the same",
-        f"commands, under their names of old for two: {aliases}.",
+        f"'{prog} <command> --help' lists a command's options. Each command is also a script, uamfleet-<command>;",
+        f"{renamed} are {scripts} (their names work here too).",
     ])  # fmt: skip
 
 
