@@ -53,7 +53,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
     # eval/ and train/.
-    (10, ("uamfleet.cli", "eval", "train", "benchmarks")),
+    # uamfleet/__main__.py is ``python -m uamfleet``, the ``uamfleet`` command: a command line too.
+    (10, ("uamfleet.cli", "uamfleet.__main__", "eval", "train", "benchmarks")),
 )
 # Packages of one layer that must not import each other (siblings, not a stack).
 SIBLINGS = ("uamfleet.baselines", "uamfleet.rl")

@@ -1,4 +1,6 @@
-"""The command lines, installed as console scripts (pyproject.toml ``[project.scripts]``) that run from any folder:
+"""The command lines, installed as console scripts (pyproject.toml ``[project.scripts]``) that run from any folder.
+``uamfleet <command>`` (:mod:`uamfleet.cli.main`; also ``python -m uamfleet``) runs each of them: ``uamfleet train``
+is ``uamfleet-train``, ``uamfleet bench`` is ``uamfleet-benchmark``, and so on (``uamfleet --help`` lists them):
 
     uamfleet-train        train the MSHA policy with PPO          (also: python train/ppo.py, torchrun train/ppo.py)
     uamfleet-rollout      fly a planner / dispatcher, print metrics  (also: python -m eval.rollout)
