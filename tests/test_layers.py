@@ -46,9 +46,19 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
     # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
     # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
-    # imitation learning labels with the baselines' step-level search, and guided search rolls the greedy policy
-    # forward.
-    (7, ("uamfleet.rl.trainer", "uamfleet.rl.policy", "uamfleet.rl.imitation", "uamfleet.rl.guided", "uamfleet.zoo")),
+    # imitation learning labels with the baselines' step-level search (its experts, rl.experts), and guided search
+    # rolls the greedy policy forward.
+    (
+        7,
+        (
+            "uamfleet.rl.trainer",
+            "uamfleet.rl.policy",
+            "uamfleet.rl.imitation",
+            "uamfleet.rl.experts",
+            "uamfleet.rl.guided",
+            "uamfleet.zoo",
+        ),
+    ),
     (8, ("uamfleet.viz",)),
     (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
@@ -245,3 +255,17 @@ def test_loading_a_shipped_policy_does_not_import_the_trainer() -> None:
     probe = "import sys, uamfleet, uamfleet.zoo; print('uamfleet.rl.trainer' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT)
     assert out.stdout.strip() == "False"
+
+
+def test_the_training_rooms_take_the_shipped_files_from_the_checkpoint_room_and_stand_apart() -> None:
+    """Nothing in uamfleet.rl imports the zoo (the public face that loads shipped policies sits on rl, never under
+    it: rl takes PRETRAINED and pretrained_path from rl.checkpoint, where they are defined). The stop head
+    (rl.heads) is built from the encoders without the torso's module, and the experts that label DAgger's states
+    (rl.experts) search with the baselines without the imitation loop or the trainer."""
+    assert "uamfleet.rl.checkpoint" in reachable(GRAPH, "uamfleet.zoo")  # the walk reaches the definitions
+    assert [name for name in GRAPH if name.startswith("uamfleet.rl.") and "uamfleet.zoo" in GRAPH[name]] == []
+    assert "uamfleet.rl.checkpoint" in GRAPH["uamfleet.rl.imitation"]
+    assert "uamfleet.rl.encoders" in GRAPH["uamfleet.rl.heads"]
+    assert "uamfleet.rl.networks" not in reachable(GRAPH, "uamfleet.rl.heads")
+    assert "uamfleet.baselines.step_planner" in GRAPH["uamfleet.rl.experts"]
+    assert not {"uamfleet.rl.imitation", "uamfleet.rl.trainer"} & reachable(GRAPH, "uamfleet.rl.experts")

@@ -14,7 +14,7 @@ import torch
 from uamfleet.config import ConfigError, make_config
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.checkpoint import Checkpoint, check_net_config
-from uamfleet.rl.networks import NOT_THIS
+from uamfleet.rl.heads import NOT_THIS
 from uamfleet.rl.ppo import categorical_kl
 from uamfleet.rl.runs import read_progress
 from uamfleet.rl.trainer import TrainArgs, load_policy, train

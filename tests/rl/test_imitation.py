@@ -13,17 +13,10 @@ from uamfleet.baselines.step_planner import SearchSettings, StepSearch
 from uamfleet.config import Request, heading_vectors, make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.imitation import (
-    NO_LABEL,
-    AnticipatingExpert,
-    Group,
-    ImitationArgs,
-    ReplanExpert,
-    collect,
-    fit,
-    with_heading_residual,
-)
-from uamfleet.rl.networks import LOOKAHEAD_RULE, PRIOR_FLOOR, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
+from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert
+from uamfleet.rl.heads import LOOKAHEAD_RULE, PRIOR_FLOOR
+from uamfleet.rl.imitation import Group, ImitationArgs, collect, fit, with_heading_residual
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 from uamfleet.types import HIDDEN, NUM_HEADINGS
 

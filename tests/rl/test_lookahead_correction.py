@@ -14,15 +14,8 @@ from gymnasium import spaces
 
 from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.rl.networks import (
-    LOOKAHEAD_GAIN,
-    LOOKAHEAD_RULE,
-    PRIOR_FLOOR,
-    MSHAActorCritic,
-    NetConfig,
-    obs_to_torch,
-    observed_inputs,
-)
+from uamfleet.rl.heads import LOOKAHEAD_GAIN, LOOKAHEAD_RULE, PRIOR_FLOOR
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 
 
 def _lookahead_nets() -> tuple[MSHAActorCritic, MSHAActorCritic, dict[str, torch.Tensor]]:
