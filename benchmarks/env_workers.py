@@ -16,7 +16,8 @@ import numpy as np
 
 from uamfleet.cli._common import run
 from uamfleet.rl.checkpoint import run_config
-from uamfleet.rl.trainer import TrainArgs, training_configs
+from uamfleet.rl.collector import training_configs
+from uamfleet.rl.trainer import TrainArgs
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
 from uamfleet.paths import table_for

@@ -39,7 +39,8 @@ import torch
 from torch import nn
 
 from uamfleet.cli._common import run as run_cli
-from uamfleet.rl import trainer
+from uamfleet.rl import collector, trainer
+from uamfleet.rl import learner as learner_room
 from uamfleet.rl.distributed import Ranks
 from uamfleet.rl import networks
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
@@ -114,7 +115,7 @@ def patched(obj: Any, name: str, value: Any) -> Iterator[None]:
         setattr(obj, name, old)
 
 
-def phase_profile(run: trainer.Run, learner: trainer.Learner, iterations: int) -> dict[str, float]:
+def phase_profile(run: collector.Run, learner: learner_room.Learner, iterations: int) -> dict[str, float]:
     """Per part, thread CPU seconds summed over ``iterations`` iterations of the training loop after one warm-up;
     also "cpu" (the process's CPU seconds, every thread) and "wall" of the timed iterations."""
     clock = Clock()
@@ -122,7 +123,8 @@ def phase_profile(run: trainer.Run, learner: trainer.Learner, iterations: int) -
     backward, clip = torch.Tensor.backward, torch.nn.utils.clip_grad_norm_
     with (
         patched(run.venv, "step", clock.wrap("rollout: env step", run.venv.step)),
-        patched(trainer, "normalise", clock.wrap("rollout: normaliser", trainer.normalise)),
+        patched(collector, "normalise", clock.wrap("rollout: normaliser", collector.normalise)),
+        patched(learner_room, "normalise", clock.wrap("rollout: normaliser", learner_room.normalise)),
         patched(net, "forward", clock.wrap("rollout: network forward", net.forward)),
         patched(buf, "minibatch", clock.wrap("update: minibatch assembly", buf.minibatch)),
         patched(net, "policy_and_value", clock.wrap("update: forward", net.policy_and_value)),
@@ -135,10 +137,10 @@ def phase_profile(run: trainer.Run, learner: trainer.Learner, iterations: int) -
                 clock.seconds.clear()
                 cpu, wall = time.process_time(), time.perf_counter()
             with clock.part("rollout"):  # the rollout and GAE's one forward (counted as network forward)
-                trainer.collect_rollout(run, learner)
-                advantages, returns = trainer.compute_advantages(run, learner)
+                collector.collect_rollout(run, net, learner.normalizer, learner.scaler)
+                advantages, returns = learner_room.compute_advantages(run, learner)
             with clock.part("update"):  # the update's forward is policy_and_value, not net.forward
-                trainer.ppo_update(run, learner, advantages, returns)
+                learner_room.ppo_update(run, learner, advantages, returns)
     seconds = dict(clock.seconds)
     seconds["rollout: network forward"] -= seconds.get("update: forward", 0.0)  # net.forward inside it
     return seconds | {"cpu": time.process_time() - cpu, "wall": time.perf_counter() - wall}
@@ -153,7 +155,9 @@ def timed_modules(net: MSHAActorCritic) -> dict[str, nn.Module]:
     return parts
 
 
-def module_profile(run: trainer.Run, learner: trainer.Learner, batches: int) -> tuple[dict[str, list[float]], float]:
+def module_profile(
+    run: collector.Run, learner: learner_room.Learner, batches: int
+) -> tuple[dict[str, list[float]], float]:
     """{module: [forward s, backward s]} and the whole forward + backward's seconds, over ``batches`` minibatches
     of the update's size (the loss: the PPO loss's ingredients summed, enough to reach every parameter)."""
     net, buf = learner.net, run.buffer
@@ -216,7 +220,9 @@ def plain_maps(first: nn.Module, second: nn.Module, a: torch.Tensor, b: torch.Te
     return torch.cat([first(a), second(b)], dim=-1)
 
 
-def interleaved_network_checks(run: trainer.Run, learner: trainer.Learner, rounds: int) -> dict[str, list[float]]:
+def interleaved_network_checks(
+    run: collector.Run, learner: learner_room.Learner, rounds: int
+) -> dict[str, list[float]]:
     """Thread CPU ms per call of each variant of one computation, variants alternating call by call on the same
     data (so drift in the machine's speed hits both alike): the update's forward + backward (minibatch of the
     update's size) with the map CNNs paired or one by one, and the rollout's forward (one step's agents) with the
@@ -261,9 +267,9 @@ def measure(args: Args) -> dict[str, Any]:
     """Build the recipe's run in this process, profile its iterations (and modules); the figures as a dict."""
     torch.set_num_threads(args.threads)
     with tempfile.TemporaryDirectory() as tmp:
-        run = trainer.make_run(recipe(args, Path(tmp)), None, *Ranks.from_env("cpu", "gloo"))
-        learner = trainer.make_learner(run)
-        trainer.start(run, learner)
+        run = collector.make_run(recipe(args, Path(tmp)), None, *Ranks.from_env("cpu", "gloo"))
+        learner = learner_room.make_learner(run)
+        trainer.start(run, learner, None)
         phases = phase_profile(run, learner, args.iterations - 1)
         modules, whole = module_profile(run, learner, args.module_batches) if args.module_batches else ({}, 0.0)
         checks = interleaved_network_checks(run, learner, args.interleaved) if args.interleaved else {}

@@ -47,11 +47,13 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
     # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
     # imitation learning labels with the baselines' step-level search (its experts, rl.experts), and guided search
-    # rolls the greedy policy forward.
+    # rolls the greedy policy forward. The learner (rl.learner) starts an --init-from run from a policy it loads
+    # with load_policy; the collector (rl.collector) needs no policy room and stays below, with the rest of rl.
     (
         7,
         (
             "uamfleet.rl.trainer",
+            "uamfleet.rl.learner",
             "uamfleet.rl.policy",
             "uamfleet.rl.imitation",
             "uamfleet.rl.experts",
@@ -269,3 +271,12 @@ def test_the_training_rooms_take_the_shipped_files_from_the_checkpoint_room_and_
     assert "uamfleet.rl.networks" not in reachable(GRAPH, "uamfleet.rl.heads")
     assert "uamfleet.baselines.step_planner" in GRAPH["uamfleet.rl.experts"]
     assert not {"uamfleet.rl.imitation", "uamfleet.rl.trainer"} & reachable(GRAPH, "uamfleet.rl.experts")
+
+
+def test_the_collector_stands_below_the_learner_and_the_loop() -> None:
+    """The collector (rl.collector: the run's envs and buffer, collect_rollout) is given the acting network; it
+    imports neither the learner (optimiser, PPO update) nor the loop, which both build on it."""
+    assert "uamfleet.rl.buffer" in GRAPH["uamfleet.rl.collector"]  # the walk sees the collector's imports
+    assert "uamfleet.rl.collector" in GRAPH["uamfleet.rl.learner"]
+    assert {"uamfleet.rl.collector", "uamfleet.rl.learner"} <= set(GRAPH["uamfleet.rl.trainer"])
+    assert not {"uamfleet.rl.learner", "uamfleet.rl.trainer"} & reachable(GRAPH, "uamfleet.rl.collector")

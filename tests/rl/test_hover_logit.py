@@ -146,7 +146,7 @@ def test_a_checkpoint_records_the_option_and_loads_with_it(tmp_path: Path) -> No
 
 
 def test_training_refuses_the_option_without_the_hover_action() -> None:
-    from uamfleet.rl.trainer import _check_hover_logit
+    from uamfleet.rl.learner import _check_hover_logit
 
     cfg = uamfleet.pretrained("berlin_fleet_v1").net.cfg
     on = dataclasses.replace(cfg, hover_logit=True)

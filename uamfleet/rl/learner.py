@@ -1,0 +1,270 @@
+"""The learner of PPO: the network, its optimiser and statistics (:class:`Learner`), and the update.
+
+:func:`make_learner` builds it for a run (afresh, or from an ``--init-from`` policy fitted to the run's layout);
+:func:`set_schedules` sets the iteration's learning rate and shaping weight, :func:`compute_advantages` computes
+GAE over the collected rollout (bootstrapping truncated episodes from their real final observation) and
+:func:`ppo_update` runs the clipped PPO loss (:mod:`uamfleet.rl.ppo`) over its minibatches, data-parallel under
+``torchrun`` (:mod:`uamfleet.rl.distributed`).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from uamfleet.config import ConfigError, EnvConfig
+from uamfleet.env.layout import layout_differences, observation_layout
+from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, compute_gae
+from uamfleet.rl.checkpoint import ARCHITECTURE_FIELDS, Checkpoint, checkpoint_args, checkpoint_source
+from uamfleet.rl.collector import Run, _critic_input, _tensor, normalise
+from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
+from uamfleet.rl.options import TrainArgs
+from uamfleet.rl.policy import GreedyPolicy, load_policy
+from uamfleet.rl.ppo import PPOLossInfo, categorical_kl, ppo_loss
+
+
+@dataclass
+class Learner:
+    """What PPO trains and keeps between iterations, identical on every rank."""
+
+    net: MSHAActorCritic
+    optimizer: torch.optim.Optimizer
+    net_cfg: NetConfig
+    normalizer: ObservationNormalizer | None
+    scaler: RewardScaler | None
+    reference: MSHAActorCritic | None = None  # the --init-from policy, frozen, for the --kl-to-init term
+
+
+def make_learner(run: Run) -> Learner:
+    args = run.args
+    np.random.seed(args.seed)
+    torch.manual_seed(args.seed)
+    if args.init_from is not None:
+        return _learner_from(run, checkpoint_source(args.init_from))
+    net_cfg = NetConfig(
+        variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
+        readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
+        stop_free_move=args.stop_free_move, stop_prior=args.stop_prior, hover_logit=args.hover_logit,
+        **observed_inputs(run.layout, args.variant, args.action_head),  # from the env's spec
+    )  # fmt: skip
+    _check_hover_logit(net_cfg, run.cfg)
+    net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
+    return Learner(
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
+        normalizer=ObservationNormalizer(run.obs_shapes) if args.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None,
+    )  # fmt: skip
+
+
+def _learner_from(run: Run, source: Path) -> Learner:
+    """A learner whose network and observation statistics are the policy at ``source`` (``--init-from``): the
+    reward scaler starts afresh (the new task's rewards), and with ``--kl-to-init`` a frozen copy is the
+    reference.
+
+    The start is fitted to this run's layout as :meth:`GreedyPolicy.for_fleet` flies it at another fleet size or
+    passenger window (the same weights: the network reads the other taxis and the passengers as sets; their
+    normaliser statistics pooled over the rows). Its actor and torso are always loaded; its critic when it reads
+    this run's input (own features, or a global state of the same fleet and passenger count), else only with
+    ``--reinit-critic``, which starts it afresh and says so."""
+    args = run.args
+    start, trained_on = _fitted_start(run, source)
+    if set(start.obs_shapes or {}) != set(run.obs_shapes):
+        unread = sorted(set(run.obs_shapes) - set(start.obs_shapes or {}))
+        raise ConfigError(
+            f"--init-from={args.init_from!r} reads {sorted(start.obs_shapes or {})}, but this run's env also observes "
+            f"{unread}, which its network has no weights for; train that policy from scratch, or use a scenario "
+            "without those fields."
+        )
+    hover_logit = start.net.cfg.hover_logit or args.hover_logit  # an untrained switch keeps every weight
+    net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None, hover_logit=hover_logit)
+    _check_hover_logit(net_cfg, run.cfg)
+    net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
+    weights = start.net.state_dict()
+    critic_reads = _critic_input(start.net.cfg.critic_state_dim, trained_on)
+    if critic_reads == _critic_input(net_cfg.critic_state_dim, run.cfg) and not args.reinit_critic:
+        net.load_state_dict(weights)
+    elif not args.reinit_critic:
+        raise ConfigError(
+            f"--init-from={args.init_from!r}: its critic reads {critic_reads}, this run's would read "
+            f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}; add --reinit-critic to start the critic afresh "
+            "(the actor and its torso are still the start's), or train at the start's fleet size and load."
+        )
+    else:
+        missing, unexpected = net.load_state_dict(
+            {k: v for k, v in weights.items() if not k.startswith("critic.")}, strict=False
+        )
+        assert all(k.startswith("critic.") for k in missing) and not unexpected, (missing, unexpected)
+        if run.ranks.is_main:
+            print(f"--init-from={args.init_from!r}: actor and torso loaded; critic re-initialised (--reinit-critic): "
+                  f"the start's read {critic_reads}, this run's reads "
+                  f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}")  # fmt: skip
+    net.train()
+    reference = None
+    if args.kl_to_init > 0:
+        reference = copy.deepcopy(net).eval().requires_grad_(False)
+    return Learner(
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
+        normalizer=start.normalizer if args.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None, reference=reference,
+    )  # fmt: skip
+
+
+def with_init_architecture(args: TrainArgs) -> TrainArgs:
+    """``args`` with the architecture options of the ``--init-from`` policy (its network is what trains), so the
+    run's checkpoints state what they hold; unchanged without ``init_from``. With ``--reinit-critic`` the critic
+    starts afresh, so ``--centralised-critic`` stays the run's own. ConfigError when the start lies in the run's own
+    folder (replacing the run would delete the file its checkpoints point at)."""
+    if args.init_from is None:
+        return args
+    source = checkpoint_source(args.init_from)
+    folder = (args.run_dir / args.name).resolve()
+    if folder in source.resolve().parents:
+        raise ConfigError(
+            f"--init-from={args.init_from!r} lies inside this run's own folder {folder}; copy it elsewhere or "
+            "choose another --run-name."
+        )
+    start = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
+    if args.centralised_critic != start.centralised_critic and not args.reinit_critic:
+        reads = "the global state" if start.centralised_critic else "its own features"
+        raise ConfigError(
+            f"--centralised-critic={args.centralised_critic} differs from the --init-from policy's "
+            f"({start.centralised_critic}): its critic reads {reads}; set --centralised-critic "
+            f"{start.centralised_critic}, or add --reinit-critic to start the critic afresh."
+        )
+    # (the env's layout, look-ahead included, follows the start through run_config, not through these flags)
+    taken = [name for name in ARCHITECTURE_FIELDS if not (args.reinit_critic and name == "centralised_critic")]
+    return dataclasses.replace(args, **{name: getattr(start, name) for name in taken})
+
+
+def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
+    """ConfigError when the network takes the hover action (``NetConfig.hover_logit``) but the run's env has none."""
+    if net_cfg.hover_logit and not cfg.hover_action:
+        raise ConfigError(
+            "--hover-logit makes the network take the hover action (16), which this run's env lacks: train on a "
+            "scenario with EnvConfig.hover_action (a *_fleet preset), or drop --hover-logit."
+        )
+
+
+def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
+    """The ``--init-from`` policy laid out for this run (its fleet size and passenger window or axis: the largest
+    fleet of a mixture), and the config it trained on; ConfigError naming every field whose meaning differs from
+    this run's."""
+    start, _ = load_policy(source, device=str(run.device))
+    assert start.trained_on is not None, "load_policy always gives the config it trained on"
+    trained_on = start.trained_on
+    window = run.cfg.passenger_window
+    slots = None if window is not None else run.cfg.num_passengers
+    try:
+        start = start.for_fleet(run.cfg.num_taxis, passenger_slots=slots, passenger_window=window)
+    except ValueError as err:
+        raise ConfigError(f"--init-from={run.args.init_from!r} cannot fly this run's layout: {err}") from None
+    assert start.trained_on is not None
+    read = observation_layout(start.trained_on)
+    differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})
+    if differences:
+        raise ConfigError(
+            f"--init-from={run.args.init_from!r} reads another observation than this run's env (start vs run): "
+            + "; ".join(differences)
+            + "; train that policy from scratch, or match its scenario's layout."
+        )
+    return start, trained_on
+
+
+def set_schedules(run: Run, learner: Learner, iteration: int) -> float:
+    """Linear learning-rate decay and the shaping weight's anneal; returns the shaping weight."""
+    args, n = run.args, run.num_iterations
+    if args.anneal_lr:
+        learner.optimizer.param_groups[0]["lr"] = args.learning_rate * (1.0 - iteration / n)
+    if args.shaping <= 0 or args.shaping_anneal_frac <= 0:
+        return args.shaping
+    # keep a sliver of shaping so the env's shaping machinery stays on (its metric is fixed)
+    begin = (1.0 - args.shaping_anneal_frac) * n
+    decay = min(1.0, max(0.0, 1.0 - (iteration - begin) / (args.shaping_anneal_frac * n)))
+    weight = max(args.shaping * decay, 1e-6)
+    run.venv.set_reward_weights(dataclasses.replace(run.cfg.reward, shaping=weight))
+    return weight
+
+
+def compute_advantages(run: Run, learner: Learner) -> tuple[np.ndarray, np.ndarray]:
+    """GAE over this rank's rollout: (advantages [T, N], returns [T, N])."""
+    buf = run.buffer
+    with torch.inference_mode():
+        norm_obs = normalise(run, learner.normalizer, run.obs, update=False)
+        _, next_value = learner.net(obs_to_torch(norm_obs, run.device), state=_tensor(run.global_state(), run.device))
+    return compute_gae(
+        buf.rewards, buf.values, buf.terminated, buf.truncated, buf.final_values, next_value.cpu().numpy(),
+        run.args.gamma, run.args.gae_lambda,
+    )  # fmt: skip
+
+
+def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.ndarray) -> list[PPOLossInfo]:
+    """update_epochs passes of minibatch Adam steps on the clipped PPO loss.
+
+    The permutation is of the GLOBAL flat batch [T * N_global] (the same on every rank: the NumPy generator
+    is); each rank takes its own samples of each global minibatch (see uamfleet.rl.distributed)."""
+    args, buf, dev, ranks = run.args, run.buffer, run.device, run.ranks
+    minibatch_size = run.batch_size // args.num_minibatches
+    adv = torch.as_tensor(advantages.reshape(-1), dtype=torch.float32, device=dev)
+    ret = torch.as_tensor(returns.reshape(-1), dtype=torch.float32, device=dev)
+    val = torch.as_tensor(buf.values.reshape(-1), dtype=torch.float32, device=dev)
+    global_adv = torch.as_tensor(
+        ranks.gather_agents(advantages, run.agent_offset, run.total_agents).reshape(-1),
+        dtype=torch.float32,
+        device=dev,
+    )  # [T * N_global] the same on every rank
+    params = list(learner.net.parameters())
+    order = np.arange(run.batch_size)
+    infos: list[PPOLossInfo] = []
+    for _epoch in range(args.update_epochs):
+        np.random.shuffle(order)
+        for begin in range(0, run.batch_size, minibatch_size):
+            idx = order[begin : begin + minibatch_size]  # global flat indices t * N_global + n
+            local, share = _local_indices(run, idx)
+            mb_obs, mb_state, mb_actions, mb_logprobs = buf.minibatch(local, dev)
+            dist, new_value = learner.net.policy_and_value(mb_obs, state=mb_state)
+            new_logprob, entropy = dist.log_prob(mb_actions.long()), dist.entropy()  # [B], [B]
+            stats, denominator = None, None
+            if ranks.active:
+                stats, denominator = (global_adv[idx].mean(), global_adv[idx].std()), len(idx)
+            loss, info = ppo_loss(
+                new_logprob, mb_logprobs, entropy, new_value, val[local], adv[local], ret[local], args.clip_coef,
+                args.vf_coef, args.ent_coef, args.clip_vloss, args.norm_adv, stats, denominator,
+            )  # fmt: skip
+            if learner.reference is not None:
+                with torch.no_grad():
+                    reference_logits = learner.reference.masked_logits(mb_obs)  # [B, 16]
+                kl = categorical_kl(dist.logits, reference_logits)  # [B]
+                kl_mean = kl.mean() if denominator is None else kl.sum() / denominator
+                loss = loss + args.kl_to_init * kl_mean
+                info = dataclasses.replace(info, kl_to_init=float(kl_mean.detach()))
+            learner.optimizer.zero_grad()
+            (loss * share).backward()
+            summed = ranks.all_reduce_grads(params, share * np.array(dataclasses.astuple(info)))
+            infos.append(PPOLossInfo(*(float(x) for x in summed)))
+            torch.nn.utils.clip_grad_norm_(params, args.max_grad_norm)
+            learner.optimizer.step()
+        if args.target_kl is not None and infos[-1].approx_kl > args.target_kl:
+            break
+    return infos
+
+
+def _local_indices(run: Run, idx: np.ndarray) -> tuple[np.ndarray, float]:
+    """This rank's samples of a global minibatch as flat indices into its buffer, and 1.0; a rank with no
+    sample in it takes sample 0 with weight 0.0 (it must still join the gradient all-reduce)."""
+    if not run.ranks.active:
+        return idx, 1.0
+    t, n = np.divmod(idx, run.total_agents)
+    mine = (n >= run.agent_offset) & (n < run.agent_offset + run.num_agents)
+    if not mine.any():
+        return np.zeros(1, dtype=np.int64), 0.0
+    return t[mine] * run.num_agents + (n[mine] - run.agent_offset), 1.0
+
+
+__all__ = [
+    "Learner", "compute_advantages", "make_learner", "ppo_update", "set_schedules", "with_init_architecture",
+]  # fmt: skip
