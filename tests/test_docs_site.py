@@ -3,6 +3,7 @@ nav names exists, and CI builds the site with ``--strict`` after the tests."""
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 from typing import Any
 
@@ -50,3 +51,14 @@ def test_ci_builds_the_site_strictly_after_the_tests() -> None:
     tests = lines.index(".venv/bin/python -m pytest -q")
     builds = [i for i, line in enumerate(lines) if "mkdocs build --strict" in line and not line.startswith("#")]
     assert builds and builds[0] > tests, ".ci/run must run `mkdocs build --strict` after the test command"
+
+
+def test_the_api_pages_show_sphinx_roles_as_inline_code() -> None:
+    pytest.importorskip("griffe", reason="griffe is missing: install the docs extra (bash scripts/setup.sh)")
+    spec = importlib.util.spec_from_file_location("sphinx_roles", DOCS / "_griffe" / "sphinx_roles.py")
+    assert spec is not None and spec.loader is not None
+    roles = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(roles)
+    text = "See :func:`uamfleet.parallel_env`, :class:`~uamfleet.config.EnvConfig` and :py:meth:`RadioMap.sinr_at`."
+    assert roles.plain(text) == "See `uamfleet.parallel_env`, `EnvConfig` and `RadioMap.sinr_at`."
+    assert roles.plain("no role, ``code`` and :term: stay") == "no role, ``code`` and :term: stay"
