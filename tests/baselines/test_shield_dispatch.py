@@ -11,11 +11,11 @@ from conftest import small_config
 
 from uamfleet.baselines import make_policy
 from uamfleet.baselines.fleet_dispatch import DISPATCHERS
-from uamfleet.env.motion import passes_within
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import run_episode
+from uamfleet.sim.motion import passes_within
 from uamfleet.types import HOVER_ACTION
 
 OPEN_10 = "\n".join(["." * 10] * 10)
