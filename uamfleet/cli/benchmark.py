@@ -17,12 +17,13 @@ run keeps its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import csv
 import functools
 import math
 import multiprocessing as mp
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,15 +31,6 @@ from typing import Any
 import numpy as np
 
 import uamfleet
-from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
-from uamfleet.baselines.finish import FinishWithSearch
-from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
-from uamfleet.baselines.step_planner import (
-    STEP_PLANNERS,
-    SearchSettings,
-    StepPlannerPolicy,
-    instance_lower_bound_m,
-)
 from uamfleet.cli._common import (
     Family,
     Feasibility,
@@ -52,14 +44,23 @@ from uamfleet.cli._common import (
     output_paths,
     run,
 )
+from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
+from uamfleet.baselines.finish import FinishWithSearch
+from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
+from uamfleet.baselines.step_planner import (
+    STEP_PLANNERS,
+    SearchSettings,
+    StepPlannerPolicy,
+    instance_lower_bound_m,
+)
 from uamfleet.config import EnvConfig
+from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
+from uamfleet.sim.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS
 from uamfleet.rollout import fly
-from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
-from uamfleet.sim.world import World
 from uamfleet.types import NUM_HEADINGS
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)

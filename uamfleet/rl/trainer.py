@@ -52,7 +52,7 @@ from uamfleet.rl.checkpoint import (
     set_numpy_rng_state,
     upgrade_checkpoint,
 )
-from uamfleet.rl.distributed import Ranks, RankZeroError, sample_actions
+from uamfleet.rl.distributed import RankZeroError, Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
 from uamfleet.rl.policy import GreedyPolicy, load_policy
