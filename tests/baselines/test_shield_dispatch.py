@@ -10,11 +10,11 @@ import pytest
 from conftest import small_config
 
 from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
-from uamfleet.env.motion import passes_within
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import run_episode
+from uamfleet.sim.motion import passes_within
 from uamfleet.types import HOVER_ACTION
 
 OPEN_10 = "\n".join(["." * 10] * 10)

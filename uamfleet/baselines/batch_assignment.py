@@ -38,7 +38,7 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 from uamfleet.baselines.assignment_value import MAX_SECONDS, LinearValue, SiteRemoteness
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, Stop
 from uamfleet.checks import MAX_TIME_LIMIT_STEPS, ConfigError, check_flag, check_integer, check_number
-from uamfleet.env.generator import flyable_sites
+from uamfleet.sim.generator import flyable_sites
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 

@@ -41,9 +41,9 @@ from uamfleet.baselines.assignment_value import MAX_SECONDS
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import heading_vectors
-from uamfleet.env.motion import passes_within
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
+from uamfleet.sim.motion import passes_within
 from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
 SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
@@ -201,7 +201,7 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
     hovering in a passage a taxi with a rider must fly through held that taxi back until the time limit (Berlin
     8 x 96: ``batch_assignment`` test seeds 2000056 and 2000088, ``greedy`` 2000049, each one rider short). An
     idle taxi that the next move of a busy taxi would come within ``min_separation_m`` of, with the shield's own
-    test (:func:`uamfleet.env.motion.passes_within`), instead flies the allowed heading that ends farthest from
+    test (:func:`uamfleet.sim.motion.passes_within`), instead flies the allowed heading that ends farthest from
     where those busy taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about
     where it ends up.
     Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without

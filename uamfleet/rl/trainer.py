@@ -33,7 +33,6 @@ from uamfleet.env.layout import Layout, layout_differences, layout_shapes, layou
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
-from uamfleet.env.world import World
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.paths import table_for
@@ -60,6 +59,7 @@ from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo, categorical_kl, ppo_loss
 from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, RunClaim, TrainResult, claim_run, read_progress, run_folder
 from uamfleet.rollout import fly
+from uamfleet.sim.world import World
 
 
 def evaluate(policy: GreedyPolicy, cfg: EnvConfig, seed: int = 0) -> EpisodeMetrics:
