@@ -15,13 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from uamfleet.cli._common import run
-from uamfleet.rl.checkpoint import run_config
-from uamfleet.rl.collector import training_configs
-from uamfleet.rl.trainer import TrainArgs
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
 from uamfleet.paths import table_for
-from uamfleet.env.world import World
+from uamfleet.rl.checkpoint import run_config
+from uamfleet.rl.collector import training_configs
+from uamfleet.rl.trainer import TrainArgs
+from uamfleet.sim.world import World
 
 
 @dataclass

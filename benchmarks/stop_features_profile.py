@@ -32,12 +32,12 @@ from numba import njit
 
 import uamfleet
 from uamfleet.env import kernels, tours
-from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.kernels import _update_rests
+from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.observer import Observer
-from uamfleet.env.world import WorldArrays
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import TableArrays
+from uamfleet.sim.world import WorldArrays
 from uamfleet.types import NUM_HEADINGS, FleetState
 
 

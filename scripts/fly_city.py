@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 from uamfleet import config, instances
+from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.cli import benchmark, fleet_benchmark
 from uamfleet.io import write_csv_atomic, write_text_atomic
 from uamfleet.radio import load_radio_map
@@ -63,9 +64,7 @@ def main(argv: list[str]) -> int:
     seeds = instances.split_seeds("test", args.count)
     if args.fleet is not None:
         policies = () if args.no_generalist else (pretrained_path("berlin_fleet_v1"),)  # as recorded: no hover action
-        jobs: list[tuple] = [
-            (family, args.fleet, seed, fleet_benchmark.DISPATCHERS, policies, "none") for seed in seeds
-        ]
+        jobs: list[tuple] = [(family, args.fleet, seed, FLEET_DISPATCHERS, policies, "none") for seed in seeds]
         flight, table, columns = fleet_benchmark.run_episode_set, fleet_benchmark.markdown, fleet_benchmark.COLUMNS
     else:
         checkpoint = None if args.no_generalist else pretrained_path("berlin")

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# One-step set-up on a fresh machine: a virtual environment in .venv with uamfleet (editable) and its dev tools.
+# One-step set-up on a fresh machine: a virtual environment in .venv with uamfleet (editable), its dev tools and
+# the documentation site's builder (extras dev and docs).
 #
 #   bash scripts/setup.sh                  # CPU build of torch (the default; all this project needs)
 #   bash scripts/setup.sh --torch cuda     # the default index's build instead (CUDA on Linux), for a GPU
@@ -16,14 +17,14 @@ PYTHON=${PYTHON:-python3}
 TORCH_VERSION=2.13.0
 TORCH_CPU_INDEX=https://download.pytorch.org/whl/cpu
 MODE=${UAMFLEET_TORCH:-cpu}
-EXTRAS=dev
+EXTRAS=dev,docs
 
 usage() { echo "usage: bash scripts/setup.sh [--torch cpu|cuda] [--rt]   (or UAMFLEET_TORCH=cpu|cuda; default cpu)" >&2; }
 while [ $# -gt 0 ]; do
     case "$1" in
         --torch) [ $# -ge 2 ] || { usage; exit 2; }; MODE=$2; shift 2 ;;
         --torch=*) MODE=${1#--torch=}; shift ;;
-        --rt) EXTRAS=dev,rt; shift ;;
+        --rt) EXTRAS=dev,docs,rt; shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "setup.sh: unknown argument '$1'" >&2; usage; exit 2 ;;
     esac
@@ -71,7 +72,7 @@ echo "setup.sh: torch $installed build"
 if [ "$installed" != "$TORCH_VERSION $MODE" ]; then
     echo "setup.sh: warning: asked for the $MODE build of torch $TORCH_VERSION, got '$installed'" >&2
 fi
-if [ "$EXTRAS" = dev,rt ]; then
+if [ "$EXTRAS" = dev,docs,rt ]; then
     bash scripts/rt.sh --llvm
 fi
 .venv/bin/python -m pip install --quiet -e ".[$EXTRAS]"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uamfleet.env.world import World
 from uamfleet.instances import FAMILIES, SPLITS, TEST_SEEDS, TRAIN_SEEDS, VALIDATION_SEEDS, make_instance, split_seeds
+from uamfleet.sim.world import World
 
 
 def test_seed_ranges_are_disjoint_and_split_seeds_stays_inside():

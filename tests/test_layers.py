@@ -1,4 +1,4 @@
-"""Imports point one way: radio -> paths -> env -> {baselines, rl} -> rollout/metrics -> viz -> CLIs (uamfleet.cli).
+"""Imports point one way: radio -> paths -> sim -> env -> {baselines, rl} -> rollout/metrics -> viz -> CLIs.
 
 Every module of ``uamfleet/``, ``eval/``, ``train/`` and ``benchmarks/`` is parsed (``ast``, so imports inside
 functions count too) and each import of a project module becomes an edge. An edge may point down or sideways
@@ -37,12 +37,14 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (1, ("uamfleet.radio",)),
     (2, ("uamfleet.config", "uamfleet.demand")),
     (3, ("uamfleet.paths",)),
-    (4, ("uamfleet.env",)),
+    # The simulator (world, rules, motion, reward) reads no observation; the observers and faces sit above it.
+    (4, ("uamfleet.sim",)),
+    (5, ("uamfleet.env",)),
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
     # Below the loop in rl: the training options (rl.options), checkpoints (rl.checkpoint) and the run folder and
     # its log (rl.runs), so reading a checkpoint or a run's progress never imports the loop.
-    (5, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
-    (6, ("uamfleet.rollout", "uamfleet.metrics")),
+    (6, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
+    (7, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
     # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
     # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
@@ -50,7 +52,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # rolls the greedy policy forward. The learner (rl.learner) starts an --init-from run from a policy it loads
     # with load_policy; the collector (rl.collector) needs no policy room and stays below, with the rest of rl.
     (
-        7,
+        8,
         (
             "uamfleet.rl.trainer",
             "uamfleet.rl.learner",
@@ -61,12 +63,12 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.zoo",
         ),
     ),
-    (8, ("uamfleet.viz",)),
-    (9, ("uamfleet",)),  # the public face, uamfleet/__init__.py
+    (9, ("uamfleet.viz",)),
+    (10, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
     # eval/ and train/.
     # uamfleet/__main__.py is ``python -m uamfleet``, the ``uamfleet`` command: a command line too.
-    (10, ("uamfleet.cli", "uamfleet.__main__", "eval", "train", "benchmarks")),
+    (11, ("uamfleet.cli", "uamfleet.__main__", "eval", "train", "benchmarks")),
 )
 # Packages of one layer that must not import each other (siblings, not a stack).
 SIBLINGS = ("uamfleet.baselines", "uamfleet.rl")
@@ -173,7 +175,7 @@ def test_every_module_has_a_layer_and_the_walk_sees_the_known_edges() -> None:
     assert "uamfleet.viz.figures" in GRAPH["uamfleet.viz.strip"]  # imported inside plot_sinr_strip
     assert "uamfleet.viz.render" in GRAPH["uamfleet"]  # imported inside the face's renderer factory
     assert "uamfleet.rollout" not in GRAPH["uamfleet.viz.meshcat_view"]  # only under TYPE_CHECKING
-    assert "uamfleet.paths" in GRAPH["uamfleet.env.reward"]  # the shaping potential's distance table
+    assert "uamfleet.paths" in GRAPH["uamfleet.sim.reward"]  # the shaping potential's distance table
     assert "uamfleet.radio" in GRAPH["uamfleet.config"]
     assert len(MODULES) > 40 and sum(map(len, GRAPH.values())) > 100
 

@@ -36,8 +36,8 @@ class ConfigError(ValueError):
     """A config value of the wrong type or out of range; the message names the field, the value and the fix.
 
     A ``ValueError`` (also for values of the wrong type, e.g. ``sinr_min_db='-3'``), so one ``except
-    ValueError`` catches every bad input of the package: this, :class:`~uamfleet.env.generator.
-    InfeasibleInstanceError`, :class:`~uamfleet.env.dynamics.InvalidActionError` and
+    ValueError`` catches every bad input of the package: this, :class:`~uamfleet.sim.generator.
+    InfeasibleInstanceError`, :class:`~uamfleet.sim.dynamics.InvalidActionError` and
     :class:`~uamfleet.radio.WinPropFormatError`.
     """
 

@@ -3,7 +3,7 @@
 Every keyword accepted by :func:`uamfleet.parallel_env` / :func:`uamfleet.vector_env` is a field of
 :class:`EnvConfig` (or of its nested :class:`RewardConfig` / :class:`DemandConfig`, which can be passed as
 objects). Checks that need only the config live in ``__post_init__``; checks that need the radio map
-(stops in infeasible blocks, unreachable stops) live in :func:`uamfleet.env.generator.validate_instance`.
+(stops in infeasible blocks, unreachable stops) live in :func:`uamfleet.sim.generator.validate_instance`.
 """
 
 from __future__ import annotations
@@ -152,7 +152,7 @@ class EnvConfig:
     ``max_passengers`` and ``DemandConfig.max_requests`` <= :data:`MAX_PASSENGERS` (1024). SINR blocks
     (``block_m``, default ``step_m``) must not be finer than the radio raster. A fixed request must be released
     before ``time_limit_steps``. Checks that need the radio map at the threshold (stops in bad blocks, stops
-    out of reach) raise :class:`uamfleet.env.generator.InfeasibleInstanceError` when the env is built.
+    out of reach) raise :class:`uamfleet.sim.generator.InfeasibleInstanceError` when the env is built.
     """
 
     radio: RadioMap
@@ -288,7 +288,7 @@ class EnvConfig:
     def _check_separation_room(self) -> None:
         """Under the shield the taxis must fit ``min_separation_m`` apart on the map at all, or it could never
         separate them: at most :func:`separation_room_bound` of the square map. A necessary condition only; the
-        flyable blocks are checked when the env is built (:func:`uamfleet.env.generator.check_separation_room`)."""
+        flyable blocks are checked when the env is built (:func:`uamfleet.sim.generator.check_separation_room`)."""
         sep, taxis = self.min_separation_m, self.num_taxis
         if self.separation != "shield" or taxis < 2 or sep <= 0:
             return

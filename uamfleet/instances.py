@@ -7,7 +7,7 @@ this order from ``np.random.default_rng(SeedSequence([seed, family id]))``:
 1. the threshold, uniformly from the family's thresholds (Berlin −7 … −3 dB; Detroit-like 3GPP −21 … −17 dB);
 2. the number of passengers, uniformly from 2 … 6;
 3. the start, uniformly from the flyable block centres of the largest flyable component at that threshold
-   (:func:`uamfleet.env.generator.flyable_sites`, as the env's own random starts);
+   (:func:`uamfleet.sim.generator.flyable_sites`, as the env's own random starts);
 4. release steps: the first request at step 0, the others uniformly over the first ``release_window_s``
    (2 minutes: 40 steps of 3 s in Berlin, 12 of 9.6 s in Detroit), sorted;
 5. each request's origin and destination: two flyable block centres at least ``min_trip_m`` apart.
@@ -52,11 +52,11 @@ from uamfleet.config import (
     fleet_window_steps,
     make_config,
 )
-from uamfleet.env.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.env.mixture import MixtureVectorEnv
-from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
+from uamfleet.sim.generator import InfeasibleInstanceError, flyable_sites, validate_instance
+from uamfleet.sim.world import World
 
 TRAIN_SEEDS = range(0, 1_000_000)
 VALIDATION_SEEDS = range(1_000_000, 1_010_000)

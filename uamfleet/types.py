@@ -107,7 +107,7 @@ STATE_PASSENGER_FEATURES: tuple[str, ...] = (
 
 
 class FleetState(NamedTuple):
-    """The whole simulator state. Arrays are updated in place by :func:`uamfleet.env.dynamics.step`
+    """The whole simulator state. Arrays are updated in place by :func:`uamfleet.sim.dynamics.step`
     (copying the visit counts every step would cost more than the step itself). A NamedTuple of arrays, so
     the compiled kernels (:mod:`uamfleet.env.kernels`) take it whole."""
 

@@ -11,10 +11,10 @@ from conftest import small_config
 from uamfleet.baselines.anticipation import REPLAN_FUTURES_SEARCH, AnticipatingReplan, DemandPrior
 from uamfleet.baselines.step_planner import StepPlannerPolicy, released_only
 from uamfleet.config import Request
-from uamfleet.env.generator import flyable_sites
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import World
 from uamfleet.rollout import fly
+from uamfleet.sim.generator import flyable_sites
+from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN
 
 OPEN_7 = "\n".join(["......."] * 7)

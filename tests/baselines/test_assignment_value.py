@@ -24,7 +24,7 @@ from uamfleet.baselines.assignment_value import (
     save_value,
     value_for_dispatcher,
 )
-from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy
+from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rollout import run_episode
@@ -251,7 +251,7 @@ def test_the_fleet_benchmark_flies_the_value_dispatcher_through_the_same_rows(tm
 
 @pytest.mark.parametrize("on_release", [False, True], ids=["every-period", "and-at-releases"])
 def test_the_recorder_flies_its_options_and_records_every_batch_that_runs(on_release):
-    from uamfleet.cli.assignment_value import RecordingAssignment
+    from uamfleet.baselines.batch_assignment import RecordingAssignment
 
     env = _env()
     policy = RecordingAssignment(wait_weight=1.0, assign_on_release=on_release)

@@ -10,14 +10,8 @@ import pytest
 
 from conftest import small_config
 from uamfleet.baselines import POLICIES, make_policy
-from uamfleet.baselines.fleet_dispatch import (
-    DISPATCHERS,
-    BatchAssignmentPolicy,
-    InsertionPolicy,
-    assign_trips,
-    DispatchOptions,
-    split_options,
-)
+from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, assign_trips
+from uamfleet.baselines.fleet_dispatch import SCHEDULE_DISPATCHERS, DispatchOptions, split_options
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rollout import run_episode
@@ -104,7 +98,7 @@ def _walled_scene(seats: int):
     )
 
 
-@pytest.mark.parametrize("name", [*DISPATCHERS, "insertion_heuristic"])
+@pytest.mark.parametrize("name", [*SCHEDULE_DISPATCHERS, "insertion_heuristic"])
 @pytest.mark.parametrize("seats", [1, 2])
 def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
     cfg = _walled_scene(seats)
@@ -243,7 +237,7 @@ def test_a_price_can_starve_a_request_and_the_guard_serves_it():
 
 
 def test_dispatchers_are_registered_and_validate_their_settings():
-    assert set(DISPATCHERS) <= set(POLICIES)
+    assert set(SCHEDULE_DISPATCHERS) <= set(POLICIES)
     assert isinstance(make_policy("insertion", num_taxis=4), InsertionPolicy)
     assert isinstance(make_policy("batch_assignment", num_taxis=4), BatchAssignmentPolicy)
     with pytest.raises(ValueError, match="period"):

@@ -9,13 +9,12 @@ import numpy as np
 import pytest
 from conftest import small_config
 
-from uamfleet.baselines import make_policy
-from uamfleet.baselines.fleet_dispatch import DISPATCHERS
-from uamfleet.env.motion import passes_within
+from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import run_episode
+from uamfleet.sim.motion import passes_within
 from uamfleet.types import HOVER_ACTION
 
 OPEN_10 = "\n".join(["." * 10] * 10)
@@ -28,7 +27,7 @@ CENTRE_REQUESTS = (
 )
 
 
-@pytest.mark.parametrize("name", ["greedy", *DISPATCHERS])
+@pytest.mark.parametrize("name", FLEET_DISPATCHERS)
 def test_dispatchers_deliver_everyone_without_losing_separation_under_the_shield(name):
     metrics = {}
     for separation in ("none", "shield"):
@@ -43,7 +42,7 @@ def test_dispatchers_deliver_everyone_without_losing_separation_under_the_shield
     assert shielded.delivered == 4 and shielded.hovers <= shielded.shield_interventions
 
 
-@pytest.mark.parametrize("name", ["greedy", *DISPATCHERS])
+@pytest.mark.parametrize("name", FLEET_DISPATCHERS)
 def test_dispatchers_with_the_hover_action_deliver_everyone_under_the_shield(name):
     # The same scene with the hover action: taxis idle after their drop-off hover (action 16) where they are.
     cfg = small_config(
@@ -95,7 +94,7 @@ def _fly_passage(name, separation):
     return traj, episode_metrics(traj, cfg.radio)
 
 
-@pytest.mark.parametrize("name", ["greedy", *DISPATCHERS])
+@pytest.mark.parametrize("name", FLEET_DISPATCHERS)
 def test_an_idle_taxi_hovering_in_a_passage_makes_way_for_a_rider_under_the_shield(name):
     # The shield keeps a hover and turns the other taxi aside, so before make_way the rider's taxi was turned back
     # at the idle taxi every step and nobody was delivered in 60 steps (Berlin 8 x 96 lost a rider so, 3 times).
@@ -106,7 +105,7 @@ def test_an_idle_taxi_hovering_in_a_passage_makes_way_for_a_rider_under_the_shie
     assert np.any(np.linalg.norm(idle_path - (450.0, 450.0), axis=-1) > 0)  # it left its hover point
 
 
-@pytest.mark.parametrize("name", ["greedy", *DISPATCHERS])
+@pytest.mark.parametrize("name", FLEET_DISPATCHERS)
 def test_without_the_shield_the_idle_taxi_keeps_hovering(name):
     # make_way answers the shield only: without it the rider's taxi flies through (losing separation) and the
     # idle taxi's actions are the hover, as before.

@@ -8,9 +8,9 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import ConfigError, DemandConfig, Request, RewardConfig
-from uamfleet.env.dynamics import InvalidActionError
-from uamfleet.env.generator import InfeasibleInstanceError
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.sim.dynamics import InvalidActionError
+from uamfleet.sim.generator import InfeasibleInstanceError
 
 ISLAND = """
 .....

@@ -11,11 +11,11 @@ from conftest import small_config
 import uamfleet
 from uamfleet.baselines import make_policy
 from uamfleet.config import Request, RewardConfig, make_config
-from uamfleet.env.dynamics import InvalidActionError
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
+from uamfleet.sim.dynamics import InvalidActionError
 from uamfleet.types import HOVER_ACTION, NUM_HEADINGS
 
 OPEN_10 = "\n".join(["." * 10] * 10)

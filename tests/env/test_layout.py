@@ -99,7 +99,7 @@ def test_the_layout_builds_no_world(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("observation_layout built a World")
 
-    monkeypatch.setattr("uamfleet.env.world.World.__init__", refuse)
+    monkeypatch.setattr("uamfleet.sim.world.World.__init__", refuse)
     assert set(observation_layout(fleet_config(3, (True, True, True, True)))) == set(ALL_FIELDS)
 
 

@@ -9,7 +9,7 @@ from conftest import small_config
 from uamfleet.config import Request
 from uamfleet.env.observer import PASSENGER_FEATURES
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import PATCH_PAD_DB
+from uamfleet.sim.world import PATCH_PAD_DB
 
 WALL = """
 .....

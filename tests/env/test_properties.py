@@ -22,9 +22,9 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from uamfleet.config import ConfigError, DemandConfig, EnvConfig, Request, RewardConfig
-from uamfleet.env.dynamics import InvalidActionError
-from uamfleet.env.generator import InfeasibleInstanceError
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.sim.dynamics import InvalidActionError
+from uamfleet.sim.generator import InfeasibleInstanceError
 
 DOCUMENTED_ERRORS = (ConfigError, InfeasibleInstanceError, InvalidActionError)
 

@@ -19,9 +19,9 @@ import uamfleet
 from uamfleet.config import Request, RewardConfig, make_config
 from uamfleet.env import kernels
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import World
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
+from uamfleet.sim.world import World
 
 OPEN_10 = "\n".join(["." * 10] * 10)
 E, NE, N, W, S = 0, 2, 4, 8, 12

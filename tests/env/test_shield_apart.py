@@ -19,10 +19,10 @@ from uamfleet.baselines import make_policy
 from uamfleet.checks import ConfigError
 from uamfleet.config import Request, make_config
 from uamfleet.env import kernels
-from uamfleet.env.generator import InfeasibleInstanceError
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import World
 from uamfleet.rollout import run_episode
+from uamfleet.sim.generator import InfeasibleInstanceError
+from uamfleet.sim.world import World
 from uamfleet.types import HOVER_ACTION
 
 OPEN_10 = "\n".join(["." * 10] * 10)
@@ -246,7 +246,7 @@ def test_the_room_bounds_are_never_below_a_packing_that_exists():
     # square lattice s apart ((floor(L / s) + 1)^2 points). Hand values on the 1,000 m square: 1,414 m fits two
     # (opposite corners), 1,500 m one.
     from uamfleet.config import separation_room_bound
-    from uamfleet.env.generator import _flyable_rects, separation_room
+    from uamfleet.sim.generator import _flyable_rects, separation_room
 
     assert (separation_room_bound(1000.0, 1000.0, 1414.0), separation_room_bound(1000.0, 1000.0, 1500.0)) == (2, 1)
     rng = np.random.default_rng(5)

@@ -10,13 +10,13 @@ import pytest
 
 from tests.conftest import drawn_map, small_config
 from uamfleet.config import ConfigError, DemandConfig, Request, make_config
-from uamfleet.env.generator import sample_requests
 from uamfleet.env import kernels, tours
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import World
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import table_distance
+from uamfleet.sim.generator import sample_requests
+from uamfleet.sim.world import World
 from uamfleet.types import NUM_HEADINGS, WAITING
 
 # A wall at x = 300-400 m from y = 100 m to 500 m: from the west side, the stop on the east side is reached over the

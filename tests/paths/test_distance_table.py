@@ -11,11 +11,11 @@ from numba import njit
 from scipy.sparse import csgraph
 
 import uamfleet
-from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields, DistanceTable, graph_for, table_for
 from uamfleet.paths import distance_table as dt
 from uamfleet.paths.distance_table import table_graph
 from uamfleet.paths.grid_graph import GridGraph
+from uamfleet.sim.world import World
 
 RES, BLOCK = 25.0, 100.0
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import small_config
-from uamfleet.env.world import World
 from uamfleet.paths.distance_table import CACHE_FORMAT, DistanceTable, table_graph
+from uamfleet.sim.world import World
 
 WALLED = """
 .....

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import small_config
-from uamfleet.env.world import World
 from uamfleet.paths.distance_table import DistanceTable, table_graph
+from uamfleet.sim.world import World
 
 # Two flyable regions (the '#' column cuts the map), so a plausible table has both finite and infinite entries.
 SPLIT = """

@@ -192,8 +192,8 @@ def test_a_cut_candidate_is_ranked_by_moves_plus_its_tour_bound() -> None:
 
 def _prior(cfg, **kw):  # type: ignore[no-untyped-def]
     from uamfleet.baselines.anticipation import DemandPrior
-    from uamfleet.env.generator import flyable_sites
-    from uamfleet.env.world import World
+    from uamfleet.sim.generator import flyable_sites
+    from uamfleet.sim.world import World
 
     fields = dict(min_requests=1, max_requests=3, window_steps=20, min_trip_m=200.0, sites=flyable_sites(World(cfg)))
     return DemandPrior(**{**fields, **kw})  # type: ignore[arg-type]

@@ -249,8 +249,8 @@ def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_t
 
 def _anticipating(cfg, **prior_kw) -> AnticipatingExpert:  # type: ignore[no-untyped-def]
     from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
-    from uamfleet.env.generator import flyable_sites
-    from uamfleet.env.world import World
+    from uamfleet.sim.generator import flyable_sites
+    from uamfleet.sim.world import World
 
     fields = dict(min_requests=2, max_requests=6, window_steps=39, min_trip_m=200.0, sites=flyable_sites(World(cfg)))
     prior = DemandPrior(**{**fields, **prior_kw})  # type: ignore[arg-type]

@@ -6,20 +6,19 @@ from pathlib import Path
 from typing import Any
 
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
-from uamfleet.baselines.fleet_dispatch import (
-    DISPATCHERS,
-    OPTION_SEPARATOR,
-    BatchAssignmentPolicy,
-    InsertionPolicy,
-    split_options,
-)
+from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
+from uamfleet.baselines.fleet_dispatch import OPTION_SEPARATOR, SCHEDULE_DISPATCHERS, split_options
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_configs, planner_env_overrides
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import STEP_PLANNERS, StepPlannerPolicy
 from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
 
-POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, "greedy", *DISPATCHERS, "random")
+FLEET_DISPATCHERS: tuple[str, ...] = ("greedy", *SCHEDULE_DISPATCHERS)
+"""The fleet dispatchers that need no learned value: ``greedy`` and the schedule dispatchers
+(:data:`~uamfleet.baselines.fleet_dispatch.SCHEDULE_DISPATCHERS`). The fleet benchmark flies these by default;
+``batch_assignment_value[:<price_s>]`` (:data:`VALUE_DISPATCHER`) is flown where named."""
+POLICIES: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS, *FLEET_DISPATCHERS, "random")
 """Names accepted by :func:`make_policy` (and the ``--policy`` option of the eval commands)."""
 
 
@@ -48,7 +47,7 @@ def make_policy(
         if num_taxis != 1:
             raise ValueError(
                 f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
-                f"dispatcher (greedy, {', '.join(DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
+                f"dispatcher ({', '.join(FLEET_DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
             )
         return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
     base, options = split_options(name)
@@ -56,7 +55,7 @@ def make_policy(
     if base != name and not (batch or base == "insertion"):
         raise ValueError(
             f"--policy {name!r}: options after {OPTION_SEPARATOR!r} belong to the schedule dispatchers "
-            f"({', '.join(DISPATCHERS)}, {VALUE_DISPATCHER}[:<price_s>]), not to {base!r}."
+            f"({', '.join(SCHEDULE_DISPATCHERS)}, {VALUE_DISPATCHER}[:<price_s>]), not to {base!r}."
         )
     if options.assign_on_release and not batch:
         raise ValueError(f"--policy {name!r}: +release times a batch assignment; {base!r} assigns each release.")
@@ -80,10 +79,11 @@ def make_policy(
 
 
 __all__ = [
-    "DISPATCHERS",
+    "FLEET_DISPATCHERS",
     "OPTION_SEPARATOR",
     "PLANNERS",
     "POLICIES",
+    "SCHEDULE_DISPATCHERS",
     "STEP_PLANNERS",
     "VALUE_DISPATCHER",
     "BatchAssignmentPolicy",

@@ -42,10 +42,10 @@ from uamfleet.baselines.step_planner import (
     released_only,
 )
 from uamfleet.config import EnvConfig
-from uamfleet.env.generator import allocate_state, flyable_sites
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.world import World
 from uamfleet.instances import FAMILIES, check_family, draw_trip
+from uamfleet.sim.generator import allocate_state, flyable_sites
+from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN, FleetState
 
 

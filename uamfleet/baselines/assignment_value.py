@@ -1,7 +1,7 @@
 """A learned value of a taxi's post-decision state for ``batch_assignment`` (approximate dynamic programming).
 
 In the style of NeurADP (Shah, Lowalekar, Varakantham, AAAI 2020), the trip assignment of
-:class:`~uamfleet.baselines.fleet_dispatch.BatchAssignmentPolicy` may score each (taxi, trip) by its immediate cost
+:class:`~uamfleet.baselines.batch_assignment.BatchAssignmentPolicy` may score each (taxi, trip) by its immediate cost
 (the increase of the taxi's total ride time, seconds) **minus** ``price_s`` times the learned value of the state
 the taxi is left in, relative to taking no new trip:
 

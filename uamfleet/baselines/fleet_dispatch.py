@@ -1,8 +1,9 @@
-"""Fleet dispatchers over the batched core: request insertion and batch (taxi, trip) assignment.
+"""The schedule dispatchers' common part over the batched core: schedules, their options, and flying them.
 
-Both keep a stop schedule per taxi and fly it like :class:`~uamfleet.baselines.planner_policy.PlannerPolicy`: each
-taxi heads, along feasible paths (:class:`DistanceFields`), for the first stop of its schedule it can act on (a
-pick-up while it has a free seat, a drop-off of a passenger it carries). Schedules are sequenced exactly by
+A schedule dispatcher keeps a stop schedule per taxi and flies it like
+:class:`~uamfleet.baselines.planner_policy.PlannerPolicy`: each taxi heads, along feasible paths
+(:class:`DistanceFields`), for the first stop of its schedule it can act on (a pick-up while it has a free seat, a
+drop-off of a passenger it carries). Schedules are sequenced exactly by
 :func:`~uamfleet.baselines.sequencing.solve_pdp` with the ``"ride"`` objective: the **total ride time** (drop-off −
 request, summed over the taxi's passengers, on board ones included) from the current step, over a stop distance
 matrix of feasible-path distances (the distance fields the taxis steer by) at the env's speed. A schedule's cost is
@@ -10,23 +11,11 @@ that total ride time; "how much a schedule grows" is the increase of it (seconds
 With a wait weight β (``wait_weight``; a name's ``+wait=<β>``) a schedule costs its total ride time plus β times its
 total wait (pick-up − request), sequenced exactly for that cost: a service that weighs waiting above riding.
 
-- :class:`InsertionPolicy` (``insertion``): each request, when released, goes to the taxi whose schedule cost grows
-  least when the request is added and the taxi's stops are re-sequenced exactly (ties: lowest taxi index). A
-  taxi with more than ``exact_limit`` passengers to serve keeps its order and gets the request's pick-up and
-  drop-off at their cheapest positions instead (classic insertion; counted in ``stats["heuristic_inserts"]``).
-- :class:`BatchAssignmentPolicy` (``batch_assignment``), in the style of Alonso-Mora et al. (PNAS 2017): every
-  ``period`` steps, the released requests nobody has picked up yet are re-assigned. For each taxi, trips of up to
-  ``seats`` such requests are built (from its ``max_requests_per_taxi`` cheapest single requests; every trip is
-  feasible, since the exact sequencing respects capacity and precedence), each costed by the increase of the
-  taxi's schedule cost when the trip joins its passengers on board. An integer programme
-  (:func:`assign_trips`, ``scipy.optimize.milp`` / HiGHS) picks at most one trip per taxi and serves each request
-  at most once, with ``penalty_s`` (10⁶ s) for every request left unassigned (it waits for the next batch), or
-  with ``unassigned_price_s`` (``+price=<s>``) that price plus (1 + β) times the request's wait so far, so that a
-  taxi is not made to take a second request whatever it costs; ``unassigned_guard_s`` (``+guard=<s>``) prices a
-  request that has waited longer than it at ``penalty_s`` again, so no price starves it. With
-  ``assign_on_release`` (``+release``) a batch also runs at every step where a request is released. With a learned
-  ``value`` (``batch_assignment_value``, :mod:`~uamfleet.baselines.assignment_value`), each trip's cost is lowered
-  by ``price_s`` times the value of the state it leaves the taxi in, relative to taking no new trip (NeurADP-style).
+The dispatchers themselves (:class:`ScheduleFleetPolicy` subclasses) differ only in how a released request joins
+a schedule: :class:`~uamfleet.baselines.batch_assignment.InsertionPolicy` (``insertion``) and
+:class:`~uamfleet.baselines.batch_assignment.BatchAssignmentPolicy` (``batch_assignment``, and with a learned value
+``batch_assignment_value``) in :mod:`~uamfleet.baselines.batch_assignment`. Their names may carry options
+(:func:`split_options`).
 
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
 ``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
@@ -43,24 +32,24 @@ taxi whose route no longer fits its seats because it boarded a planned passenger
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import Bounds, LinearConstraint, milp
 
-from uamfleet.baselines.assignment_value import MAX_SECONDS, LinearValue, SiteRemoteness
+from uamfleet.baselines.assignment_value import MAX_SECONDS
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
-from uamfleet.checks import MAX_TIME_LIMIT_STEPS, ConfigError, check_flag, check_integer, check_number
+from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import heading_vectors
-from uamfleet.env.generator import flyable_sites
-from uamfleet.env.motion import passes_within
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
+from uamfleet.sim.motion import passes_within
 from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
-DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
+SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
+"""The schedule dispatchers (:mod:`~uamfleet.baselines.batch_assignment`), whose names take the options of
+:func:`split_options`; with the learned value, ``batch_assignment_value`` too
+(:data:`~uamfleet.baselines.assignment_value.VALUE_DISPATCHER`)."""
 Stop = tuple[int, str]  # (passenger, "pickup" | "dropoff")
 
 OPTION_SEPARATOR = "+"
@@ -74,17 +63,6 @@ with ``+guard=<s>`` (past ``<s>`` of wait, ``penalty_s`` again); e.g. ``insertio
 
 MAX_WAIT_WEIGHT = 1000.0
 """Upper bound of the wait weight β (``wait_weight``, ``+wait=<β>``): a second of wait at most 1,000 s of ride."""
-MAX_REQUESTS_PER_TAXI = 32
-"""Upper bound of ``max_requests_per_taxi``: a batch builds every trip of up to ``seats`` of that many requests per
-taxi (496 pairs, 35,960 quadruples at this bound), each sequenced exactly."""
-
-
-def _seconds(name: str, value: float, fix: str = "") -> float:
-    """``value`` as a finite number of seconds in ``[0, MAX_SECONDS]``; ConfigError naming ``name`` otherwise."""
-    value = check_number(name, value, minimum=0.0)
-    if value > MAX_SECONDS:
-        raise ConfigError(f"{name}={value!r} is too large: at most {MAX_SECONDS:g} s{fix}.")
-    return value
 
 
 def check_wait_weight(name: str, value: float) -> float:
@@ -223,7 +201,7 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
     hovering in a passage a taxi with a rider must fly through held that taxi back until the time limit (Berlin
     8 x 96: ``batch_assignment`` test seeds 2000056 and 2000088, ``greedy`` 2000049, each one rider short). An
     idle taxi that the next move of a busy taxi would come within ``min_separation_m`` of, with the shield's own
-    test (:func:`uamfleet.env.motion.passes_within`), instead flies the allowed heading that ends farthest from
+    test (:func:`uamfleet.sim.motion.passes_within`), instead flies the allowed heading that ends farthest from
     where those busy taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about
     where it ends up.
     Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without
@@ -249,7 +227,8 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
 class ScheduleFleetPolicy:
     """Base of the dispatchers: per-taxi schedules, repaired every step and flown along feasible paths.
 
-    Subclasses implement :meth:`dispatch` (called every step with the passengers released since the last call).
+    Subclasses implement :meth:`dispatch` (called every step with the passengers released since the last call):
+    :mod:`~uamfleet.baselines.batch_assignment`.
     ``stats`` counts the DP solves, heuristic insertions and assignment programmes of the episode.
     """
 
@@ -536,233 +515,15 @@ class ScheduleFleetPolicy:
             assert not riding, f"taxi {a}'s schedule never drops {sorted(riding)}"
 
 
-class InsertionPolicy(ScheduleFleetPolicy):
-    """``insertion``: each released request goes to the taxi whose schedule cost (total ride time) grows least
-    with it, the taxi's stops re-sequenced exactly (module docstring)."""
-
-    def dispatch(self, released: list[int]) -> None:
-        for p in released:
-            best: tuple[float, int, list[Stop]] | None = None
-            for a in range(self.num_taxis):
-                grow, route = self.insertion_cost(a, p)
-                if best is None or grow < best[0] - 1e-9:
-                    best = (grow, a, route)
-            assert best is not None
-            self.routes[best[1]] = best[2]
-
-    def insertion_cost(self, taxi: int, passenger: int) -> tuple[float, list[Stop]]:
-        """(increase of the taxi's schedule cost in seconds, new route) when ``passenger`` joins it."""
-        waiting = self.waiting_of(taxi)
-        old = self.schedule_cost(taxi, self.routes[taxi]) if self.routes[taxi] else self._riding_cost(taxi)
-        if len(waiting) + len(self.on_board(taxi)) + 1 <= self.exact_limit:
-            plan, route = self.sequence(taxi, [*waiting, passenger])
-            return self.plan_cost(plan) - old, route
-        cost, route = self.cheapest_insertion(taxi, passenger)
-        return cost - old, route
-
-    def _riding_cost(self, taxi: int) -> float:
-        return self.plan_cost(self.sequence(taxi, [])[0]) if self.on_board(taxi) else 0.0
-
-
-def assign_trips(
-    trips: Sequence[tuple[int, tuple[int, ...], float]],
-    num_taxis: int,
-    requests: Sequence[int],
-    penalty_s: float | Sequence[float],
-) -> list[int]:
-    """Indices of the chosen ``(taxi, requests of the trip, cost)`` rows: the exact optimum of
-
-    minimise sum(cost · x) + sum of penalty_s over the requests not served, each taxi at most one trip, each
-    request at most once, x binary; solved by ``scipy.optimize.milp`` (HiGHS). Ties are HiGHS's choice.
-    ``penalty_s``: one price for every request, or one per request in the order of ``requests``."""
-    if not trips:
-        return []
-    index = {r: i for i, r in enumerate(requests)}
-    n = len(trips)
-    if np.ndim(penalty_s) == 0:  # one price: the same sums as before per-request prices existed
-        c = np.array([cost - float(penalty_s) * len(reqs) for _, reqs, cost in trips])  # type: ignore[arg-type]
-    else:
-        price = {r: float(p) for r, p in zip(requests, penalty_s, strict=True)}  # type: ignore[arg-type]
-        c = np.array([cost - sum(price[r] for r in reqs) for _, reqs, cost in trips])
-    a_taxi = np.zeros((num_taxis, n))
-    a_req = np.zeros((len(requests), n))
-    for k, (taxi, reqs, _) in enumerate(trips):
-        a_taxi[taxi, k] = 1.0
-        for r in reqs:
-            a_req[index[r], k] = 1.0
-    result = milp(
-        c,
-        integrality=np.ones(n),
-        bounds=Bounds(0.0, 1.0),
-        constraints=[LinearConstraint(a_taxi, -np.inf, 1.0), LinearConstraint(a_req, -np.inf, 1.0)],
-    )
-    if not result.success or result.x is None:
-        raise RuntimeError(f"the trip assignment programme failed: {result.message}")
-    return [k for k in range(n) if result.x[k] > 0.5]
-
-
-class BatchAssignmentPolicy(ScheduleFleetPolicy):
-    """``batch_assignment``: every ``period`` steps, the requests not yet picked up are re-assigned to taxis by an
-    exact (taxi, trip) assignment (module docstring; Alonso-Mora et al., PNAS 2017)."""
-
-    def __init__(
-        self,
-        period: int = 3,
-        max_requests_per_taxi: int = 6,
-        penalty_s: float = 1e6,
-        exact_limit: int = 6,
-        value: LinearValue | None = None,
-        wait_weight: float = 0.0,
-        assign_on_release: bool = False,
-        unassigned_price_s: float | None = None,
-        unassigned_guard_s: float | None = None,
-    ) -> None:
-        super().__init__(exact_limit, wait_weight)
-        # a request left unassigned costs this plus (1 + β) × the wait it has had (None: penalty_s for every one).
-        # A trip's cost counts its riders' waits since their release, so a flat finite price would make a request
-        # dearer to serve at every batch it waits and, once dearer than the price, never served; the wait so far
-        # added to its price leaves only what is still to come to be weighed.
-        if unassigned_price_s is not None:
-            unassigned_price_s = _seconds("unassigned_price_s", unassigned_price_s, " or None (penalty_s)")
-        self.unassigned_price_s = unassigned_price_s
-        # A finite price can still starve a request whose remaining trip costs more than the price at every batch
-        # (a long ride, few taxis); past the guard its price is penalty_s again, so it is taken as soon as a taxi can.
-        if unassigned_guard_s is not None:
-            if unassigned_price_s is None:
-                raise ConfigError(
-                    f"unassigned_guard_s={unassigned_guard_s!r} bounds the wait unassigned_price_s prices, which is "
-                    "None: give both, or neither."
-                )
-            unassigned_guard_s = _seconds("unassigned_guard_s", unassigned_guard_s, " or None (no guard)")
-        self.unassigned_guard_s = unassigned_guard_s
-        # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
-        self.assign_on_release = check_flag("assign_on_release", assign_on_release)
-        if value is not None and not isinstance(value, LinearValue):
-            raise ConfigError(f"value={value!r} is a {type(value).__name__}; pass a LinearValue or None.")
-        self.value = value  # a learned value of the state each trip leaves its taxi in (assignment_value); None: off
-        self.period = check_integer("period", period, 1, MAX_TIME_LIMIT_STEPS, fix=" (steps between batches)")
-        self.max_requests_per_taxi = check_integer(
-            "max_requests_per_taxi", max_requests_per_taxi, 1, MAX_REQUESTS_PER_TAXI, fix=" (e.g. 6)"
-        )
-        self.penalty_s = _seconds("penalty_s", penalty_s)
-        if self.penalty_s == 0:
-            raise ConfigError("penalty_s=0 must be > 0: a request left unassigned must cost something (e.g. 1e6).")
-
-    def batch_due(self, released: list[int]) -> bool:
-        """Whether a batch runs at this step: every ``period`` steps, and with ``assign_on_release`` at every step
-        where a request is ``released``."""
-        assert self.env is not None
-        return int(self.env.state.t[0]) % self.period == 0 or (self.assign_on_release and bool(released))
-
-    def dispatch(self, released: list[int]) -> None:
-        assert self.env is not None
-        if not self.batch_due(released):
-            return
-        s = self.env.state
-        waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]
-        trips, routes, free_s = self.candidate_trips(waiting)
-        idle_free_s = [0.0] * self.num_taxis  # when each taxi is free if it takes no new trip
-        for a in range(self.num_taxis):
-            plan, self.routes[a] = self.sequence(a, []) if self.on_board(a) else (None, [])
-            idle_free_s[a] = plan.finish_s if plan is not None else self.now_s()
-        if not waiting:
-            return
-        if self.value is not None:
-            trips = self.valued_trips(trips, routes, free_s, idle_free_s)
-        for k in assign_trips(trips, self.num_taxis, waiting, self.unassigned_prices(waiting)):
-            self.routes[trips[k][0]] = routes[k]
-        self.stats["assignments"] += 1
-
-    def unassigned_prices(self, waiting: list[int]) -> float | list[float]:
-        """What leaving each of the ``waiting`` requests out of this batch costs: ``penalty_s``, or with
-        ``unassigned_price_s`` that price plus (1 + β) times the request's wait so far; past ``unassigned_guard_s``
-        of wait, ``penalty_s`` again."""
-        if self.unassigned_price_s is None:
-            return self.penalty_s
-        now, held = self.now_s(), 1.0 + self.wait_weight
-        guard = math.inf if self.unassigned_guard_s is None else self.unassigned_guard_s
-        waits = [now - float(self.release_s[r]) for r in waiting]
-        return [self.penalty_s if wait > guard else self.unassigned_price_s + held * wait for wait in waits]
-
-    def candidate_trips(
-        self, waiting: list[int]
-    ) -> tuple[list[tuple[int, tuple[int, ...], float]], list[list[Stop]], list[float]]:
-        """Every taxi's feasible trips of up to ``seats`` waiting requests, with their cost increase, route and the
-        time (s) the route ends."""
-        trips: list[tuple[int, tuple[int, ...], float]] = []
-        routes: list[list[Stop]] = []
-        free_s: list[float] = []
-        for a in range(self.num_taxis):
-            riding = self.on_board(a)
-            alone_and_singles = self.sequence_each(a, [[]] * bool(riding) + [[r] for r in waiting])
-            base = self.plan_cost(alone_and_singles.pop(0)[0]) if riding else 0.0
-            singles = [
-                (self.plan_cost(plan) - base, r, route, plan.finish_s)
-                for r, (plan, route) in zip(waiting, alone_and_singles, strict=True)
-            ]
-            singles.sort(key=lambda single: single[:2])
-            chosen = sorted(r for _, r, _, _ in singles[: self.max_requests_per_taxi])
-            for cost, r, route, finish_s in singles[: self.max_requests_per_taxi]:
-                trips.append((a, (r,), cost))
-                routes.append(route)
-                free_s.append(finish_s)
-            sizes = [size for size in range(2, self.seats + 1) if len(riding) + size <= self.exact_limit]
-            combos = [combo for size in sizes for combo in itertools.combinations(chosen, size)]
-            for combo, (plan, route) in zip(combos, self.sequence_each(a, combos), strict=True):
-                trips.append((a, combo, self.plan_cost(plan) - base))
-                routes.append(route)
-                free_s.append(plan.finish_s)
-        return trips, routes, free_s
-
-    def now_s(self) -> float:
-        assert self.env is not None
-        return float(self.env.state.t[0]) * self.env.cfg.slot_s
-
-    def remoteness_after(self, taxi: int, route: Sequence[Stop]) -> float:
-        """:class:`~uamfleet.baselines.assignment_value.SiteRemoteness` of where ``route`` leaves the taxi: its last
-        stop (a drop-off), or where the taxi is when the route is empty."""
-        assert self.env is not None
-        if route:
-            return float(self._dest_remoteness[route[-1][0]])
-        return float(self._remoteness(self.env.state.pos_m[0, taxi])[0])
-
-    def valued_trips(
-        self,
-        trips: list[tuple[int, tuple[int, ...], float]],
-        routes: list[list[Stop]],
-        free_s: list[float],
-        idle_free_s: list[float],
-    ) -> list[tuple[int, tuple[int, ...], float]]:
-        """The trips with cost - price_s * (V(after the trip) - V(after no new trip)) (assignment_value)."""
-        assert self.value is not None
-        far = np.array([self.remoteness_after(a, route) for (a, _, _), route in zip(trips, routes, strict=True)])
-        after = self.value.values(np.asarray(free_s), far)
-        idle_far = np.array([self.remoteness_after(a, self.routes[a]) for a in range(self.num_taxis)])
-        idle = self.value.values(np.asarray(idle_free_s), idle_far)
-        price = self.value.price_s
-        return [(a, reqs, cost - price * float(after[k] - idle[a])) for k, (a, reqs, cost) in enumerate(trips)]
-
-    def reset(self, env: VectorEnv) -> None:
-        super().reset(env)
-        if self.value is not None:
-            self.prepare_remoteness()
-
-    def prepare_remoteness(self) -> None:
-        """The site remoteness :meth:`remoteness_after` reads (the map's flyable sites; every destination's), for
-        this episode: made at reset where a value prices the trips, or by a subclass that records it."""
-        assert self.env is not None
-        self._remoteness = SiteRemoteness(flyable_sites(self.env.world))
-        self._dest_remoteness = self._remoteness(self.dest_m)
-
-
 __all__ = [
-    "DISPATCHERS",
-    "BatchAssignmentPolicy",
-    "InsertionPolicy",
+    "OPTION_SEPARATOR",
+    "SCHEDULE_DISPATCHERS",
+    "DispatchOptions",
     "ScheduleFleetPolicy",
-    "assign_trips",
+    "check_wait_weight",
     "fleet_action",
     "fleet_actions",
     "make_way",
+    "shared_fields",
     "split_options",
 ]

@@ -36,14 +36,14 @@ from uamfleet.baselines.assignment_value import (
     post_state_features,
     save_value,
 )
-from uamfleet.baselines.fleet_dispatch import BatchAssignmentPolicy, DispatchOptions, shared_fields, split_options
+from uamfleet.baselines.batch_assignment import RecordingAssignment
+from uamfleet.baselines.fleet_dispatch import DispatchOptions, shared_fields, split_options
 from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_outputs, output_paths, run
 from uamfleet.cli.fleet_benchmark import setting_size
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
 from uamfleet.rollout import run_episode
-from uamfleet.types import ON_BOARD
 
 
 @dataclass
@@ -70,40 +70,6 @@ class Args:
     out: Path = Path("uamfleet/data/pretrained/assignment_value.json")
     overwrite: bool = False
     """replace an existing --out"""
-
-
-class RecordingAssignment(BatchAssignmentPolicy):
-    """``batch_assignment`` (with or without a value, with its options) that records, at every batch that runs
-    (:meth:`~uamfleet.baselines.fleet_dispatch.BatchAssignmentPolicy.batch_due`), each taxi's post-decision state and
-    plan, and every pick-up (passenger, taxi, time)."""
-
-    def reset(self, env: VectorEnv) -> None:
-        super().reset(env)
-        self.prepare_remoteness()  # recorded with or without a value
-        self.decisions: list[tuple[int, float, float, float, tuple[int, ...]]] = []  # taxi, now, free, far, plan
-        self.pickups: list[tuple[int, int, float]] = []  # passenger, taxi, time
-        self._was_on_board = np.zeros(len(env.state.pax_status[0]), dtype=bool)
-
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None
-        s = self.env.state
-        on_board = s.pax_status[0] == ON_BOARD
-        for p in np.flatnonzero(on_board & ~self._was_on_board):
-            self.pickups.append((int(p), int(s.pax_taxi[0, p]), self.now_s()))
-        self._was_on_board |= on_board
-        return super().__call__(obs)
-
-    def dispatch(self, released: list[int]) -> None:
-        due = self.batch_due(released)  # asked before the batch: it reads the step, which the batch leaves alone
-        super().dispatch(released)
-        if not due:
-            return
-        now = self.now_s()
-        for a in range(self.num_taxis):
-            plan = tuple(sorted({p for p, _ in self.routes[a]} | set(self.on_board(a))))
-            route = self.routes[a]
-            free = self.sequence(a, self.waiting_of(a))[0].finish_s if route else now
-            self.decisions.append((a, now, free, self.remoteness_after(a, route), plan))
 
 
 def episode_samples(

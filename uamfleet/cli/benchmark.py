@@ -54,8 +54,8 @@ from uamfleet.baselines.step_planner import (
     instance_lower_bound_m,
 )
 from uamfleet.config import EnvConfig
-from uamfleet.env.generator import InfeasibleInstanceError, validate_instance
-from uamfleet.env.world import World
+from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
+from uamfleet.sim.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics

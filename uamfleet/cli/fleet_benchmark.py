@@ -39,7 +39,7 @@ import numpy as np
 
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
 from uamfleet.cli.benchmark import _ci, command_header, learned_policy
-from uamfleet.baselines import POLICIES, make_policy
+from uamfleet.baselines import FLEET_DISPATCHERS, POLICIES, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.checks import check_number
 from uamfleet.baselines.fleet_dispatch import shared_fields, split_options
@@ -49,7 +49,6 @@ from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import fly
 
-DISPATCHERS: tuple[str, ...] = ("greedy", "insertion", "batch_assignment")
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
            "service_pct", "wait_p50_s", "wait_p95_s", "awt_s", "detour", "td_m", "td_per_delivered_m", "occupancy",
            "separation_violations", "connectivity_pct", "steps", "decision_p50_ms", "decision_max_ms",
@@ -68,7 +67,7 @@ class Args:
     """episodes per setting"""
     first: int = 0
     """index of the first seed in the split"""
-    dispatchers: tuple[str, ...] = DISPATCHERS
+    dispatchers: tuple[str, ...] = FLEET_DISPATCHERS
     """(insertion, batch_assignment and batch_assignment_value[:<price_s>] may end in +wait=<β>: schedules cost
     ride time + β · wait; the batch assignments also in +release: re-assigned at every release too)"""
     assignment_value: Path | None = None
@@ -211,8 +210,8 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     keys = dict.fromkeys((r["family"], r["setting"], r["dispatcher"]) for r in rows)
-    for key in sorted(keys, key=lambda k: (k[0], setting_size(k[1]), DISPATCHERS.index(k[2])
-                                           if k[2] in DISPATCHERS else 99)):  # fmt: skip
+    for key in sorted(keys, key=lambda k: (k[0], setting_size(k[1]), FLEET_DISPATCHERS.index(k[2])
+                                           if k[2] in FLEET_DISPATCHERS else 99)):  # fmt: skip
         sel = [r for r in rows if (r["family"], r["setting"], r["dispatcher"]) == key]
 
         def col(name: str, sel: list[dict[str, Any]] = sel) -> np.ndarray:
@@ -248,7 +247,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     command = args.command or (
         f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
-        + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != DISPATCHERS else "")
+        + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
         + (f" --separation {args.separation}" if args.separation != "none" else "")
@@ -318,7 +317,7 @@ def _check_names(args: Args) -> None:
     unknown = [d for d, b in bases.items() if b not in POLICIES and b.partition(":")[0] != VALUE_DISPATCHER]
     if unknown:
         raise ValueError(
-            f"unknown --dispatchers {unknown}; choose from {(*DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
+            f"unknown --dispatchers {unknown}; choose from {(*FLEET_DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
             "dispatchers with options such as +wait=<β> and +release: uamfleet.baselines.fleet_dispatch.split_options)."
         )
     # a name's options, value file and price are checked now, before anything flies (at the smallest fleet named,

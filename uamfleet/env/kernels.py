@@ -1,10 +1,10 @@
 """Compiled (numba) loops over [env, taxi, passenger]: the only implementation of the motion, boarding and
 observation rules (``docs/rules.md``): the observation kernels here, the motion kernels (the step, the action mask,
-the separation shield) in :mod:`uamfleet.env.motion`, re-exported here. :mod:`uamfleet.env.dynamics` and
+the separation shield) in :mod:`uamfleet.sim.motion`, re-exported here. :mod:`uamfleet.sim.dynamics` and
 :mod:`uamfleet.env.observer` are their documented entry points; nothing else re-implements them.
 
 The boundary is typed: a kernel takes the state whole (:class:`uamfleet.types.FleetState`), the world's arrays
-whole (:class:`uamfleet.env.arrays.WorldArrays`) and returns the step's events as one
+whole (:class:`uamfleet.sim.arrays.WorldArrays`) and returns the step's events as one
 :class:`uamfleet.types.StepEvents`. All are NamedTuples of arrays, which numba compiles field by field.
 
 Why compiled: a step is a few dozen small operations per taxi. As numpy calls each costs microseconds of
@@ -20,8 +20,6 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
-from uamfleet.env.motion import action_mask, block_of, separation, shield_headings, step
 from uamfleet.env.tours import (
     MAX_EXACT_STOPS,
     _nearest_stop_tour,
@@ -37,6 +35,9 @@ from uamfleet.paths.distance_table import (
     new_corners,
     prepare_corners,
 )
+from uamfleet.sim.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
+from uamfleet.sim.motion import action_mask, block_of, separation, shield_headings, step
+from uamfleet.sim.world import stop_of
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -326,24 +327,6 @@ def _stop_rows(
     return True
 
 
-@njit(cache=True, inline="always")
-def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
-    """The stop point row p offers taxi a (its *actionable* stop; the shaping potential's stops too): its
-    destination (2p + 1) while p rides in a, its origin (2p) while p waits and a has a free seat, else -1."""
-    return stop_of(s.pax_status[e, p], s.pax_taxi[e, p], s.free_seats[e, a], a, p)
-
-
-@njit(cache=True, inline="always")
-def stop_of(status: int, carrier: int, free_seats: int, a: int, p: int) -> int:
-    """:func:`row_stop` from row p's status and carrier and taxi a's free seats. Hot loops call this rather than
-    :func:`row_stop`: a call that passes the state, even inlined, reference-counts each of its ~30 arrays (~0.25 µs)."""
-    if status == ON_BOARD and carrier == a:
-        return 2 * p + 1
-    if status == WAITING and free_seats > 0:
-        return 2 * p
-    return -1
-
-
 @njit(cache=True)
 def _update_rests(
     s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
@@ -369,9 +352,10 @@ def _update_rests(
 def _nearest_rests(
     s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
 ) -> bool:  # fmt: skip
-    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer (:func:`row_stop`: its riders'
-    destinations, the waiting passengers' origins while a seat is free); False when a table row is missing. The
-    distances between the taxi's stops are read from the memo once, into a local matrix every tour scans."""
+    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer
+    (:func:`uamfleet.sim.world.row_stop`: its riders' destinations, the waiting passengers' origins while a seat is
+    free); False when a table row is missing. The distances between the taxi's stops are read from the memo once,
+    into a local matrix every tour scans."""
     num_pax = s.pax_status.shape[1]
     stops = np.empty(2 * num_pax, np.int64)
     pending = np.empty(2 * num_pax, np.int8)
@@ -593,7 +577,7 @@ def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndar
             out[b, p, STOP_CLAIMED_BY_ME if b == a else STOP_CLAIMED_BY_OTHER] = 1
 
 
-# The motion kernels live in uamfleet.env.motion, the world's arrays in uamfleet.env.arrays; both import from here.
+# The motion kernels live in uamfleet.sim.motion, the world's arrays in uamfleet.sim.arrays; both import from here.
 __all__ = [
     "MAX_EXACT_STOPS",
     "RULE_ENDPOINT_BLOCK",
@@ -602,7 +586,6 @@ __all__ = [
     "action_mask",
     "hover_headings",
     "observe",
-    "row_stop",
     "separation",
     "shield_headings",
     "step",

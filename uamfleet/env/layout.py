@@ -20,9 +20,10 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig
-from uamfleet.env.world import PATCH_CLIP_DB, PATCH_PAD_DB
+from uamfleet.sim.world import PATCH_CLIP_DB, PATCH_PAD_DB
 from uamfleet.types import (
     HISTORY_FEATURES,
+    LOOKAHEAD_CLIP,
     NUM_HEADINGS,
     OTHER_FEATURES,
     PASSENGER_FEATURES,
@@ -31,7 +32,6 @@ from uamfleet.types import (
     STOP_PATH_CLIP,
     STOP_PATH_FEATURES,
     STOP_RIVAL_FEATURES,
-    LOOKAHEAD_CLIP,
 )
 
 FieldKind = Literal["feature", "set", "mask", "raw"]

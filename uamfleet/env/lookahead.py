@@ -23,9 +23,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from uamfleet.env.arrays import WorldArrays
-from uamfleet.env.kernels import StopRows, _nearest_rests, prepare_moves, stop_of
-from uamfleet.env.motion import action_mask
+from uamfleet.env.kernels import StopRows, _nearest_rests, prepare_moves
 from uamfleet.env.tours import _shortest_rests
 from uamfleet.paths.distance_table import (
     Corners,
@@ -35,6 +33,9 @@ from uamfleet.paths.distance_table import (
     prepare_corners,
     table_distance,
 )
+from uamfleet.sim.arrays import WorldArrays
+from uamfleet.sim.motion import action_mask
+from uamfleet.sim.world import stop_of
 from uamfleet.types import DELIVERED, LOOKAHEAD_CLIP, NUM_HEADINGS, ON_BOARD, WAITING, FleetState
 
 
@@ -280,7 +281,7 @@ def _stop_within(rows: StopRows, a: int, x: float, y: float, pts: np.ndarray, re
 def _offered_by_bound(
     rows: StopRows, a: int, x: float, y: float, pts: np.ndarray, rests: np.ndarray, stops: np.ndarray, bound: np.ndarray
 ) -> int:
-    """The stops taxi a's rows offer (:func:`uamfleet.env.kernels.row_stop`) into ``stops``, sorted by ``bound``:
+    """The stops taxi a's rows offer (:func:`uamfleet.sim.world.row_stop`) into ``stops``, sorted by ``bound``:
     the straight line from (x, y) plus the stop's tour rest (insertion sort: a few dozen stops at most). Their
     number."""
     m = 0
@@ -330,7 +331,7 @@ def _tour_from_bounded(
 
 @njit(cache=True, inline="always")
 def _has_stop(rows: StopRows, a: int) -> bool:
-    """Whether any row offers taxi a a stop (:func:`uamfleet.env.kernels.row_stop`)."""
+    """Whether any row offers taxi a a stop (:func:`uamfleet.sim.world.row_stop`)."""
     for p in range(rows.statuses.size):
         if _offered(rows, a, p) >= 0:
             return True
@@ -339,7 +340,7 @@ def _has_stop(rows: StopRows, a: int) -> bool:
 
 @njit(cache=True, inline="always")
 def _offered(rows: StopRows, a: int, p: int) -> int:
-    """The stop row p offers taxi a (:func:`uamfleet.env.kernels.row_stop`), -1 for none or an absent row."""
+    """The stop row p offers taxi a (:func:`uamfleet.sim.world.row_stop`), -1 for none or an absent row."""
     return stop_of(rows.statuses[p], rows.carriers[p], rows.free_seats[a], a, p) if rows.exists[p] else -1
 
 

@@ -14,9 +14,9 @@ from gymnasium import spaces
 from uamfleet.env import kernels, window
 from uamfleet.env.layout import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
 from uamfleet.env.lookahead import heading_lookahead
-from uamfleet.env.pretyped import PreTyped
-from uamfleet.env.world import World
 from uamfleet.paths import table_for
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import World
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -63,7 +63,7 @@ class Observer:
         self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
         self.table = table_for(world) if "stop_paths" in self.layout else None
-        # the kernels without numba typing the state and the world's arrays on every call (uamfleet.env.pretyped)
+        # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
         self._observe, self._hover = PreTyped(kernels.observe), PreTyped(kernels.hover_headings)
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:

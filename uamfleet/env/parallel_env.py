@@ -65,8 +65,8 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
-from uamfleet.env.dynamics import check_action
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.sim.dynamics import check_action
 
 AgentID = str
 

@@ -19,10 +19,10 @@ from gymnasium import spaces
 
 from uamfleet.checks import MAX_ENVS, MAX_SEED, check_flag, check_integer
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
-from uamfleet.env import dynamics, generator, motion, reward
 from uamfleet.env.observer import Observer
-from uamfleet.env.pretyped import PreTyped
-from uamfleet.env.world import World
+from uamfleet.sim import dynamics, generator, motion, reward
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import World
 from uamfleet.types import DELIVERED, FleetState
 
 

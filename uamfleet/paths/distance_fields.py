@@ -1,6 +1,6 @@
 """Feasible-path distance fields on a world's raster graph, for every policy that flies to a stop.
 
-The world is read through :class:`FlightGeometry` (a structural type that ``uamfleet.env.world.World``
+The world is read through :class:`FlightGeometry` (a structural type that ``uamfleet.sim.world.World``
 satisfies), so this layer needs nothing from the environment above it.
 """
 

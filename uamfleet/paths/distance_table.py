@@ -78,7 +78,7 @@ def cache_dir() -> Path | None:
 
 class TableArrays(NamedTuple):
     """What the compiled lookups read of a :class:`DistanceTable`, passed to them whole (as
-    :class:`~uamfleet.env.arrays.WorldArrays` carries the world's arrays)."""
+    :class:`~uamfleet.sim.arrays.WorldArrays` carries the world's arrays)."""
 
     distance_m: np.ndarray  # [nbx * nby, nbx * nby] float32, row j = distances to block centre j; NaN: not computed
     block_m: float

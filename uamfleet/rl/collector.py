@@ -23,7 +23,6 @@ from uamfleet.env.layout import Layout, layout_shapes, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
-from uamfleet.env.world import World
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import cache_dir
 from uamfleet.rl.buffer import EpisodeSums, ObservationNormalizer, RewardScaler, RolloutBuffer
@@ -31,6 +30,7 @@ from uamfleet.rl.checkpoint import Checkpoint, run_config
 from uamfleet.rl.distributed import Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
+from uamfleet.sim.world import World
 
 
 @dataclass

@@ -68,7 +68,7 @@ def _join_group(backend: str, rank: int, world_size: int, timeout_s: float) -> N
 @dataclass(frozen=True)
 class Ranks:
     """This process's place among the training ranks (possibly one process). Not the geometry
-    (:class:`uamfleet.env.world.World`); ``World`` is kept here as an alias of this class for old imports."""
+    (:class:`uamfleet.sim.world.World`); ``World`` is kept here as an alias of this class for old imports."""
 
     rank: int = 0
     world_size: int = 1

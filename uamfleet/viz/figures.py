@@ -10,9 +10,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
 
-from uamfleet.env.world import World
 from uamfleet.io import write_bytes_atomic
 from uamfleet.radio import RadioMap
+from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN, WAITING, FleetState
 from uamfleet.viz.colours import TAXI_HEX
 

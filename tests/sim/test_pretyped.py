@@ -1,4 +1,4 @@
-"""The pre-typed kernel entry (uamfleet.env.pretyped): the same results as numba's dispatcher, typed once per pair
+"""The pre-typed kernel entry (uamfleet.sim.pretyped): the same results as numba's dispatcher, typed once per pair
 of NamedTuples, and a fallback to the dispatcher for actions of another memory layout."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ import numpy as np
 from numba import njit
 
 import uamfleet
-from uamfleet.env import dynamics, motion
-from uamfleet.env.pretyped import PreTyped
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.sim import dynamics, motion
+from uamfleet.sim.pretyped import PreTyped
 
 
 class Pair(NamedTuple):

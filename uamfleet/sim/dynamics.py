@@ -17,7 +17,7 @@ Order within a step (all taxis move simultaneously, one slot of ``slot_s`` secon
 5. requests whose release step has come become visible (``WAITING``);
 6. the action mask of the new positions is stored for the next observation.
 
-The loops live in :mod:`uamfleet.env.motion` (compiled); this module is their documented entry point. The rules
+The loops live in :mod:`uamfleet.sim.motion` (compiled); this module is their documented entry point. The rules
 in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up").
 """
 
@@ -28,9 +28,9 @@ import math
 import numpy as np
 from numba import njit
 
-from uamfleet.env import motion
-from uamfleet.env.pretyped import PreTyped
-from uamfleet.env.world import World
+from uamfleet.sim import motion
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import World
 from uamfleet.types import HOVER_ACTION, NUM_HEADINGS, FleetState, StepEvents
 
 

@@ -2,21 +2,24 @@
 
 Built once per config (milliseconds; the block map is cached on the radio map) and shared by the generator,
 the dynamics, the observer and the baselines, so that every one of them applies the same rule. Segment tests
-sample the raster along each move in the compiled kernels (:mod:`uamfleet.radio._sampling`).
+sample the raster along each move in the compiled kernels (:mod:`uamfleet.radio._sampling`). The stop point a
+passenger row offers a taxi (:func:`row_stop`, :func:`stop_of`) is read by the reward, the observer and the planners.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy import ndimage
 
 from uamfleet.config import EnvConfig, heading_vectors
-from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
-from uamfleet.env.motion import action_mask
 from uamfleet.radio import BlockMap
-from uamfleet.types import NUM_HEADINGS
+from uamfleet.sim.arrays import RULE_ENDPOINT_BLOCK, RULE_SEGMENT_RASTER, WorldArrays
+from uamfleet.sim.motion import action_mask
+from uamfleet.types import NUM_HEADINGS, ON_BOARD, WAITING, FleetState
 
-__all__ = ["PATCH_CLIP_DB", "PATCH_PAD_DB", "World", "WorldArrays"]  # WorldArrays lives in uamfleet.env.arrays
+# WorldArrays lives in uamfleet.sim.arrays
+__all__ = ["PATCH_CLIP_DB", "PATCH_PAD_DB", "World", "WorldArrays", "row_stop", "stop_of"]
 
 PATCH_PAD_DB = -30.0
 """Value of SINR-patch cells outside the map (relative to the threshold, dB): clearly not flyable."""
@@ -97,3 +100,21 @@ class World:
         out = np.empty((flat.shape[0], NUM_HEADINGS), dtype=bool)
         action_mask(flat, self.arrays, out)
         return out.reshape(*pos.shape[:-1], NUM_HEADINGS)
+
+
+@njit(cache=True, inline="always")
+def row_stop(s: FleetState, e: int, a: int, p: int) -> int:
+    """The stop point row p offers taxi a (its *actionable* stop; the shaping potential's stops too): its
+    destination (2p + 1) while p rides in a, its origin (2p) while p waits and a has a free seat, else -1."""
+    return stop_of(s.pax_status[e, p], s.pax_taxi[e, p], s.free_seats[e, a], a, p)
+
+
+@njit(cache=True, inline="always")
+def stop_of(status: int, carrier: int, free_seats: int, a: int, p: int) -> int:
+    """:func:`row_stop` from row p's status and carrier and taxi a's free seats. Hot loops call this rather than
+    :func:`row_stop`: a call that passes the state, even inlined, reference-counts each of its ~30 arrays (~0.25 µs)."""
+    if status == ON_BOARD and carrier == a:
+        return 2 * p + 1
+    if status == WAITING and free_seats > 0:
+        return 2 * p
+    return -1

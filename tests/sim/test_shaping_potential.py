@@ -10,9 +10,9 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import DemandConfig, Request, RewardConfig
-from uamfleet.env import reward
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
+from uamfleet.sim import reward
 
 WALLED = """
 .....

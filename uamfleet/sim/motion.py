@@ -1,6 +1,6 @@
 """The motion kernels (numba): the action mask, the separation shield, separation, and the one batched step
 (``step``: the rules of docs/rules.md "Motion" and "Release and pick-up" in order, each in a named part). Re-exported
-by :mod:`uamfleet.env.kernels`, which holds the observation kernels; :mod:`uamfleet.env.dynamics` is the entry point.
+by :mod:`uamfleet.env.kernels`, which holds the observation kernels; :mod:`uamfleet.sim.dynamics` is the entry point.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import math
 import numpy as np
 from numba import njit
 
-from uamfleet.env.arrays import RULE_ENDPOINT_BLOCK, WorldArrays
 from uamfleet.radio._sampling import segment_min
+from uamfleet.sim.arrays import RULE_ENDPOINT_BLOCK, WorldArrays
 from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING, FleetState, StepEvents
 
 

@@ -15,14 +15,14 @@ import numpy as np
 from numba import njit
 
 from uamfleet.config import REWARD_TERMS, RewardConfig
-from uamfleet.env.kernels import stop_of
-from uamfleet.env.pretyped import PreTyped
 from uamfleet.paths import DistanceFields, DistanceTable, table_for
 from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import stop_of
 from uamfleet.types import ON_BOARD, WAITING, FleetState, StepEvents
 
 if TYPE_CHECKING:
-    from uamfleet.env.world import World
+    from uamfleet.sim.world import World
 
 
 # Column of each term in the [E, A, len(REWARD_TERMS)] array, found by name (numba reads them as constants).
@@ -139,7 +139,7 @@ class Potential:
         self.step_m = float(world.step_m)
         self._table: DistanceTable | None = None
         self._fields: DistanceFields | None = None
-        self._phi = PreTyped(_phi)  # without numba typing the state on every call (uamfleet.env.pretyped)
+        self._phi = PreTyped(_phi)  # without numba typing the state on every call (uamfleet.sim.pretyped)
         if metric == "path":
             self._table = table_for(world)
         elif metric == "path_exact":

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from uamfleet.config import Request, separation_room_bound
-from uamfleet.env.world import World
+from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN, NUM_HEADINGS, WAITING, FleetState
 
 

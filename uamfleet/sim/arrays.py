@@ -1,5 +1,5 @@
 """What the compiled kernels read of the world, passed to them whole: :class:`WorldArrays` (built by
-:class:`uamfleet.env.world.World`, read by :mod:`uamfleet.env.motion` and :mod:`uamfleet.env.kernels`). A leaf
+:class:`uamfleet.sim.world.World`, read by :mod:`uamfleet.sim.motion` and :mod:`uamfleet.env.kernels`). A leaf
 module, so that the geometry and the kernels both import it and neither imports the other for its type.
 """
 
