@@ -50,13 +50,13 @@ from uamfleet.config import (
     check_number,
     fleet_time_limit,
     fleet_window_steps,
-    make_config,
 )
 from uamfleet.env.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.world import World
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
+from uamfleet.presets import make_config
 
 TRAIN_SEEDS = range(0, 1_000_000)
 VALIDATION_SEEDS = range(1_000_000, 1_010_000)

@@ -10,12 +10,13 @@ import pytest
 from numba import njit
 
 from uamfleet.baselines.step_planner import released_only
-from uamfleet.config import ConfigError, make_config
+from uamfleet.config import ConfigError
 from uamfleet.env import lookahead
 from uamfleet.env.arrays import WorldArrays
 from uamfleet.env.kernels import StopRows, row_stop
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths.distance_table import TableArrays
+from uamfleet.presets import make_config
 from uamfleet.types import LOOKAHEAD_CLIP, NUM_HEADINGS, STOP_PATH_TO_STOP, STOP_TOUR_VIA_STOP, FleetState
 
 

@@ -16,11 +16,12 @@ import pytest
 from conftest import small_config
 
 import uamfleet
-from uamfleet.config import Request, RewardConfig, make_config
+from uamfleet.config import Request, RewardConfig
 from uamfleet.env import kernels
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rollout import fly
 
 OPEN_10 = "\n".join(["." * 10] * 10)

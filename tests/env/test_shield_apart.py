@@ -17,11 +17,12 @@ from conftest import small_config
 
 from uamfleet.baselines import make_policy
 from uamfleet.checks import ConfigError
-from uamfleet.config import Request, make_config
+from uamfleet.config import Request
 from uamfleet.env import kernels
 from uamfleet.env.generator import InfeasibleInstanceError
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.world import World
+from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
 from uamfleet.types import HOVER_ACTION
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import drawn_map, small_config
-from uamfleet.config import ConfigError, DemandConfig, Request, make_config
+from uamfleet.config import ConfigError, DemandConfig, Request
+from uamfleet.presets import make_config
 from uamfleet.env.generator import sample_requests
 from uamfleet.env import kernels, tours
 from uamfleet.env.mixture import MixtureVectorEnv
