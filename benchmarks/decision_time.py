@@ -24,7 +24,7 @@ import numpy as np
 import torch
 import tyro
 
-from uamfleet.config import make_config
+from uamfleet.presets import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import FleetState
 from uamfleet.zoo import pretrained_path

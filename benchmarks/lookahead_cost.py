@@ -14,10 +14,10 @@ import time
 import numpy as np
 
 import uamfleet
-from uamfleet.config import make_config
 from uamfleet.env.lookahead import heading_lookahead
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import instance_for_policy, split_seeds
+from uamfleet.presets import make_config
 from uamfleet.rl.loop_guard import LoopGuard
 
 

@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from uamfleet import config, instances
+from uamfleet import instances, presets
 from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.cli import benchmark, fleet_benchmark
 from uamfleet.io import write_csv_atomic, write_text_atomic
@@ -39,7 +39,7 @@ def register_city(map_path: str) -> str:
     radio = load_radio_map(map_path)
     family = radio.name
     scenario = f"{family}_random"
-    config.PRESETS[scenario] = functools.partial(config.PRESETS["berlin_random"], radio=radio, scenario=scenario)
+    presets.PRESETS[scenario] = functools.partial(presets.PRESETS["berlin_random"], radio=radio, scenario=scenario)
     berlin = instances.FAMILIES["berlin"]
     instances.FAMILIES[family] = instances.InstanceFamily(scenario, berlin.thresholds_db, berlin.min_trip_m)
     return family

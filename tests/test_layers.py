@@ -35,7 +35,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # demand model, parts of the config (which re-exports both).
     (0, ("uamfleet.types", "uamfleet.io", "uamfleet.checks")),
     (1, ("uamfleet.radio",)),
-    (2, ("uamfleet.config", "uamfleet.demand")),
+    # uamfleet.presets: the named scenarios (make_config), built from the config classes beside them.
+    (2, ("uamfleet.config", "uamfleet.demand", "uamfleet.presets")),
     (3, ("uamfleet.paths",)),
     # The simulator (world, rules, motion, reward) reads no observation; the observers and faces sit above it.
     (4, ("uamfleet.sim",)),
@@ -177,6 +178,7 @@ def test_every_module_has_a_layer_and_the_walk_sees_the_known_edges() -> None:
     assert "uamfleet.rollout" not in GRAPH["uamfleet.viz.meshcat_view"]  # only under TYPE_CHECKING
     assert "uamfleet.paths" in GRAPH["uamfleet.sim.reward"]  # the shaping potential's distance table
     assert "uamfleet.radio" in GRAPH["uamfleet.config"]
+    assert "uamfleet.config" in GRAPH["uamfleet.presets"]  # sideways, inside layer 2
     assert len(MODULES) > 40 and sum(map(len, GRAPH.values())) > 100
 
 

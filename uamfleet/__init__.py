@@ -13,18 +13,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from uamfleet.config import (
-    REWARD_TERMS,
-    SCENARIOS,
-    ConfigError,
-    DemandConfig,
-    EnvConfig,
-    Request,
-    RewardConfig,
-    make_config,
-)
+from uamfleet.config import REWARD_TERMS, ConfigError, DemandConfig, EnvConfig, Request, RewardConfig
 from uamfleet.env.parallel_env import Renderer, UAMFleetParallelEnv, parallel_env
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.radio import RADIO_MAPS, RadioMap, load_radio_map
 
 __version__ = "0.1.0"

@@ -50,11 +50,11 @@ from uamfleet.config import (
     check_number,
     fleet_time_limit,
     fleet_window_steps,
-    make_config,
 )
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
+from uamfleet.presets import make_config
 from uamfleet.sim.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.sim.world import World
 

@@ -57,9 +57,10 @@ def warm(steps: int = WARM_STEPS, verbose: bool = True) -> float:
 def _warm(steps: int, verbose: bool) -> float:
     start = time.perf_counter()
     from uamfleet.baselines import make_policy
-    from uamfleet.config import Request, RewardConfig, make_config
+    from uamfleet.config import Request, RewardConfig
     from uamfleet.env.vector_env import VectorEnv
     from uamfleet.instances import make_fleet_instance, make_instance
+    from uamfleet.presets import make_config
 
     def done(what: str) -> None:
         if verbose:

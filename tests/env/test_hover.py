@@ -10,10 +10,11 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.baselines import make_policy
-from uamfleet.config import Request, RewardConfig, make_config
+from uamfleet.config import Request, RewardConfig
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rollout import fly
 from uamfleet.sim.dynamics import InvalidActionError
 from uamfleet.types import HOVER_ACTION, NUM_HEADINGS

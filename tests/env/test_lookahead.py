@@ -10,11 +10,12 @@ import pytest
 from numba import njit
 
 from uamfleet.baselines.step_planner import released_only
-from uamfleet.config import ConfigError, make_config
+from uamfleet.config import ConfigError
 from uamfleet.env import lookahead
 from uamfleet.env.kernels import StopRows
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths.distance_table import TableArrays
+from uamfleet.presets import make_config
 from uamfleet.sim.arrays import WorldArrays
 from uamfleet.sim.world import row_stop
 from uamfleet.types import LOOKAHEAD_CLIP, NUM_HEADINGS, STOP_PATH_TO_STOP, STOP_TOUR_VIA_STOP, FleetState

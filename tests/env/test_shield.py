@@ -16,10 +16,11 @@ import pytest
 from conftest import small_config
 
 import uamfleet
-from uamfleet.config import Request, RewardConfig, make_config
+from uamfleet.config import Request, RewardConfig
 from uamfleet.env import kernels
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rollout import fly
 from uamfleet.sim.world import World
 

@@ -17,9 +17,10 @@ from conftest import small_config
 
 from uamfleet.baselines import make_policy
 from uamfleet.checks import ConfigError
-from uamfleet.config import Request, make_config
+from uamfleet.config import Request
 from uamfleet.env import kernels
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
 from uamfleet.sim.generator import InfeasibleInstanceError
 from uamfleet.sim.world import World

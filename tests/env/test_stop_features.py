@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from tests.conftest import drawn_map, small_config
-from uamfleet.config import ConfigError, DemandConfig, Request, make_config
+from uamfleet.config import ConfigError, DemandConfig, Request
 from uamfleet.env import kernels, tours
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import table_distance
+from uamfleet.presets import make_config
 from uamfleet.sim.generator import sample_requests
 from uamfleet.sim.world import World
 from uamfleet.types import NUM_HEADINGS, WAITING

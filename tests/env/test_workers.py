@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uamfleet.config import make_config
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv, shard_pieces
+from uamfleet.presets import make_config
 
 
 def _thresholds(time_limit_steps: int = 40) -> list:

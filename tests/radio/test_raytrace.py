@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from uamfleet.cli import radio_map as radio_map_cli
-from uamfleet.config import make_config
+from uamfleet.presets import make_config
 from uamfleet.radio import BaseStation, RadioMap, load_radio_map, read_radio_map_npz, save_radio_map_npz
 from uamfleet.radio import raytrace
 from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp

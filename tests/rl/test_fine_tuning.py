@@ -11,8 +11,9 @@ import math
 import pytest
 import torch
 
-from uamfleet.config import ConfigError, make_config
+from uamfleet.config import ConfigError
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rl.checkpoint import Checkpoint, check_net_config
 from uamfleet.rl.heads import NOT_THIS
 from uamfleet.rl.ppo import categorical_kl

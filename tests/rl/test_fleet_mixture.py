@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from uamfleet.config import ConfigError, make_config
+from uamfleet.config import ConfigError
+from uamfleet.presets import make_config
 from uamfleet.env.mixture import OTHER_TAXI_FIELDS, MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path, run_config

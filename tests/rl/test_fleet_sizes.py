@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from uamfleet.checks import ConfigError
-from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy

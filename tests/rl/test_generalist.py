@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import torch
 
-from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_instance
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import make_config
 from uamfleet.rl.heads import CLAIM_INIT, HOVER_LEAD, StopHead
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.trainer import TrainArgs, load_policy, train

@@ -10,8 +10,9 @@ import torch
 from conftest import brute_force_moves, small_config
 
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch
-from uamfleet.config import Request, heading_vectors, make_config
+from uamfleet.config import Request, heading_vectors
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import make_config
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert
 from uamfleet.rl.heads import LOOKAHEAD_RULE, PRIOR_FLOOR

@@ -12,8 +12,8 @@ import pytest
 import torch
 from gymnasium import spaces
 
-from uamfleet.config import make_config
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import make_config
 from uamfleet.rl.heads import LOOKAHEAD_GAIN, LOOKAHEAD_RULE, PRIOR_FLOOR
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 

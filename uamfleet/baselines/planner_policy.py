@@ -33,7 +33,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from uamfleet.baselines.sequencing import Plan, solve_pdp
-from uamfleet.config import EnvConfig, make_config
+from uamfleet.config import EnvConfig
+from uamfleet.presets import make_config
 from uamfleet.paths import DistanceFields, StopPaths
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import HIDDEN, ON_BOARD, WAITING

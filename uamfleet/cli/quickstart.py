@@ -35,7 +35,7 @@ from pathlib import Path
 from uamfleet.cli._common import Feasibility, Variant, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
-from uamfleet.config import make_config
+from uamfleet.presets import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_args, checkpoint_source
 from uamfleet.rl.trainer import GreedyPolicy, TrainArgs, load_policy, train

@@ -19,9 +19,10 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from uamfleet.config import EnvConfig, make_config
+from uamfleet.config import EnvConfig
 from uamfleet.engines import require
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
+from uamfleet.presets import make_config
 
 ENV_NAME = "uamfleet"
 """The name :func:`ppo_config` registers the env under (``register_env``)."""

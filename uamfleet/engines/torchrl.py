@@ -21,9 +21,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from uamfleet.config import EnvConfig, make_config
+from uamfleet.config import EnvConfig
 from uamfleet.engines import require
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
+from uamfleet.presets import make_config
 
 GROUP = "uam"
 """The one agent group TorchRL makes of the taxis (their names' prefix)."""

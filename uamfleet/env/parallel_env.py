@@ -64,8 +64,9 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from uamfleet.config import REWARD_TERMS, EnvConfig, make_config
+from uamfleet.config import REWARD_TERMS, EnvConfig
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import make_config
 from uamfleet.sim.dynamics import check_action
 
 AgentID = str

@@ -30,7 +30,7 @@ class VectorEnv:
     """Batched fleet environment.
 
     Args:
-        cfg: the environment config (see :func:`uamfleet.config.make_config`).
+        cfg: the environment config (see :func:`uamfleet.presets.make_config`).
         num_envs: number E of independent envs stepped together, 1 ... :data:`~uamfleet.checks.MAX_ENVS` (65,536).
         autoreset: ``True`` / ``False``: reset finished envs inside ``step`` (see the module docstring).
 

@@ -12,17 +12,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from uamfleet.config import (
-    FEASIBILITY_RULES,
-    MAX_TAXIS,
-    SCENARIOS,
-    ConfigError,
-    EnvConfig,
-    check_integer,
-    check_number,
-    make_config,
-)
+from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import VALIDATION_SEEDS
+from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.rl.networks import VARIANTS
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.

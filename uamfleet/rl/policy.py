@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from uamfleet.checks import MAX_PASSENGERS, ConfigError
-from uamfleet.config import MAX_TAXIS, PRESETS, EnvConfig, check_integer
+from uamfleet.config import MAX_TAXIS, EnvConfig, check_integer
 from uamfleet.env.layout import (
     PASSENGER_AXIS_FIELDS,
     Layout,
@@ -25,6 +25,7 @@ from uamfleet.env.layout import (
     observation_layout,
     observation_space,
 )
+from uamfleet.presets import PRESETS
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args, run_config
 from uamfleet.rl.loop_guard import LoopGuard
