@@ -76,7 +76,7 @@ class RunClaim:
         self.replace = False
 
     def release(self) -> None:
-        """Remove the lock file (if it is still this claim's) and the folder if the claim made it and it is empty."""
+        """Remove the lock file (if still this claim's), and the folder if it held nothing when claimed and is empty."""
         try:
             stat = self.lock.stat()
             if (stat.st_dev, stat.st_ino) == self._lock_id:
@@ -127,6 +127,9 @@ def claim_run(
     with os.fdopen(fd, "w") as f:
         f.write(f"pid={os.getpid()} host={socket.gethostname()} since={time.strftime('%Y-%m-%dT%H:%M:%S%z')}\n")
         stat = os.fstat(f.fileno())
+    # Of racing claims the one that made the folder need not be the one that won the lock: the winner owns a folder
+    # that held nothing else, whoever made it, and removes it again if the run writes nothing.
+    created = created or all(entry.name == LOCK_FILE for entry in folder.iterdir())
     claim = RunClaim(folder, (), replace=False, created=created, _lock_id=(stat.st_dev, stat.st_ino))
     try:
         claim.held = tuple(f for f in RUN_FILES if (folder / f).exists())
