@@ -14,9 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from test_raytrace import CHECKED_PLY as PLY
+from test_raytrace import exit_status
 
 from uamfleet.checks import SIZE_LIMITS
-from uamfleet.cli import radio_map as radio_map_cli
 from uamfleet.radio import BaseStation, raytrace
 from uamfleet.radio.scene_check import (
     ELEMENTS_PER_SHAPE,
@@ -84,23 +85,6 @@ def city(tmp_path: Path) -> Path:
     (tmp_path / "outside" / "secret.xml").write_text(f"<scene version='2.1.0'><!-- {SECRET} --></scene>")
     return folder
 
-
-PLY = """ply
-format ascii 1.0
-element vertex 4
-property float x
-property float y
-property float z
-element face 2
-property list uchar int vertex_indices
-end_header
--50 -50 0
-50 -50 0
-50 50 0
--50 50 0
-3 0 1 2
-3 0 2 3
-"""
 
 MATERIAL = """  <bsdf type="itu-radio-material" id="concrete">
     <string name="type" value="concrete"/>
@@ -433,13 +417,6 @@ def test_the_default_area_is_bounded_too() -> None:
 
     with pytest.raises(ValueError, match=r"the scene's bounding box .* is 20,000,000 m wide"):
         raytrace.scene_extent(Loaded())
-
-
-def exit_status(argv: list[str]) -> int:
-    try:
-        return radio_map_cli.cli(argv)
-    except SystemExit as done:
-        return int(done.code or 0)
 
 
 @pytest.mark.parametrize(
