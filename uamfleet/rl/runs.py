@@ -59,7 +59,7 @@ class RunClaim:
     replace: bool
     """the earlier run is replaced (``overwrite``): :meth:`clear` deletes its files"""
     created: bool
-    """the claim made the folder (released empty, it is removed again)"""
+    """the folder held nothing but this claim's lock when claimed (released empty, it is removed again)"""
     _lock_id: tuple[int, int] = (0, 0)
 
     @property
