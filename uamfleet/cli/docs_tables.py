@@ -339,12 +339,12 @@ def _cell(column: Column, rows: list[dict[str, Value]], table: str) -> str:
     if not len(numbers):
         return UNDEFINED
     result = AGGREGATIONS[column.agg](numbers)
-    if column.over is not None:
-        below = _finite([column.over(r) for r in rows])
-        result = float(result) / float(AGGREGATIONS[column.agg](below)) if len(below) else math.nan
     if isinstance(result, tuple):  # a mean and its half-interval, which carries no sign
         mean, half = result
         return f"{_format(mean, column)} ± {_format(half, replace(column, format=column.format.lstrip('+')))}"
+    if column.over is not None:  # agg is a single figure here (parse refuses over with mean_ci)
+        below = _finite([column.over(r) for r in rows])
+        result = result / float(AGGREGATIONS[column.agg](below)) if len(below) else math.nan  # type: ignore[arg-type]
     return _format(result, column)
 
 
