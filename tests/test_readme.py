@@ -24,8 +24,8 @@ from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
-RESULTS_MD = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
-BENCHMARKS_MD = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+RESULTS_MD = (ROOT / "reports" / "2026-12-03-results-history" / "README.md").read_text(encoding="utf-8")
+BENCHMARKS_MD = (ROOT / "reports" / "2026-12-03-benchmarks-history" / "README.md").read_text(encoding="utf-8")
 CSV_DIR = ROOT / "docs" / "results"
 
 

@@ -1,6 +1,6 @@
 """What anticipation does: ``replan_futures``' decisions beside ``replan``'s flight, instance by instance.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/anticipation_decisions.py --split validation --count 8
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/anticipation_decisions.py --split validation --count 8
 
 For each Berlin instance of the split, flies ``replan`` (beam 64, rank slack 1.0, as the benchmark) and
 ``replan_futures`` (uamfleet/baselines/anticipation.py, its defaults) and prints both TDs and mean waits, then every

@@ -4,7 +4,7 @@ The look-ahead kernel (``heading_lookahead``) alone, at depth 1 and 2, on 64 env
 -4 dB flying the least look-ahead heading (the kernel timed between steps, per taxi-step); then the loop guard's
 call (``LoopGuard.choose``) on a lone taxi's observation of the shipped policy (docs/benchmarks.md):
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/lookahead_cost.py
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/lookahead_cost.py
 """
 
 from __future__ import annotations

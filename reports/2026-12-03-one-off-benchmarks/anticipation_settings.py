@@ -1,6 +1,6 @@
 """``replan_futures`` at cheaper settings beside ``replan`` (beam 16), instance by instance, on train instances.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/anticipation_settings.py --first 100 --count 10
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/anticipation_settings.py --first 100 --count 10
 
 How much of the anticipating search's gain survives cheaper settings (fewer futures, narrower beams), and at what
 CPU cost: the teacher ``uamfleet-imitate --expert futures`` is chosen by it. Each row: the seed, ``replan``'s TD,

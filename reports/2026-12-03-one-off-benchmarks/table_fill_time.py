@@ -3,7 +3,7 @@ bucket Dijkstra (``DistanceTable.fill``) and, with ``--scipy``, by the Dijkstra 
 (``scipy.sparse.csgraph.dijkstra``, 32 sources a call, as before issue 24), with a bit-for-bit comparison of the
 two tables. The disk cache is not used. Thread CPU time and wall clock; run on one core:
 
-    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/table_fill_time.py --scipy
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python reports/2026-12-03-one-off-benchmarks/table_fill_time.py --scipy
 """
 
 from __future__ import annotations

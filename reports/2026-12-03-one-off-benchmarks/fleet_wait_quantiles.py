@@ -5,7 +5,7 @@ A diagnostic for issue 21's loaded target (the median wait against ``greedy``'s)
 first validation episodes of one fleet setting (under the shield with the hover action, as the loaded tables) and
 pools every rider's wait (pick-up step − release step, in seconds).
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_wait_quantiles.py --family berlin --setting 4x48 --count 4 \
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/fleet_wait_quantiles.py --family berlin --setting 4x48 --count 4 \
         --dispatchers greedy batch_assignment_value:100 batch_assignment_value:100+wait=1+release
 """
 

@@ -6,8 +6,8 @@ second move, plus the shortest tour after it); nothing is learned. Ties among th
 the lowest; ``--ties policy`` to the shipped policy's logits (``uamfleet.pretrained("berlin")``). It is the
 reference the learned look-ahead correction is read against (docs/results.md, "The two-move look-ahead policy"):
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/lookahead_rule.py --count 50                  # validation
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/lookahead_rule.py --split test --count 200 --depth 2 --ties policy
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/lookahead_rule.py --count 50                  # validation
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/lookahead_rule.py --split test --count 200 --depth 2 --ties policy
 """
 
 from __future__ import annotations

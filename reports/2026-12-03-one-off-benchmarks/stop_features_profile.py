@@ -13,8 +13,8 @@ stop and after the moves, ``_progress_heading``), and the rivals/claims. With ``
 step that observes ``heading_lookahead``, and part 2 its kernel (on the states as ``stop_features`` leaves them:
 their kept tours up to date). Run on one core:
 
-    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py
-    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python benchmarks/stop_features_profile.py \
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python reports/2026-12-03-one-off-benchmarks/stop_features_profile.py
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 taskset -c 0 .venv/bin/python reports/2026-12-03-one-off-benchmarks/stop_features_profile.py \
         --lookahead --cases berlin_instances:64:1 berlin_random:64:1 berlin_random:64:4
 
 Against another checkout (before/after in one session): ``benchmarks/run_against.py``.

@@ -1,8 +1,8 @@
 """Time of the online step-level search ``replan`` (or ``replan_futures``) on one core.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/replan_time.py --family berlin --count 8
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/replan_time.py --family detroit3gpp --count 4
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/replan_time.py --method replan_futures --count 3
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/replan_time.py --family berlin --count 8
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/replan_time.py --family detroit3gpp --count 4
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/replan_time.py --method replan_futures --count 3
 
 Flies ``replan`` on the first ``--count`` test instances of a family and prints each instance's thread CPU seconds
 (its searches, the distance fields they read included), its solves' longest, and the total distance flown, so a
@@ -55,4 +55,4 @@ def main(args: Args) -> None:
 
 
 if __name__ == "__main__":
-    raise SystemExit(run(main, Args, None, "benchmarks/replan_time.py", __doc__))
+    raise SystemExit(run(main, Args, None, "reports/2026-12-03-one-off-benchmarks/replan_time.py", __doc__))

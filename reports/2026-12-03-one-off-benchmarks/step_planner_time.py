@@ -1,7 +1,7 @@
 """Solve time of the step-level planner ``best_known`` (its default search portfolio) on one core.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/step_planner_time.py            # 5-passenger Berlin test instances
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/step_planner_time.py --count 5
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/step_planner_time.py            # 5-passenger Berlin test instances
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/step_planner_time.py --count 5
 
 Prints, per instance, each search's moves and seconds, the raster candidate's moves, and the total time of the
 policy's ``reset`` (everything ``best_known`` computes before its first action).
@@ -55,4 +55,4 @@ def main(args: Args) -> None:
 
 
 if __name__ == "__main__":
-    raise SystemExit(run(main, Args, None, "benchmarks/step_planner_time.py", __doc__))
+    raise SystemExit(run(main, Args, None, "reports/2026-12-03-one-off-benchmarks/step_planner_time.py", __doc__))

@@ -1,9 +1,9 @@
 """Latency of guided search at decision time (uamfleet/rl/guided.py) beside the greedy decision it starts from.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --family detroit3gpp --count 20 --horizon 60
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20 --finish-beam 16   # + the finisher
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/guided_latency.py --count 20 --hedge --trace   # over futures
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/guided_latency.py --count 20
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/guided_latency.py --family detroit3gpp --count 20 --horizon 60
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/guided_latency.py --count 20 --finish-beam 16   # + the finisher
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/guided_latency.py --count 20 --hedge --trace   # over futures
 
 Flies a shipped policy (``--policy``, the generalist ``berlin`` by default) with guided search on the first ``--count``
 test instances of ``--family`` and prints, per search

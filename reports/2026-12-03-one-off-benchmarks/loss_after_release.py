@@ -3,7 +3,7 @@ instance's last release and then handed to ``replan``'s solver (beam 64, rank sl
 requests (docs/results.md, "The two-move look-ahead policy"). A diagnostic, not a method: it reads each instance's
 last release time, which no online policy may know. Validation instances only:
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/loss_after_release.py --policy berlin_lookahead1 --count 50
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/loss_after_release.py --policy berlin_lookahead1 --count 50
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The main job over several seeds: ``uamfleet-quickstart --seed S --no-generalist`` per seed, one row each.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/quickstart_seeds.py --recipe fine_tune --seeds 1 2 3 \
+    OMP_NUM_THREADS=1 .venv/bin/python reports/2026-12-03-one-off-benchmarks/quickstart_seeds.py --recipe fine_tune --seeds 1 2 3 \
         --run-dir /tmp/seeds/ft --out-csv /tmp/seeds/ft.csv [-- extra quickstart flags]
 
 Each seed runs in its own process (as a user would run it), writing only under ``--run-dir``; the row holds what
