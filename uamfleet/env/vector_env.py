@@ -1,7 +1,7 @@
 """The batched environment: E independent envs of A taxis each, one policy call per step for all.
 
 :class:`VectorEnv` is a :class:`uamfleet.sim.core.Simulator` (the world, its rules and reward) with an
-:class:`~uamfleet.env.observer.Observer` (what a policy reads) on top; the PettingZoo env is this class with E = 1.
+:class:`~uamfleet.observe.observer.Observer` (what a policy reads) on top; the PettingZoo env is this class with E = 1.
 
 Autoreset (``autoreset=True``, the default): an env that terminates or truncates is reset *within the same*
 ``step`` call; the returned observation is the first one of its new episode, and the last observation of the
@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, RewardConfig
-from uamfleet.env.observer import Observer
+from uamfleet.observe.observer import Observer
 from uamfleet.sim.core import Simulator
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.reward import Potential
@@ -43,7 +43,7 @@ class VectorEnv:
     def __init__(self, cfg: EnvConfig, num_envs: int = 1, autoreset: bool = True) -> None:
         self.sim = Simulator(cfg, num_envs, autoreset)
         self.observer = Observer(self.sim.world)
-        self.layout = self.observer.layout  # the observation's spec (uamfleet.env.layout): fields, shapes, kinds
+        self.layout = self.observer.layout  # the observation's spec (uamfleet.observe.spec): fields, shapes, kinds
         self.single_observation_space: spaces.Dict = self.observer.observation_space
         self.single_action_space = self.sim.single_action_space
         self.state_space = self.sim.state_space

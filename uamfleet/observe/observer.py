@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.env import kernels, window
-from uamfleet.env.layout import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
-from uamfleet.env.lookahead import heading_lookahead
+from uamfleet.observe import basic, stops, window
+from uamfleet.observe.lookahead import heading_lookahead
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
 from uamfleet.paths import table_for
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.world import World
@@ -33,9 +33,9 @@ __all__ = [
 
 class Observer:
     """Builds the observation dict ``{name: [E, A, ...] array}``; its fields, shapes and dtypes are
-    :func:`uamfleet.env.layout.observation_layout`'s (``self.layout``). With a passenger window
+    :func:`uamfleet.observe.spec.observation_layout`'s (``self.layout``). With a passenger window
     (``EnvConfig.passenger_window``) every field is computed for every passenger of the state (``self.computed``),
-    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.env.window`)."""
+    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.observe.window`)."""
 
     def __init__(self, world: World) -> None:
         cfg = world.cfg
@@ -49,7 +49,7 @@ class Observer:
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
         self.table = table_for(world) if "stop_paths" in self.layout else None
         # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
-        self._observe, self._hover = PreTyped(kernels.observe), PreTyped(kernels.hover_headings)
+        self._observe, self._hover = PreTyped(basic.observe), PreTyped(basic.hover_headings)
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
@@ -71,7 +71,7 @@ class Observer:
 
     def window_rows(self, state: FleetState) -> np.ndarray:
         """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
-        (:mod:`uamfleet.env.window`; needs ``passenger_window``)."""
+        (:mod:`uamfleet.observe.window`; needs ``passenger_window``)."""
         assert self.window is not None
         E, A = state.num_envs, state.num_taxis
         dist = np.full((E, A, self.cfg.num_passengers), np.inf)
@@ -96,12 +96,12 @@ class Observer:
         if "stop_rivals" in obs:
             claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
             rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
-        if not kernels.stop_features(*paths) or (rivals is not None and not kernels.stop_rivals(*rivals)):
+        if not stops.stop_features(*paths) or (rivals is not None and not stops.stop_rivals(*rivals)):
             exists = state.pax_exists
             table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
-            kernels.stop_features(*paths)
+            stops.stop_features(*paths)
             if rivals is not None:
-                kernels.stop_rivals(*rivals)
+                stops.stop_rivals(*rivals)
         depth = self.cfg.lookahead_depth
         if "heading_lookahead" in obs and not heading_lookahead(
             state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
