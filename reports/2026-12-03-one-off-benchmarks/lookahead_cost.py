@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 import uamfleet
-from uamfleet.env.lookahead import heading_lookahead
+from uamfleet.observe.lookahead import heading_lookahead
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import instance_for_policy, split_seeds
 from uamfleet.presets import make_config

@@ -31,10 +31,10 @@ import tyro
 from numba import njit
 
 import uamfleet
-from uamfleet.env import kernels, tours
-from uamfleet.env.kernels import _update_rests
-from uamfleet.env.lookahead import heading_lookahead
-from uamfleet.env.observer import Observer
+from uamfleet.observe import stops, tours
+from uamfleet.observe.tours import _update_rests
+from uamfleet.observe.lookahead import heading_lookahead
+from uamfleet.observe.observer import Observer
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import TableArrays
 from uamfleet.sim.world import WorldArrays
@@ -112,7 +112,7 @@ def snapshots(env: uamfleet.VectorEnv, count: int, every: int) -> list[FleetStat
 
 @njit  # not cached: a cached copy would keep the kernels it was compiled against (stale across checkouts)
 def tour_rests_only(s: FleetState, w: WorldArrays, t: TableArrays) -> int:
-    """Every taxi's tour rests as :func:`kernels.stop_features` brings them up to date (``_update_rests``: the
+    """Every taxi's tour rests as :func:`stops.stop_features` brings them up to date (``_update_rests``: the
     exact DP, or beyond ``MAX_EXACT_STOPS`` stops the nearest-stop order's, when its stops or seats changed);
     returns how many taxis' rests were computed (not kept from an earlier step)."""
     num_pax = s.pax_status.shape[1]
@@ -152,7 +152,7 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
     layout = env.observer.layout
     fields = ("stop_paths", "stop_heading_mask")
     paths = [np.empty((num_envs, num_taxis, *layout[k].shape), layout[k].dtype) for k in fields]
-    whole = _time(kernels.stop_features, states, w, table.arrays, *paths)
+    whole = _time(stops.stop_features, states, w, table.arrays, *paths)
     rests = _time(tour_rests_only, states, w, table.arrays)
     rows: list[tuple[str, float]] = [
         ("stop_features (whole)", whole),
@@ -163,12 +163,12 @@ def breakdown(scenario: str, num_envs: int, num_taxis: int, args: Args) -> None:
         rivals = np.empty((num_envs, num_taxis, *layout["stop_rivals"].shape), np.float32)
         shape = layout["stop_claims"].shape if "stop_claims" in layout else None
         claims = np.empty((num_envs, num_taxis, *shape), np.int8) if shape else np.zeros((0, 0, 0, 0), np.int8)
-        rows.append(("stop_rivals (+ claims)", _time(kernels.stop_rivals, states, w, table.arrays,
+        rows.append(("stop_rivals (+ claims)", _time(stops.stop_rivals, states, w, table.arrays,
                                                      rivals, claims)))  # fmt: skip
     if args.lookahead:
         after = [s.copy() for s in states]  # the kept tours as stop_features leaves them (not timed)
         for s in after:
-            kernels.stop_features(s, w, table.arrays, *paths)
+            stops.stop_features(s, w, table.arrays, *paths)
         look = np.empty((num_envs, num_taxis, NUM_HEADINGS), np.float32)
         rows.append(("heading_lookahead (whole)", _time(heading_lookahead, after, w, table.arrays, look)))
     exact = 0

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from uamfleet.env.layout import layout_to_dict, observation_layout, observation_space
+from uamfleet.observe.spec import layout_to_dict, observation_layout, observation_space
 from uamfleet.presets import make_config
 from uamfleet.rl.checkpoint import Checkpoint, CheckpointError
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs

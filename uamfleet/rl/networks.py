@@ -42,7 +42,7 @@ from gymnasium import spaces
 from torch import nn
 from torch.distributions import Categorical
 
-from uamfleet.env.observer import ObservationShapeError
+from uamfleet.observe.observer import ObservationShapeError
 from uamfleet.rl.encoders import (
     layer_init,
     mlp3,

@@ -1,4 +1,4 @@
-"""The observation spec (:mod:`uamfleet.env.layout`) is the one owner of the observation: the observer's output, its
+"""The observation spec (:mod:`uamfleet.observe.spec`) is the one owner of the observation: the observer's output, its
 space, the normaliser, the policy and both documents (``docs/rules.md``, the ``parallel_env`` docstring) agree
 with it, for every combination of the stop flags and several fleet sizes."""
 
@@ -14,8 +14,8 @@ import pytest
 from conftest import small_config
 
 from uamfleet.config import ConfigError, EnvConfig, Request
-from uamfleet.env import layout as layout_module
-from uamfleet.env.layout import (
+from uamfleet.observe import spec as layout_module
+from uamfleet.observe.spec import (
     ALL_FIELDS,
     FIELD_KIND,
     FieldSpec,

@@ -7,7 +7,7 @@ import pytest
 from conftest import small_config
 
 from uamfleet.config import Request
-from uamfleet.env.observer import PASSENGER_FEATURES
+from uamfleet.observe.observer import PASSENGER_FEATURES
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.sim.world import PATCH_PAD_DB
 

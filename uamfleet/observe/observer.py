@@ -1,4 +1,5 @@
-"""Per-taxi observations and the global state, computed for all envs and taxis at once.
+"""Per-taxi observations, computed for all envs and taxis at once (the global state for centralised critics is
+the simulator's: :func:`uamfleet.sim.core.global_state`).
 
 Positions are relative to the observing taxi and divided by the map side, so they lie in [-1, 1]; SINR is in
 dB relative to the threshold (>= 0 means flyable), clipped to [-30, 30]; visit ratios are the taxi's visits
@@ -11,26 +12,13 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.env import kernels, window
-from uamfleet.env.layout import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
-from uamfleet.env.lookahead import heading_lookahead
+from uamfleet.observe import basic, stops, window
+from uamfleet.observe.lookahead import heading_lookahead
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
 from uamfleet.paths import table_for
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.world import World
-from uamfleet.types import (
-    DELIVERED,
-    HIDDEN,
-    HISTORY_FEATURES,
-    ON_BOARD,
-    OTHER_FEATURES,
-    PASSENGER_FEATURES,
-    SELF_FEATURES,
-    STATE_PASSENGER_FEATURES,
-    STATE_TAXI_FEATURES,
-    STATE_TAXI_INDEX,
-    WAITING,
-    FleetState,
-)
+from uamfleet.types import HISTORY_FEATURES, OTHER_FEATURES, PASSENGER_FEATURES, SELF_FEATURES, FleetState
 
 __all__ = [
     "HISTORY_FEATURES",
@@ -44,10 +32,10 @@ __all__ = [
 
 
 class Observer:
-    """Builds the observation dict ``{name: [E, A, ...] array}`` and the global ``state`` [E, S]; its fields,
-    shapes and dtypes are :func:`uamfleet.env.layout.observation_layout`'s (``self.layout``). With a passenger
-    window (``EnvConfig.passenger_window``) every field is computed for every passenger of the state
-    (``self.computed``), then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.env.window`)."""
+    """Builds the observation dict ``{name: [E, A, ...] array}``; its fields, shapes and dtypes are
+    :func:`uamfleet.observe.spec.observation_layout`'s (``self.layout``). With a passenger window
+    (``EnvConfig.passenger_window``) every field is computed for every passenger of the state (``self.computed``),
+    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.observe.window`)."""
 
     def __init__(self, world: World) -> None:
         cfg = world.cfg
@@ -58,13 +46,10 @@ class Observer:
         self.computed = computed_layout(cfg)  # the layout itself without a window
         self.window = cfg.passenger_window
         self.observation_space = observation_space(self.layout)
-        taxi_size, pax_size = len(STATE_TAXI_FEATURES), len(STATE_PASSENGER_FEATURES)
-        self.state_size = cfg.num_taxis * taxi_size + cfg.num_passengers * pax_size + 1  # + time
-        self.state_space = spaces.Box(-np.inf, np.inf, (self.state_size,), np.float32)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
         self.table = table_for(world) if "stop_paths" in self.layout else None
         # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
-        self._observe, self._hover = PreTyped(kernels.observe), PreTyped(kernels.hover_headings)
+        self._observe, self._hover = PreTyped(basic.observe), PreTyped(basic.hover_headings)
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
@@ -86,7 +71,7 @@ class Observer:
 
     def window_rows(self, state: FleetState) -> np.ndarray:
         """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
-        (:mod:`uamfleet.env.window`; needs ``passenger_window``)."""
+        (:mod:`uamfleet.observe.window`; needs ``passenger_window``)."""
         assert self.window is not None
         E, A = state.num_envs, state.num_taxis
         dist = np.full((E, A, self.cfg.num_passengers), np.inf)
@@ -111,44 +96,17 @@ class Observer:
         if "stop_rivals" in obs:
             claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
             rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
-        if not kernels.stop_features(*paths) or (rivals is not None and not kernels.stop_rivals(*rivals)):
+        if not stops.stop_features(*paths) or (rivals is not None and not stops.stop_rivals(*rivals)):
             exists = state.pax_exists
             table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
-            kernels.stop_features(*paths)
+            stops.stop_features(*paths)
             if rivals is not None:
-                kernels.stop_rivals(*rivals)
+                stops.stop_rivals(*rivals)
         depth = self.cfg.lookahead_depth
         if "heading_lookahead" in obs and not heading_lookahead(
             state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
         ):
             raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
-
-    def state(self, state: FleetState) -> np.ndarray:
-        """[E, S] float32 global state for centralised critics: taxis (x, y, seats, time in episode) and the
-        released passengers (origin, destination, status one-hot, carrier); unreleased rows are zero."""
-        side, cfg = self.world.side_m, self.cfg
-        E, A = state.num_envs, state.num_taxis
-        taxis = np.concatenate(
-            [state.pos_m / side, (state.free_seats / cfg.seats)[..., None], np.zeros((E, A, 1))], axis=-1
-        )  # [E, A, STATE_TAXI_FEATURES]; last column: taxi index / A tells the taxis apart
-        taxis[..., STATE_TAXI_INDEX] = np.arange(A) / A
-        status = state.pax_status
-        visible = ((status != HIDDEN) & state.pax_exists)[..., None]
-        pax = (
-            np.concatenate(
-                [
-                    state.pax_origin_m / side,
-                    state.pax_dest_m / side,
-                    status[..., None] == np.array([WAITING, ON_BOARD, DELIVERED]),
-                    ((state.pax_taxi + 1) / A)[..., None],
-                    ((state.t[:, None] - state.pax_release) / cfg.time_limit_steps)[..., None],
-                ],
-                axis=-1,
-            )
-            * visible
-        )  # [E, P, STATE_PASSENGER_FEATURES]
-        time = np.minimum(state.t / cfg.time_limit_steps, 1.0)[:, None]
-        return np.concatenate([taxis.reshape(E, -1), pax.reshape(E, -1), time], axis=-1).astype(np.float32)
 
 
 class ObservationShapeError(ValueError):

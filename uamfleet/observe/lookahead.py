@@ -4,8 +4,8 @@ observation field (``EnvConfig.heading_lookahead``; docs/rules.md "Observation")
 For each allowed heading h of taxi a, the move's end q_h is served as the step would serve it (drop-offs of a's
 riders within the pick-up radius, then the lowest-index waiting passengers within it while a seat is free; other
 taxis are not simulated), and the cost of h is the move plus the shortest tour from q_h through every stop a still
-knows of afterwards (:func:`uamfleet.env.tours._shortest_rests` over the stops left, exact up to
-:data:`~uamfleet.env.tours.MAX_EXACT_STOPS`, else the nearest-stop order). The field holds each heading's cost
+knows of afterwards (:func:`uamfleet.observe.tours._shortest_rests` over the stops left, exact up to
+:data:`~uamfleet.observe.tours.MAX_EXACT_STOPS`, else the nearest-stop order). The field holds each heading's cost
 minus the cheapest heading's, in moves (``step_m``), clipped to :data:`~uamfleet.types.LOOKAHEAD_CLIP`; a heading
 that is not allowed reads the clip; a taxi with no stop to fly to reads zeros.
 
@@ -23,8 +23,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from uamfleet.env.kernels import StopRows, _nearest_rests, prepare_moves
-from uamfleet.env.tours import _shortest_rests
+from uamfleet.observe.moves import StopRows, prepare_moves
+from uamfleet.observe.tours import _nearest_rests, _shortest_rests
 from uamfleet.paths.distance_table import (
     Corners,
     TableArrays,
@@ -44,7 +44,7 @@ def heading_lookahead(
     s: FleetState, w: WorldArrays, t: TableArrays, o_look: np.ndarray, depth: int = 1
 ) -> bool:  # fmt: skip
     """Write ``o_look`` [E, A, 16] (module docstring). The taxis' kept tour rests (``s.stop_tour_m``) must be up to
-    date: call after :func:`uamfleet.env.kernels.stop_features` has succeeded. ``depth`` 2 costs each heading by its
+    date: call after :func:`uamfleet.observe.stops.stop_features` has succeeded. ``depth`` 2 costs each heading by its
     move plus the best allowed second move from its end and the tour after both (:func:`_two_move_costs`). Returns
     False when a table row it reads is not computed yet (the caller fills the rows and calls again)."""
     num_envs, num_taxis = s.free_seats.shape
@@ -140,7 +140,7 @@ class _Scratch(NamedTuple):
     served_undo: np.ndarray  # [16, P] each distinct served set met at this taxi (its undo record) ...
     served_rests: np.ndarray  # [16, 2P] ... the tour rests after it ...
     served_found: np.ndarray  # [16] ... and what computing them returned (1, 0: a table row missing)
-    moves: Corners  # the look-ups from the taxi's 16 move ends, prepared (:func:`uamfleet.env.kernels.prepare_moves`)
+    moves: Corners  # the look-ups from the taxi's 16 move ends, prepared (:func:`uamfleet.observe.moves.prepare_moves`)
     stop_corners: Corners  # ... and towards the offered stops, in the order of ``stops``
 
 
@@ -228,7 +228,7 @@ def _heading_costs(
 
 @njit(cache=True)
 def _rests_after_serving(s: FleetState, e: int, a: int, pts: np.ndarray, t: TableArrays, out: np.ndarray) -> int:
-    """Taxi a's tour rests in the (served) state into ``out``, as :func:`uamfleet.env.kernels.stop_features` keeps
+    """Taxi a's tour rests in the (served) state into ``out``, as :func:`uamfleet.observe.stops.stop_features` keeps
     them: exact, else the nearest-stop order's. 1, or 0 when a table row is missing."""
     memo = s.stop_pair_m[e]
     found = _shortest_rests(s, e, a, memo, pts, t, out)

@@ -12,9 +12,9 @@ Because the claims rank the same pairs by the same distance, a taxi's claimed re
 in its window when K >= seats + A - 1 (A taxis): only its riders (at most seats - 1 while it has a free seat) and
 requests claimed by other taxis (at most A - 1) can rank before it.
 
-The observer computes every field for every passenger of the state (:func:`uamfleet.env.layout.computed_layout`),
+The observer computes every field for every passenger of the state (:func:`uamfleet.observe.spec.computed_layout`),
 then picks each taxi's rows of every field with a passenger axis
-(:data:`uamfleet.env.layout.PASSENGER_AXIS_FIELDS`) with :func:`take_rows`; the rows' values are those of the full
+(:data:`uamfleet.observe.spec.PASSENGER_AXIS_FIELDS`) with :func:`take_rows`; the rows' values are those of the full
 observation (so ``tour_via_stop`` and ``heading_lookahead`` still count every stop the taxi knows of).
 """
 

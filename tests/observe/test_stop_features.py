@@ -10,7 +10,10 @@ import pytest
 
 from tests.conftest import drawn_map, small_config
 from uamfleet.config import ConfigError, DemandConfig, Request
-from uamfleet.env import kernels, tours
+from uamfleet.observe import tours
+from uamfleet.observe.moves import _progress_heading
+from uamfleet.observe.stops import stop_features
+from uamfleet.sim.motion import action_mask
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import table_for
@@ -412,10 +415,10 @@ def test_progress_heading_equals_costing_every_move_in_order() -> None:
     mask = np.empty((1, NUM_HEADINGS), bool)
     ties = 0
     for pos, goal in cases:
-        kernels.action_mask(pos[None], world.arrays, mask)
+        action_mask(pos[None], world.arrays, mask)
         for allowed in (mask[0], mask[0] & (rng.random(NUM_HEADINGS) < 0.5)):
             expected = _costing_every_move(world, table, allowed, pos[0], pos[1], goal[0], goal[1])
-            got = kernels._progress_heading(allowed, world.arrays, table.arrays, *pos, *goal)
+            got = _progress_heading(allowed, world.arrays, table.arrays, *pos, *goal)
             assert got == expected, (pos, goal, allowed)
         ends = pos + world.moves_m[mask[0]]
         ties += int((np.linalg.norm(ends - goal, axis=-1) <= radius).sum() > 1)
@@ -441,7 +444,7 @@ def test_kept_tour_rests_equal_rests_computed_afresh_every_step(num_taxis: int) 
         fresh.stop_tour_key[:] = -1
         fresh.stop_tour_m[:] = np.nan
         paths, heading = np.empty_like(obs["stop_paths"]), np.empty_like(obs["stop_heading_mask"])
-        assert kernels.stop_features(fresh, env.world.arrays, table.arrays, paths, heading)
+        assert stop_features(fresh, env.world.arrays, table.arrays, paths, heading)
         np.testing.assert_array_equal(obs["stop_paths"], paths)
         np.testing.assert_array_equal(obs["stop_heading_mask"], heading)
     many = [tours._pending_stops(env.state, e, a, np.empty(12, np.int64), np.empty(12, np.int64)) < 0

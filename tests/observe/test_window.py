@@ -1,4 +1,4 @@
-"""The passenger window (``EnvConfig.passenger_window``, :mod:`uamfleet.env.window`): each taxi observes its riders,
+"""The passenger window (``EnvConfig.passenger_window``, :mod:`uamfleet.observe.window`): each taxi observes its riders,
 then its nearest waiting requests, K rows; the rows are the full observation's rows of those passengers. The rule is
 checked here against a direct computation written from docs/rules.md, on a drawn map whose wall makes the
 feasible-path order differ from the straight-line one."""
@@ -14,8 +14,8 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import ConfigError, EnvConfig, Request
-from uamfleet.env import layout as layout_module
-from uamfleet.env.layout import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout
+from uamfleet.observe import spec as layout_module
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
 from uamfleet.rl.policy import GreedyPolicy

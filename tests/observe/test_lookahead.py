@@ -1,4 +1,4 @@
-"""The ``heading_lookahead`` field (uamfleet/env/lookahead.py) against the env's own step: each heading flown in a
+"""The ``heading_lookahead`` field (uamfleet/observe/lookahead.py) against the env's own step: each heading flown in a
 copy of the env over the requests known so far, costed as the move plus the shortest tour the copy then observes."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from numba import njit
 
 from uamfleet.baselines.step_planner import released_only
 from uamfleet.config import ConfigError
-from uamfleet.env import lookahead
-from uamfleet.env.kernels import StopRows
+from uamfleet.observe import lookahead
+from uamfleet.observe.moves import StopRows
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths.distance_table import TableArrays
 from uamfleet.presets import make_config

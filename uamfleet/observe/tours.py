@@ -1,7 +1,8 @@
 """The shortest tours behind the stop features (compiled): for a taxi, the length of the rest of the shortest tour
 through every stop it knows of after flying to each one first — an exact dynamic programme over subsets of its pending
 stops (up to :data:`MAX_EXACT_STOPS`), else the nearest-stop order — and the keys that say when a taxi's kept tours
-are still valid. :func:`uamfleet.env.kernels.stop_features` is their only caller (docs/rules.md, "Observation")."""
+are still valid (:func:`_update_rests`). :func:`uamfleet.observe.stops.stop_features` and the look-ahead
+(:mod:`uamfleet.observe.lookahead`) are their callers (docs/rules.md, "Observation")."""
 
 from __future__ import annotations
 
@@ -248,3 +249,54 @@ def _nearest_stop_tour(dist: np.ndarray, stops: np.ndarray, pending: np.ndarray,
             seats -= 1
         else:
             seats += 1
+
+
+@njit(cache=True)
+def _update_rests(
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays,
+) -> int:  # fmt: skip
+    """Bring taxi a's tour rests (``s.stop_tour_m``) up to date: the exact shortest ones, or beyond
+    :data:`MAX_EXACT_STOPS` pending stops the nearest-stop order's (:func:`_nearest_stop_tour`) of every stop
+    the taxi's rows offer. Both change only when a stop or seat does, so they are kept in the state under the key
+    of what they were computed for. 1: the rests are in the state; -1: a table row is missing."""
+    key = _pending_key(s.pax_exists, s.pax_status, s.pax_taxi, s.free_seats, e, a)
+    if s.stop_tour_key[e, a] == key:
+        return 1
+    found = _shortest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a])
+    if found == 0:
+        return -1
+    if found == -1 and not _nearest_rests(s, e, a, memo, pts, t, s.stop_tour_m[e, a]):
+        s.stop_tour_key[e, a] = -1
+        return -1
+    s.stop_tour_key[e, a] = key
+    return 1
+
+
+@njit(cache=True)
+def _nearest_rests(
+    s: FleetState, e: int, a: int, memo: np.ndarray, pts: np.ndarray, t: TableArrays, out: np.ndarray,
+) -> bool:  # fmt: skip
+    """out[point] = :func:`_nearest_stop_tour` after each stop taxi a's rows offer
+    (:func:`uamfleet.sim.world.row_stop`: its riders' destinations, the waiting passengers' origins while a seat is
+    free); False when a table row is missing. The distances between the taxi's stops are read from the memo once,
+    into a local matrix every tour scans."""
+    num_pax = s.pax_status.shape[1]
+    stops = np.empty(2 * num_pax, np.int64)
+    pending = np.empty(2 * num_pax, np.int8)
+    m = 0
+    for p in range(num_pax):
+        if s.pax_status[e, p] == WAITING and s.pax_exists[e, p]:
+            stops[m], pending[m], stops[m + 1], pending[m + 1] = 2 * p, 1, 2 * p + 1, 0
+            m += 2
+        elif s.pax_status[e, p] == ON_BOARD and s.pax_exists[e, p] and s.pax_taxi[e, p] == a:
+            stops[m], pending[m] = 2 * p + 1, 1
+            m += 1
+    dist = np.empty((m, m))
+    if not _stop_distances(memo, pts, stops, m, t, dist):
+        return False
+    todo = np.empty(m, np.int64)  # scratch of the tours (:func:`_nearest_stop_tour`)
+    seats = s.free_seats[e, a]
+    for k in range(m):
+        if pending[k] and (stops[k] % 2 == 1 or seats > 0):  # an offered stop (row_stop)
+            out[stops[k]] = _nearest_stop_tour(dist, stops[:m], pending, k, seats, todo)
+    return True

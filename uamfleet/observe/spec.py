@@ -4,7 +4,7 @@ how a learner treats each (:func:`observation_layout`).
 Everything else reads it: the observer allocates its arrays and builds its ``spaces.Dict`` from it, the kernels
 write columns through the ``uamfleet.types`` indices named by its ``columns``, the normaliser reads ``kind``, a
 policy learns its shapes from it (no env needed), and ``docs/rules.md`` and the ``parallel_env`` docstring are
-tested against it (``tests/env/test_layout.py``). A field's presence depends on config flags only, never on the
+tested against it (``tests/observe/test_layout.py``). A field's presence depends on config flags only, never on the
 fleet size (the fleet size sets the length of ``others``).
 
 A pure function of the config: no world, distance table or env is built.
@@ -78,7 +78,7 @@ def observation_layout(cfg: EnvConfig) -> Layout:
     that name.
 
     The passenger axis P (of ``passengers``, ``passenger_mask`` and the stop fields, :data:`PASSENGER_AXIS_FIELDS`)
-    is ``cfg.passenger_window`` when set (each taxi's nearest active requests, :mod:`uamfleet.env.window`), else
+    is ``cfg.passenger_window`` when set (each taxi's nearest active requests, :mod:`uamfleet.observe.window`), else
     every passenger of the episode (``cfg.num_passengers``)."""
     return _layout_of(cfg, cfg.observed_passengers)
 
@@ -134,7 +134,7 @@ _EVERY_FIELD = _layout(1, 1, 1, 1, stops=True, rivals=True, claims=True, lookahe
 PASSENGER_AXIS_FIELDS: tuple[str, ...] = ("passengers", "passenger_mask", "stop_paths", "stop_heading_mask",
                                           "stop_rivals", "stop_claims")  # fmt: skip
 """The fields whose first axis is the passenger axis (row p: one passenger): the passenger window picks their rows
-together (``tests/env/test_window.py`` checks this is every field whose shape follows P)."""
+together (``tests/observe/test_window.py`` checks this is every field whose shape follows P)."""
 ALL_FIELDS: tuple[str, ...] = tuple(_EVERY_FIELD)
 """Every field any config observes, in :func:`observation_layout`'s order."""
 FIELD_KIND: dict[str, FieldKind] = {name: spec.kind for name, spec in _EVERY_FIELD.items()}
