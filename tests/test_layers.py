@@ -62,6 +62,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",
             "uamfleet.zoo",
+            "uamfleet.policies",
         ),
     ),
     (9, ("uamfleet.viz",)),
