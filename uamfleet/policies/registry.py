@@ -196,6 +196,18 @@ def format_value(value: Any) -> str:
     return str(value) if not isinstance(value, float) else repr(value)
 
 
+def markdown_table() -> str:
+    """The registry as a Markdown table: each policy's name, kind and options with their defaults (the table of
+    ``docs/policies.md``)."""
+    lines = ["| name | kind | options (defaults) |", "|---|---|---|"]
+    for name, e in _REGISTRY.items():
+        given = [f"`{f.name}={format_value(f.default)}`" for f in dataclasses.fields(e.options)]
+        if e.kind == "search":
+            given.append("`(BASE)`")
+        lines.append(f"| `{name}` | {e.kind} | {', '.join(given) or 'none'} |")
+    return "\n".join(lines)
+
+
 def make(name: str, **options: Any) -> Any:
     """The policy ``name`` (:func:`available`) with ``options`` (its options dataclass's fields; a search wrapper
     also takes ``base``: a policy, a ``(name, options)`` pair or a name, default :data:`DEFAULT_BASE`)."""
@@ -226,6 +238,7 @@ __all__ = [
     "entry",
     "format_value",
     "make",
+    "markdown_table",
     "options_of",
     "register",
 ]
