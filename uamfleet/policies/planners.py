@@ -133,10 +133,11 @@ class ValueBatchOptions(BatchOptions):
 
 
 def value_path(value: str | None) -> Path | None:
-    """The value file of ``value``: a file as given, a stem in :data:`REFIT_VALUES`, None for the shipped one."""
+    """The value file of ``value``: a path as given (one with a folder or a suffix), else a stem in
+    :data:`REFIT_VALUES`; None for the shipped one."""
     if value is None:
         return None
-    if Path(value).is_file():
+    if Path(value).is_file() or Path(value).suffix or len(Path(value).parts) > 1:  # a file: its reader says if missing
         return Path(value)
     stem = REFIT_VALUES / f"{value}.json"
     if not stem.is_file():
