@@ -79,7 +79,7 @@ def _read_options(text: str, head: str) -> tuple[str, dict[str, str]]:
     for item in tail.split(",") if colon else ():
         key, eq, value = item.partition("=")
         if not eq or not _PLAIN.fullmatch(key) or not _PLAIN.fullmatch(value.replace(";", "x") or "="):
-            raise _fail(text, f"{item!r} is no OPTION=VALUE; write e.g. {name}:beam=64 (values without , ( ) =).")
+            raise _fail(text, f"{item!r} is no OPTION=VALUE; write {name}:OPTION=VALUE,... (values without , ( ) =).")
         if key in given:
             raise _fail(text, f"option {key!r} given twice; give each option once.")
         given[key] = value
