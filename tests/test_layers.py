@@ -65,6 +65,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",
             "uamfleet.zoo",
+            "uamfleet.policies",
         ),
     ),
     (10, ("uamfleet.viz",)),
