@@ -65,6 +65,9 @@ TABLES = Path("docs/results/tables.toml")
 BEGIN, END = "<!-- docs-tables:begin {} -->", "<!-- docs-tables:end {} -->"
 """The lines that open and close a generated table in a Markdown file."""
 
+REFRESH_HINT = "run `uamfleet docs-tables` to refresh the results pages (docs/results.md, README.md) from the CSVs"
+"""The line a results command prints after writing its CSV: the pages are generated from the CSVs, not by it."""
+
 Value = float | str
 
 
@@ -216,7 +219,9 @@ def table_of(name: str, spec: Any) -> Table:
     if "parts" in spec:
         return Table(name=name, csv=(), columns=(), parts=_parts(spec, where))
     paths = _csv_paths(spec, where)
-    columns = _column_specs(spec, where)
+    columns = spec.get("columns", [])
+    if not isinstance(columns, list) or not columns:
+        raise TablesError(f"{where}.columns: give a list of at least one column {{title = ..., value = ...}}.")
     refs = _ref_specs(spec, where)
     labels = _labels(spec, where)
     pivot = _pivot(spec, where)
@@ -256,14 +261,6 @@ def _csv_paths(spec: dict[str, Any], where: str) -> tuple[str, ...]:
     if not paths or not all(isinstance(p, str) for p in paths):
         raise TablesError(f"{where}.csv: {spec.get('csv')!r} names no CSV file; give a path or a list of paths.")
     return tuple(paths)
-
-
-def _column_specs(spec: dict[str, Any], where: str) -> list[Any]:
-    """The entry's ``columns``: a list of at least one column (each checked by :func:`_column`)."""
-    columns = spec.get("columns", [])
-    if not isinstance(columns, list) or not columns:
-        raise TablesError(f"{where}.columns: give a list of at least one column {{title = ..., value = ...}}.")
-    return columns
 
 
 def _ref_specs(spec: dict[str, Any], where: str) -> dict[str, dict[str, Any]]:
@@ -426,7 +423,9 @@ def render(table: Table, root: Path = ROOT, tables: dict[str, Table] | None = No
             raise TablesError(f"tables.{table.name} is made of parts; render it with the tables that define them.")
         return "\n\n".join(render(tables[part], root) for part in table.parts)
     rows = _selected_rows(table, root)
-    groups = _groups(table, rows, table.group_by) if table.group_by else {(i,): [r] for i, r in enumerate(rows)}
+    groups: dict[tuple[Value, ...], list] = (
+        _groups(table, rows, table.group_by) if table.group_by else {(i,): [r] for i, r in enumerate(rows)}
+    )
     pivots = _pivots(table, rows)
     out = ["```bash", table.command, "```", ""] if table.command else []
     out += _header(table, pivots)
