@@ -65,6 +65,9 @@ TABLES = Path("docs/results/tables.toml")
 BEGIN, END = "<!-- docs-tables:begin {} -->", "<!-- docs-tables:end {} -->"
 """The lines that open and close a generated table in a Markdown file."""
 
+REFRESH_HINT = "run `uamfleet docs-tables` to refresh the results pages (docs/results.md, README.md) from the CSVs"
+"""The line a results command prints after writing its CSV: the pages are generated from the CSVs, not by it."""
+
 Value = float | str
 
 
@@ -214,17 +217,54 @@ def table_of(name: str, spec: Any) -> Table:
     if unknown := set(spec) - _TABLE_KEYS:
         raise TablesError(f"{where}: unknown key(s) {sorted(unknown)}; the keys are {sorted(_TABLE_KEYS)}.")
     if "parts" in spec:
-        parts = spec["parts"]
-        if not isinstance(parts, list) or not parts or not all(isinstance(p, str) for p in parts) or len(spec) > 1:
-            raise TablesError(f"{where}: parts = {parts!r} must be a list of table names and the entry's only key.")
-        return Table(name=name, csv=(), columns=(), parts=tuple(parts))
+        return Table(name=name, csv=(), columns=(), parts=_parts(spec, where))
+    paths = _csv_paths(spec, where)
+    columns = spec.get("columns", [])
+    if not isinstance(columns, list) or not columns:
+        raise TablesError(f"{where}.columns: give a list of at least one column {{title = ..., value = ...}}.")
+    refs = _ref_specs(spec, where)
+    labels = _labels(spec, where)
+    pivot = _pivot(spec, where)
+    group_by = tuple(spec.get("group_by", ()))
+    return Table(
+        name=name,
+        csv=paths,
+        columns=tuple(_column(c, f"{where}.columns[{i}]") for i, c in enumerate(columns)),
+        where=Expression.parse(spec["where"], f"{where}.where") if "where" in spec else None,
+        group_by=group_by,
+        order=tuple(spec["order"]) if isinstance(spec.get("order"), list) else None,
+        sort=_sort(spec.get("order"), group_by, where),
+        refs=tuple(
+            (n, Expression.parse(r["where"], f"{where}.refs.{n}.where"), tuple(r["on"])) for n, r in refs.items()
+        ),
+        labels=labels,
+        pivot=pivot,
+        pivot_order=tuple(spec["pivot_order"]) if "pivot_order" in spec else None,
+        cell=_column(spec["cell"], f"{where}.cell", title="") if pivot is not None else None,
+        command=str(spec.get("command", "")),
+        note=str(spec.get("note", "")),
+    )
+
+
+def _parts(spec: dict[str, Any], where: str) -> tuple[str, ...]:
+    """The table names of a ``parts = [...]`` entry (its only key)."""
+    parts = spec["parts"]
+    if not isinstance(parts, list) or not parts or not all(isinstance(p, str) for p in parts) or len(spec) > 1:
+        raise TablesError(f"{where}: parts = {parts!r} must be a list of table names and the entry's only key.")
+    return tuple(parts)
+
+
+def _csv_paths(spec: dict[str, Any], where: str) -> tuple[str, ...]:
+    """The entry's ``csv``: one path or a list of paths."""
     paths = spec.get("csv")
     paths = [paths] if isinstance(paths, str) else paths
     if not paths or not all(isinstance(p, str) for p in paths):
         raise TablesError(f"{where}.csv: {spec.get('csv')!r} names no CSV file; give a path or a list of paths.")
-    columns = spec.get("columns", [])
-    if not isinstance(columns, list) or not columns:
-        raise TablesError(f"{where}.columns: give a list of at least one column {{title = ..., value = ...}}.")
+    return tuple(paths)
+
+
+def _ref_specs(spec: dict[str, Any], where: str) -> dict[str, dict[str, Any]]:
+    """The entry's ``refs`` with its ``ref`` under the name ``ref``, each holding a ``where`` and an ``on``."""
     refs = dict(spec.get("refs", {}))
     if "ref" in spec:
         refs["ref"] = spec["ref"]
@@ -233,30 +273,23 @@ def table_of(name: str, spec: Any) -> Table:
             raise TablesError(
                 f'{where}.refs.{ref_name}: write {{where = "method == \'best_known\'", on = ["instance"]}}.'
             )
+    return refs
+
+
+def _labels(spec: dict[str, Any], where: str) -> tuple[tuple[str, str], ...]:
+    """The entry's ``labels`` as (value, text) pairs."""
     labels = spec.get("labels", {})
     if not isinstance(labels, dict):
         raise TablesError(f'{where}.labels: write labels = {{value = "text"}}.')
+    return tuple((str(k), str(v)) for k, v in labels.items())
+
+
+def _pivot(spec: dict[str, Any], where: str) -> str | None:
+    """The entry's ``pivot`` column, which comes with a ``cell`` (or neither is given)."""
     pivot = spec.get("pivot")
     if (pivot is None) != ("cell" not in spec):
         raise TablesError(f"{where}: pivot and cell go together; give both (or neither).")
-    return Table(
-        name=name,
-        csv=tuple(paths),
-        columns=tuple(_column(c, f"{where}.columns[{i}]") for i, c in enumerate(columns)),
-        where=Expression.parse(spec["where"], f"{where}.where") if "where" in spec else None,
-        group_by=tuple(spec.get("group_by", ())),
-        order=tuple(spec["order"]) if isinstance(spec.get("order"), list) else None,
-        sort=_sort(spec.get("order"), tuple(spec.get("group_by", ())), where),
-        refs=tuple(
-            (n, Expression.parse(r["where"], f"{where}.refs.{n}.where"), tuple(r["on"])) for n, r in refs.items()
-        ),
-        labels=tuple((str(k), str(v)) for k, v in labels.items()),
-        pivot=pivot,
-        pivot_order=tuple(spec["pivot_order"]) if "pivot_order" in spec else None,
-        cell=_column(spec["cell"], f"{where}.cell", title="") if pivot is not None else None,
-        command=str(spec.get("command", "")),
-        note=str(spec.get("note", "")),
-    )
+    return pivot
 
 
 def _sort(order: Any, group_by: tuple[str, ...], where: str) -> tuple[tuple[int, tuple[Value, ...]], ...]:
@@ -389,6 +422,21 @@ def render(table: Table, root: Path = ROOT, tables: dict[str, Table] | None = No
         if tables is None:
             raise TablesError(f"tables.{table.name} is made of parts; render it with the tables that define them.")
         return "\n\n".join(render(tables[part], root) for part in table.parts)
+    rows = _selected_rows(table, root)
+    groups: dict[tuple[Value, ...], list] = (
+        _groups(table, rows, table.group_by) if table.group_by else {(i,): [r] for i, r in enumerate(rows)}
+    )
+    pivots = _pivots(table, rows)
+    out = ["```bash", table.command, "```", ""] if table.command else []
+    out += _header(table, pivots)
+    out += ["| " + " | ".join(_line(table, groups[key], pivots)) + " |" for key in _line_keys(table, groups)]
+    if table.note:
+        out += ["", table.note]
+    return "\n".join(out)
+
+
+def _selected_rows(table: Table, root: Path) -> list[dict[str, Value]]:
+    """The rows of the table's CSV files, with their reference rows, that pass its ``where`` (at least one)."""
     rows = _with_refs(table, read_rows(table.csv, root))
     if table.where is not None:
         try:
@@ -397,35 +445,44 @@ def render(table: Table, root: Path = ROOT, tables: dict[str, Table] | None = No
             raise TablesError(f"tables.{table.name}.where: {err}; name one of the CSV's columns.") from None
     if not rows:
         raise TablesError(f"tables.{table.name}: no row of {', '.join(table.csv)} passes its where; fix the filter.")
-    groups = _groups(table, rows, table.group_by) if table.group_by else {(i,): [r] for i, r in enumerate(rows)}
-    lines_keys = _ordered(groups, table.order, lambda k: k[0])
+    return rows
+
+
+def _line_keys(table: Table, groups: dict[tuple[Value, ...], list]) -> list[tuple[Value, ...]]:
+    """The groups' keys in the table's ``order`` (or as they first appear), kept and sorted by its ``sort``."""
+    keys = _ordered(groups, table.order, lambda k: k[0])
     for index, values in table.sort:
-        lines_keys = [k for k in lines_keys if k[index] in values]
-    lines_keys.sort(key=lambda k: tuple(values.index(k[i]) for i, values in table.sort))
+        keys = [k for k in keys if k[index] in values]
+    keys.sort(key=lambda k: tuple(values.index(k[i]) for i, values in table.sort))
+    return keys
+
+
+def _pivots(table: Table, rows: list[dict[str, Value]]) -> list[Value]:
+    """The values of the pivot column that become columns (none without a pivot)."""
+    if table.pivot is None or table.cell is None:
+        return []
+    seen = dict.fromkeys(_key(r, (table.pivot,), table.name)[0] for r in rows)
+    return _ordered(seen, table.pivot_order, lambda v: v)
+
+
+def _header(table: Table, pivots: list[Value]) -> list[str]:
+    """The title line and the alignment line, the pivot's columns after the table's own."""
     titles = [c.title for c in table.columns]
     aligns = [c.align for c in table.columns]
-    pivots: list[Value] = []
-    if table.pivot is not None and table.cell is not None:
-        pivots = _ordered(dict.fromkeys(_key(r, (table.pivot,), table.name)[0] for r in rows), table.pivot_order,
-                          lambda v: v)  # fmt: skip
+    if table.cell is not None:
         titles += [_format(v, table.cell) if not isinstance(v, str) else v for v in pivots]
         aligns += [table.cell.align] * len(pivots)
-    out = []
-    if table.command:
-        out += ["```bash", table.command, "```", ""]
-    out += ["| " + " | ".join(titles) + " |", "|" + "|".join("---:" if a == "right" else "---" for a in aligns) + "|"]
-    for key in lines_keys:
-        sel = groups[key]
-        labels = dict(table.labels)
-        cells = [_cell(c, sel, table.name) for c in table.columns]
-        cells = [labels.get(x, x) if c.agg == "first" else x for c, x in zip(table.columns, cells, strict=True)]
-        if table.pivot is not None and table.cell is not None:
-            for v in pivots:
-                cells.append(_cell(table.cell, [r for r in sel if r[table.pivot] == v], table.name))
-        out.append("| " + " | ".join(cells) + " |")
-    if table.note:
-        out += ["", table.note]
-    return "\n".join(out)
+    return ["| " + " | ".join(titles) + " |", "|" + "|".join("---:" if a == "right" else "---" for a in aligns) + "|"]
+
+
+def _line(table: Table, rows: list[dict[str, Value]], pivots: list[Value]) -> list[str]:
+    """The cells of one line: each column's (a ``first`` one through the labels), then each pivot value's."""
+    labels = dict(table.labels)
+    cells = [_cell(c, rows, table.name) for c in table.columns]
+    cells = [labels.get(x, x) if c.agg == "first" else x for c, x in zip(table.columns, cells, strict=True)]
+    if table.pivot is not None and table.cell is not None:
+        cells += [_cell(table.cell, [r for r in rows if r[table.pivot] == v], table.name) for v in pivots]
+    return cells
 
 
 # ---- pages ----
