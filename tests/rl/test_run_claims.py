@@ -37,7 +37,7 @@ def exit_status(cli, argv: list[str]) -> int:
 def tiny(run_dir: Path, **overrides) -> TrainArgs:
     fields = dict(run_dir=run_dir, run_name="r", total_timesteps=64, num_envs=1, num_steps=64, progress=False,
                   tensorboard=False, device="cpu")  # fmt: skip
-    return TrainArgs(**{**fields, **overrides})
+    return TrainArgs.from_flat({**fields, **overrides})
 
 
 def test_of_many_concurrent_claims_of_one_name_exactly_one_wins(tmp_path):

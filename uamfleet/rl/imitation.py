@@ -307,10 +307,10 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
     ckpt = Checkpoint.load(init)
     source_args = checkpoint_args(ckpt)
     if args.lookahead:
-        source_args = dataclasses.replace(source_args, heading_lookahead=True, lookahead_depth=args.lookahead_depth)
+        source_args = source_args.with_options(heading_lookahead=True, lookahead_depth=args.lookahead_depth)
     prior, _ = load_policy(init)
     policy = with_heading_residual(prior, lookahead=args.lookahead, lookahead_rule=args.lookahead_rule)
-    family = family_of(source_args.scenario)
+    family = family_of(source_args.env.scenario)
     eval_like = run_config(source_args, training=False)
     groups = _groups(args, run_config(source_args, training=True), family)
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
