@@ -8,9 +8,11 @@ from pathlib import Path
 
 import pytest
 
+from uamfleet.cli import imitate as imitate_cli
 from uamfleet.cli import train as train_cli
 from uamfleet.config import ConfigError
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, pretrained_path
+from uamfleet.rl.imitation import ImitationArgs
 from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.options import GROUPS, TrainArgs
 
@@ -82,3 +84,23 @@ def test_the_command_line_fills_the_groups(monkeypatch) -> None:
     assert args.flat() == TrainArgs.from_flat(dict(scenario="berlin_instances", learning_rate=3e-4, anneal_lr=False,
                                             heading_lookahead=True, eval_instances=5, run_name="x",
                                             thresholds=(-7.0, -3.0))).flat()  # fmt: skip
+
+
+def test_the_imitation_options_share_the_trainers_group_names_and_read_flat(capsys, monkeypatch) -> None:
+    groups = [f.name for f in dataclasses.fields(ImitationArgs)]
+    assert groups == ["env", "observer", "net", "expert", "fit", "eval", "run"]
+    assert ImitationArgs().eval.eval_instances == 50 and ImitationArgs().run.run_name == "berlin_imitation"
+    args = ImitationArgs.from_flat(dict(thresholds=[-5, -3], lookahead=True, lookahead_depth=2, expert_beam=8, seed=4))
+    assert (args.env.thresholds, args.observer.lookahead_depth, args.expert.expert_beam, args.fit.seed) == (
+        (-5.0, -3.0), 2, 8, 4,
+    )  # fmt: skip
+    assert ImitationArgs.from_flat(args.flat()) == args and len(args.flat()) == 30
+    with pytest.raises(ConfigError, match="--lookahead-depth=2 is the look-ahead's depth"):
+        ImitationArgs.from_flat({"lookahead_depth": 2})
+    with pytest.raises(ConfigError, match=r"\['beam'\] are no options of ImitationArgs"):
+        ImitationArgs.from_flat({"beam": 2})
+    monkeypatch.setenv("COLUMNS", "100")
+    with pytest.raises(SystemExit):
+        imitate_cli.cli(["--help"])
+    out = capsys.readouterr().out
+    assert out.index("expert options") < out.index("--expert-beam") < out.index("fit options") < out.index("--epochs")
