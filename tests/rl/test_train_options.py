@@ -40,7 +40,7 @@ def test_every_option_lies_in_one_group_and_the_flat_dict_reads_back() -> None:
 
 
 def test_a_flat_dict_with_an_unknown_option_is_refused_by_name() -> None:
-    with pytest.raises(ConfigError, match=r"\['learning_rat'\] are no training options"):
+    with pytest.raises(ConfigError, match=r"\['learning_rat'\] are no options of TrainArgs"):
         TrainArgs.from_flat({"learning_rat": 1e-3})
     with pytest.raises(ConfigError, match=r"--learning-rate=-1\.0 is out of range"):
         TrainArgs.from_flat({"learning_rate": -1.0})  # the checks run on the grouped options

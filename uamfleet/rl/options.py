@@ -270,15 +270,7 @@ class TrainArgs:
     def from_flat(cls, flat: Mapping[str, Any]) -> TrainArgs:
         """The options of a flat dict (as :meth:`flat` gives and a checkpoint stores; options it lacks take their
         defaults); ConfigError naming any key that is no option."""
-        unknown = sorted(set(flat) - set(GROUP_OF))
-        if unknown:
-            raise ConfigError(
-                f"{unknown} are no training options; give only options of TrainArgs (e.g. learning_rate), by name."
-            )
-        grouped: dict[str, dict[str, Any]] = {group: {} for group in GROUPS}
-        for name, value in flat.items():
-            grouped[GROUP_OF[name]][name] = value
-        return cls(**{group: GROUPS[group](**values) for group, values in grouped.items()})
+        return grouped_from_flat(cls, flat)
 
     @classmethod
     def from_saved(cls, saved: Mapping[str, Any]) -> TrainArgs:
@@ -295,9 +287,7 @@ class TrainArgs:
         return TrainArgs.from_flat({**self._values(), **options})
 
     def _values(self) -> dict[str, Any]:
-        return {
-            f.name: getattr(getattr(self, group), f.name) for group in GROUPS for f in dataclasses.fields(GROUPS[group])
-        }
+        return flat_options(self)
 
     def _get(self, name: str) -> Any:
         return getattr(getattr(self, GROUP_OF[name]), name)
