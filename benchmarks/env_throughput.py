@@ -117,27 +117,41 @@ def main(args: Args) -> None:
             rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time)
             print(f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f} {rate / num_taxis:>13,.0f}")
     if args.shaping_metrics:
-        print(f"\ncore with shaping (weight 50), {args.scenario} ({clock})")
-        print(f"{'E':>5} {'A':>4} {'shaping_metric':>15} {'agent-steps/s':>15}")
-    for num_envs in args.num_envs if args.shaping_metrics else ():
+        shaping_table(args, clock)
+    if args.stop_features:
+        stop_features_table(args, clock)
+    if args.pettingzoo:
+        pettingzoo_table(args)
+
+
+def shaping_table(args: Args, clock: str) -> None:
+    """The core's rate with shaping on, per metric of ``--shaping-metrics``, at every (E, A)."""
+    print(f"\ncore with shaping (weight 50), {args.scenario} ({clock})")
+    print(f"{'E':>5} {'A':>4} {'shaping_metric':>15} {'agent-steps/s':>15}")
+    for num_envs in args.num_envs:
         for num_taxis in args.num_taxis:
             for metric in args.shaping_metrics:
                 rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, metric)
                 print(f"{num_envs:>5} {num_taxis:>4} {metric:>15} {rate:>15,.0f}")
-    if args.stop_features:
-        print(f"\ncore with path shaping (weight 50) and the stop features, {args.scenario} ({clock})")
-        print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15}" + (f" {'with look-ahead':>16}" if args.lookahead else ""))
-        for num_envs in args.num_envs:
-            for num_taxis in args.num_taxis:
-                rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True)
-                line = f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f}"
-                if args.lookahead:
-                    look = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True,
-                                      lookahead=True)  # fmt: skip
-                    line += f" {look:>16,.0f}"
-                print(line)
-    if not args.pettingzoo:
-        return
+
+
+def stop_features_table(args: Args, clock: str) -> None:
+    """The core's rate with path shaping and the stop features (and the look-ahead beside it) at every (E, A)."""
+    print(f"\ncore with path shaping (weight 50) and the stop features, {args.scenario} ({clock})")
+    print(f"{'E':>5} {'A':>4} {'agent-steps/s':>15}" + (f" {'with look-ahead':>16}" if args.lookahead else ""))
+    for num_envs in args.num_envs:
+        for num_taxis in args.num_taxis:
+            rate = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True)
+            line = f"{num_envs:>5} {num_taxis:>4} {rate:>15,.0f}"
+            if args.lookahead:
+                look = bench_core(args.scenario, num_envs, num_taxis, args.seconds, args.cpu_time, "path", True,
+                                  lookahead=True)  # fmt: skip
+                line += f" {look:>16,.0f}"
+            print(line)
+
+
+def pettingzoo_table(args: Args) -> None:
+    """The PettingZoo face's rate (one env) at every A."""
     print(f"\nPettingZoo face: {args.pettingzoo_scenario} (E = 1)")
     print(f"{'A':>4} {'env-steps/s':>13} {'agent-steps/s':>15}")
     for num_taxis in args.num_taxis:

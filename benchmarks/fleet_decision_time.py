@@ -4,7 +4,7 @@
     .venv/bin/python benchmarks/run_against.py <other checkout> benchmarks/fleet_decision_time.py ...   # paired
 
 Flies the dispatcher (default: ``batch_assignment_value:100+wait=1+release``, the loaded one the committed timings
-were measured with; the chosen one now adds ``+price=1000``, docs/results.md) under the shield with the hover
+were measured with; the chosen one adds ``+price=1000+guard=600``, docs/results.md) under the shield with the hover
 action, as the fleet benchmark does (every stop's field computed first, untimed), and prints each episode's TD and
 median wait (so a run against another checkout shows the flights are the same) and the thread CPU per taxi and step
 of the dispatcher's calls: mean, p50, p95, max, and the share of steps over 1 ms.

@@ -9,7 +9,7 @@ turn with this one, and prints the speed-up pair by pair.
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/ppo_profile.py --heading-lookahead  # + the look-ahead (berlin)
     .venv/bin/python benchmarks/ppo_profile.py --baseline /tmp/before --pairs 3        # before / after, in turn
 
-The recipe is ``docs/results.md``'s generalist: ``berlin_instances``, thresholds -7 ... -3 dB, ``--action-head
+The recipe is the generalist's: ``berlin_instances``, thresholds -7 ... -3 dB, ``--action-head
 stops``, ``de_msfea``, d_model 32, 60 envs x 128 steps, 8 minibatches x 4 epochs (7,680 agent-steps per iteration).
 The first iteration (numba compilation, allocations) is warm-up and not counted. Module times come from forward
 hooks and full backward hooks (the time between a module's backward pre-hook and its backward hook), on
@@ -73,7 +73,7 @@ class Args:
 
 
 def recipe(args: Args, run_dir: Path) -> TrainArgs:
-    """The generalist's training options (docs/results.md), one thread, nothing logged."""
+    """The generalist's training options, one thread, nothing logged."""
     return TrainArgs.from_flat(dict(
         scenario="berlin_instances", thresholds=(-7, -6, -5, -4, -3), action_head="stops", variant="de_msfea",
         d_model=32, num_envs=args.num_envs, num_steps=args.num_steps, num_minibatches=args.num_minibatches,

@@ -2,7 +2,7 @@
 figures in one session: the editable install's finder is dropped and the checkout put first on the path.
 
     git archive f544538 | tar -x -C /tmp/before
-    .venv/bin/python benchmarks/run_against.py /tmp/before benchmarks/stop_features_profile.py --seconds 3
+    .venv/bin/python benchmarks/run_against.py /tmp/before benchmarks/env_throughput.py
 
 The script's own numba functions must not be cached (``cache=True``): a cached copy keeps the package functions
 it was compiled against, whichever checkout runs it.

@@ -64,15 +64,14 @@ def main(argv: list[str]) -> int:
     seeds = instances.split_seeds("test", args.count)
     if args.fleet is not None:
         policies = () if args.no_generalist else (pretrained_path("berlin_fleet_v1"),)  # as recorded: no hover action
-        jobs: list[tuple] = [(family, args.fleet, seed, FLEET_DISPATCHERS, policies, "none") for seed in seeds]
+        jobs: list = [(family, args.fleet, seed, FLEET_DISPATCHERS, policies, "none") for seed in seeds]
         flight, table, columns = fleet_benchmark.run_episode_set, fleet_benchmark.markdown, fleet_benchmark.COLUMNS
     else:
         checkpoint = None if args.no_generalist else pretrained_path("berlin")
         methods = tuple(args.methods) + (() if checkpoint is None else ("learned",))
-        jobs = [
-            (("test", family, seed, None, "endpoint_block"), methods, checkpoint, (256,), 64, (8, 24, 2.0, 0, 0))
-            for seed in seeds
-        ]
+        options = benchmark.job_options(benchmark.Args())  # best_known 256, replan 64, guided 8 / 24 / 2.0
+        jobs = [benchmark.Job(("test", family, seed, None, "endpoint_block"), methods, checkpoint, options)
+                for seed in seeds]  # fmt: skip
         flight, table, columns = benchmark.run_instance, benchmark.markdown, benchmark.COLUMNS
     start = time.perf_counter()
     rows = []

@@ -39,15 +39,13 @@ def test_tasks_pick_fixed_instances_by_rule_scenario_and_threshold():
 
 def test_the_hedge_flies_an_instance_and_skips_a_fixed_scenario(capsys) -> None:
     """learned_hedge needs the family's demand model: flown on an instance, refused (with a line) on a fixed one."""
-    from uamfleet.cli.benchmark import DEFAULT_HEDGE, run_instance
+    from uamfleet.cli.benchmark import Job, job_options, run_instance
     from uamfleet.zoo import pretrained_path
 
     chosen = tasks(Args(count=1, fixed=True, fixed_rules=("endpoint_block",), fixed_scenarios=("berlin_p4",),
                         fixed_thresholds=(-3.0,)))  # fmt: skip
-    guided = (8, 24, 2.0, 0, 0)
     for task in chosen:
-        rows = run_instance((task, ("learned_hedge",), pretrained_path("berlin"), (256,), 64, guided, 0,
-                             DEFAULT_HEDGE))  # fmt: skip
+        rows = run_instance(Job(task, ("learned_hedge",), pretrained_path("berlin"), job_options(Args())))
         if task[0] == "fixed":
             assert rows == [] and "learned_hedge skipped on berlin_p4@-3dB" in capsys.readouterr().out
         else:

@@ -59,3 +59,20 @@ def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
     hovering = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield", True))
     assert hovering[0]["separation_violations"] == 0 and hovering[0]["service_pct"] == 100.0
     assert hovering[0]["hover_actions"] > 0 and hovering[0]["td_m"] < shielded[0]["td_m"]  # idle taxis stay put
+
+
+def test_dispatchers_are_read_in_the_grammar_and_as_recorded() -> None:
+    """A recorded name and its call in the grammar build the same dispatcher; a name of no dispatcher is refused
+    before anything flies (learned fleets come by --checkpoints)."""
+    from uamfleet.cli.fleet_benchmark import _check_names, dispatcher
+
+    recorded = dispatcher("batch_assignment_value:100+wait=1+release+price=1000", 2, None, 600.0)
+    grammar = dispatcher(
+        "batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000", 2, None, 600.0
+    )
+    for policy in (recorded, grammar):
+        assert (policy.wait_weight, policy.assign_on_release, policy.unassigned_price_s) == (1.0, True, 1000.0)
+        assert (policy.value.price_s, policy.value.arrival_window_s) == (100.0, 600.0)
+    _check_names(Args(count=1, dispatchers=("greedy", "insertion:wait=2")))
+    with pytest.raises(ValueError, match=r"unknown --dispatchers \['learned:berlin_fleet', 'guided\(learned\)'\]"):
+        _check_names(Args(count=1, dispatchers=("learned:berlin_fleet", "guided(learned)")))

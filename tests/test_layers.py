@@ -40,13 +40,16 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (3, ("uamfleet.paths",)),
     # The simulator (world, rules, motion, reward) reads no observation; the observers and faces sit above it.
     (4, ("uamfleet.sim",)),
-    (5, ("uamfleet.env",)),
+    # What a policy reads: the observation's spec, the observer, its kernels and the tour planner they read.
+    (5, ("uamfleet.observe",)),
+    # The faces: the simulator with its observer (vector env, PettingZoo env, mixture, workers).
+    (6, ("uamfleet.env",)),
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
     # Below the loop in rl: the training options (rl.options), checkpoints (rl.checkpoint) and the run folder and
     # its log (rl.runs), so reading a checkpoint or a run's progress never imports the loop.
     # rl.legacy (format-1 files, the flat training arguments) sits beside rl.checkpoint, whose Checkpoint it reads.
-    (6, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.rl.checkpoint", "uamfleet.rl.legacy", "uamfleet.instances")),
-    (7, ("uamfleet.rollout", "uamfleet.metrics")),
+    (7, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.rl.checkpoint", "uamfleet.rl.legacy", "uamfleet.instances")),
+    (8, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
     # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the
     # zoo imports the policy room, never the loop: test_loading_a_shipped_policy_does_not_import_the_trainer);
@@ -54,7 +57,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # rolls the greedy policy forward. The learner (rl.learner) starts an --init-from run from a policy it loads
     # with load_policy; the collector (rl.collector) needs no policy room and stays below, with the rest of rl.
     (
-        8,
+        9,
         (
             "uamfleet.rl.trainer",
             "uamfleet.rl.learner",
@@ -63,14 +66,15 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",
             "uamfleet.zoo",
+            "uamfleet.policies",
         ),
     ),
-    (9, ("uamfleet.viz",)),
-    (10, ("uamfleet",)),  # the public face, uamfleet/__init__.py
+    (10, ("uamfleet.viz",)),
+    (11, ("uamfleet",)),  # the public face, uamfleet/__init__.py
     # The command lines: their implementations in uamfleet.cli (installed as console scripts), thin wrappers in
     # eval/ and train/.
     # uamfleet/__main__.py is ``python -m uamfleet``, the ``uamfleet`` command: a command line too.
-    (11, ("uamfleet.cli", "uamfleet.__main__", "eval", "train", "benchmarks")),
+    (12, ("uamfleet.cli", "uamfleet.__main__", "eval", "train", "benchmarks")),
 )
 # Packages of one layer that must not import each other (siblings, not a stack).
 SIBLINGS = ("uamfleet.baselines", "uamfleet.rl")

@@ -35,26 +35,11 @@ def test_experiment_grid_names_and_budgets():
 
 def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
     name = "berlin_p4_-3dB_le_s1"
-    train(
-        TrainArgs.from_flat(
-            dict(
-                sinr_min_db=-3.0,
-                variant="le",
-                total_timesteps=64,
-                num_envs=2,
-                num_steps=32,
-                num_minibatches=1,
-                update_epochs=1,
-                run_dir=tmp_path,
-                run_name=name,
-                progress=False,
-                tensorboard=False,
-                threads=1,
-                time_limit_steps=40,
-                eval_every=1,
-            )
-        )
-    )
+    train(TrainArgs.from_flat(dict(
+        sinr_min_db=-3.0, variant="le", total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
+        update_epochs=1, run_dir=tmp_path, run_name=name, progress=False, tensorboard=False, threads=1,
+        time_limit_steps=40, eval_every=1,
+    )))  # fmt: skip
     md = tmp_path / "results.md"
     md.write_text("# Results\n\nhand-written text stays\n")
     rows = main(Args(run_dir=tmp_path, only=(name,), seeds=(1,), train=False, feasibility="endpoint_block",
@@ -75,3 +60,27 @@ def test_filters_leave_out_the_ablation_and_other_scenarios(tmp_path: Path) -> N
         with pytest.raises(ValueError, match="no run selected"):
             main(Args(run_dir=tmp_path, train=True, out_md=tmp_path / "r.md", out_csv=tmp_path / "t.csv", **kwargs))
         assert not any(tmp_path.glob("*.log"))  # nothing was trained
+
+
+def test_default_run_writes_no_markdown_and_points_to_docs_tables(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    name = "berlin_p4_-3dB_le_s1"
+    train(TrainArgs.from_flat(dict(
+        sinr_min_db=-3.0, variant="le", total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
+        update_epochs=1, run_dir=tmp_path, run_name=name, progress=False, tensorboard=False, threads=1,
+        time_limit_steps=40, eval_every=1,
+    )))  # fmt: skip
+    (tmp_path / "docs").mkdir()
+    monkeypatch.chdir(tmp_path)  # in a checkout's root the old default (--out-md docs/results.md) wrote the page
+    capsys.readouterr()
+    rows = main(Args(run_dir=tmp_path, only=(name,), seeds=(1,), train=False, feasibility="endpoint_block",
+                     out_csv=tmp_path / "t.csv"))  # fmt: skip
+    assert [r["run"] for r in rows] == [name]
+    assert not list(tmp_path.rglob("*.md"))
+    assert [r["run"] for r in csv.DictReader((tmp_path / "t.csv").open())] == [name]
+    out = capsys.readouterr().out
+    assert "| 1 | le | 1 |" in out and "raster_opt (ours) | 100 | 5,100 |" in out  # the tables, printed
+    assert [line for line in out.splitlines() if "uamfleet docs-tables" in line] == [
+        "run `uamfleet docs-tables` to refresh the results pages (docs/results.md, README.md) from the CSVs"
+    ]

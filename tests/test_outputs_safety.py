@@ -32,6 +32,9 @@ def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "docs").mkdir()
     shutil.copytree(ROOT / "docs" / "results", tmp_path / "docs" / "results")
     shutil.copy(ROOT / "docs" / "results.md", tmp_path / "docs" / "results.md")
+    # a Markdown file holding the marked sections an --out-md of paper-table and msha-table (re)writes
+    sections = [f"<!-- {name}:{end} -->" for name in ("paper_table", "msha_table") for end in ("begin", "end")]
+    (tmp_path / "sections.md").write_text("\n".join(["# Results", *sections, ""]), encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     return tmp_path
 
@@ -61,10 +64,20 @@ EMPTY = [
     (train_cli.cli, ["--total-timesteps", "0"], "--total-timesteps=0"),
     (quickstart.cli, ["--total-timesteps", "0"], "--total-timesteps=0"),
     # the committed results are there: without --overwrite they are refused before anything runs
-    (paper_table.cli, [], "docs/results/paper_table.csv and the 'paper_table' section of docs/results.md already"),
+    (paper_table.cli, [], "docs/results/paper_table.csv already holds results; pass --overwrite"),
+    (
+        paper_table.cli,
+        ["--out-md", "sections.md"],
+        "docs/results/paper_table.csv and the 'paper_table' section of sections.md already hold results",
+    ),
     (benchmark.cli, ["--count", "1", "--out-csv", "docs/results/benchmark_fixed.csv"], "already hold results"),
     (fleet_benchmark.cli, ["--count", "1"], "docs/results/fleet_benchmark.csv and the 'fleet' section"),
-    (msha_table.cli, ["--no-train"], "docs/results/msha_table.csv and the 'msha_table' section"),
+    (msha_table.cli, ["--no-train"], "docs/results/msha_table.csv already holds results; pass --overwrite"),
+    (
+        msha_table.cli,
+        ["--no-train", "--out-md", "sections.md"],
+        "docs/results/msha_table.csv and the 'msha_table' section of sections.md already hold results",
+    ),
     (render.cli, ["--out", "docs/results.md"], "docs/results.md already holds results; pass --overwrite"),
 ]
 
@@ -126,7 +139,8 @@ def test_a_quick_paper_table_rerun_keeps_the_learned_rows(scratch):
     before = (scratch / "docs/results/paper_table.csv").read_text()
     learned = [line for line in before.splitlines() if ",msha-" in line]
     assert learned, "the committed table has learned rows"
-    paper_table.main(paper_table.Args(quick=True, figures=scratch / "fig", overwrite=True))
+    paper_table.main(paper_table.Args(quick=True, figures=scratch / "fig", overwrite=True,
+                                      out_md=Path("docs/results.md")))  # fmt: skip
     after = (scratch / "docs/results/paper_table.csv").read_text()
     assert [line for line in after.splitlines() if ",msha-" in line] == learned
     assert len(after.splitlines()) == len(before.splitlines())

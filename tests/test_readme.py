@@ -1,13 +1,20 @@
-"""The README's numbers, recomputed from the recorded results (issue 22, part 4).
+"""The numbers of the README and of the pages it sends a newcomer to, recomputed from the recorded results.
 
-Each test below recomputes one README statement from ``docs/results/*.csv`` (or reads it from
-``docs/results.md`` / ``docs/benchmarks.md``) and asserts that the README says exactly that, formatted as the
-README formats it. ``test_every_result_number_is_accounted_for`` then checks that no number in the README's
-result sections escapes these checks: a new figure there must get a check here (or, for a measurement that no
-document records, a place in ``MEASURED`` with the reason).
+Each test below recomputes one statement from ``docs/results/*.csv`` (or reads it from ``docs/results.md`` /
+``docs/benchmarks.md``) and asserts that the document says exactly that, formatted as the document formats it:
 
-To add a README figure: write it with the command that made it beside it, add a ``claim(...)`` here that
-recomputes it, and run ``.venv/bin/python -m pytest -q tests/test_readme.py``.
+- ``README.md``: the main job's expected output and the results table;
+- ``docs/getting-started.md``: the main job's prose (its timings and the spread over seeds) and its screenshots;
+- ``docs/environments.md``: the vector face's speed;
+- ``reports/2026-12-03-readme-history/README.md``: the README's "Results at a glance" as it stood before the
+  site (append-only history; its figures must still be the recorded ones).
+
+``test_every_result_number_is_accounted_for`` then checks that no number in those result sections escapes these
+checks: a new figure there must get a check here (or, for a measurement that no document records, a place in
+``MEASURED`` with the reason).
+
+To add a figure: write it with the command that made it beside it, add a ``says(...)`` here that recomputes it,
+and run ``.venv/bin/python -m pytest -q tests/test_readme.py``.
 """
 
 from __future__ import annotations
@@ -24,8 +31,11 @@ from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
-RESULTS_MD = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
-BENCHMARKS_MD = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+GETTING_STARTED = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
+ENVIRONMENTS = (ROOT / "docs" / "environments.md").read_text(encoding="utf-8")
+HISTORY = (ROOT / "reports" / "2026-12-03-readme-history" / "README.md").read_text(encoding="utf-8")
+RESULTS_MD = (ROOT / "reports" / "2026-12-03-results-history" / "README.md").read_text(encoding="utf-8")
+BENCHMARKS_MD = (ROOT / "reports" / "2026-12-03-benchmarks-history" / "README.md").read_text(encoding="utf-8")
 CSV_DIR = ROOT / "docs" / "results"
 
 
@@ -34,10 +44,10 @@ def rows(name: str) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def section(start: str, end: str) -> str:
-    """The README's text from the heading ``start`` up to ``end``."""
-    begin = README.index(start)
-    return README[begin : README.index(end, begin)]
+def section(start: str, end: str, text: str = README) -> str:
+    """``text``'s part from the heading ``start`` up to ``end`` (the README's by default)."""
+    begin = text.index(start)
+    return text[begin : text.index(end, begin)]
 
 
 def flat(text: str) -> str:
@@ -46,7 +56,7 @@ def flat(text: str) -> str:
 
 
 def says(text: str, expected: str) -> None:
-    assert flat(expected) in flat(text), f"the README should say {expected!r}"
+    assert flat(expected) in flat(text), f"the document should say {expected!r}"
 
 
 def m(value: float) -> str:
@@ -59,10 +69,14 @@ def pct(ratio: float) -> str:
     return f"{100 * (ratio - 1):.1f}"
 
 
-GLANCE = section("### Results at a glance", "## Use")
-QUICK = section("## Quick start", "Run the tests:")
-OUTPUT = QUICK[QUICK.index("<!-- quickstart-output:begin -->") : QUICK.index("<!-- quickstart-output:end -->")]
+GLANCE = section("### Results at a glance", "## Use", HISTORY)
+README_QUICK = section("## Quick start", "Run the tests:")
+OUTPUT = README_QUICK[README_QUICK.index("<!-- quickstart-output:begin -->") :
+                      README_QUICK.index("<!-- quickstart-output:end -->")]  # fmt: skip
+QUICK = section("## The main job", "## The tests", GETTING_STARTED)
 SPREAD = QUICK[QUICK.index("**The spread to expect.**") :]
+RESULTS = section("## Results", "## Documentation")
+TABLE = RESULTS[RESULTS.index("<!-- docs-tables:begin readme -->") : RESULTS.index("<!-- docs-tables:end readme -->")]
 
 
 # ---- the 200 Berlin test instances (benchmark_berlin_test_generalist.csv: the planners and the first generalist,
@@ -299,8 +313,8 @@ def test_training_times_and_speed_are_the_documents():
     idle = re.search(r"\*\*([\d,]+) and ([\d,]+) agent-steps/s\*\* at E = 256, A = 4", BENCHMARKS_MD)
     assert idle, "docs/benchmarks.md's idle-machine figure"
     low, high = sorted(int(x.replace(",", "")) / 1e6 for x in idle.groups())
-    says(README, f"{low:.1f}–{high:.1f} M agent-steps/s at 256 envs × 4 taxis on one idle core")
-    assert "0.8M" not in README
+    says(ENVIRONMENTS, f"{low:.1f}–{high:.1f} M agent-steps/s at 256 envs × 4 taxis on one idle core")
+    assert "0.8M" not in README and "0.8M" not in ENVIRONMENTS
 
 
 # ---- the quick start's expected output ----
@@ -418,7 +432,9 @@ def test_every_result_number_is_accounted_for():
             ]
         )
     )  # fmt: skip
-    prose = re.sub(r"```.*?```", " ", QUICK + GLANCE, flags=re.S)
+    # The README's results table is generated from the CSVs (uamfleet docs-tables) and checked against them below and
+    # by tests/test_docs_tables.py; the numbers of its prose are checked here.
+    prose = re.sub(r"```.*?```", " ", README_QUICK + RESULTS.replace(TABLE, " ") + QUICK + GLANCE, flags=re.S)
     loose = []
     for number in NUMBER.findall(prose):
         n = number.replace("-", "−") if number.startswith("-") else number
@@ -429,7 +445,11 @@ def test_every_result_number_is_accounted_for():
     assert not loose, f"README numbers no check accounts for: {loose}"
 
 
-SCREENSHOTS = re.findall(r"!\[([^\]]*)\]\((docs/screenshots/[^)]+)\)", README)
+SCREENSHOTS = sorted(
+    {(caption, "docs/" + path.removeprefix("docs/"))
+     for text in (README, GETTING_STARTED, (ROOT / "docs" / "index.md").read_text(encoding="utf-8"))
+     for caption, path in re.findall(r"!\[([^\]]*)\]\(((?:docs/)?screenshots/[^)]+)\)", text)}
+)  # fmt: skip
 # The title baked into each image (looked at by hand): the caption names the planner as the title does.
 TITLES = {
     "berlin_p4_replan.png": '"replan"',
@@ -520,3 +540,35 @@ def test_the_loaded_regimes_and_any_load():
     says(GLANCE, f"median wait is at most {max(p50):.1f} s above `greedy`'s")
     says(GLANCE, f"flies {100 * (min(td_) - 1):.0f}–{100 * (max(td_) - 1):.0f} % more per delivered passenger")
     says(GLANCE, f"p95 wait is {100 * (min(p95) - 1):.0f}–{100 * (max(p95) - 1):.0f} % above `insertion`'s")
+
+
+# ---- the README's results table ----
+
+
+def test_the_readme_table_is_the_recorded_rows():
+    """The README's table (generated by ``uamfleet docs-tables``) holds each method's mean TD on the 200 Berlin test
+    instances as this file recomputes it from the CSVs, and everyone was delivered in every row; the paper's setup
+    against the paper's numbers is in the main job's output block."""
+
+    def row(label: str, values: np.ndarray) -> str:
+        return f"| {label} | 100 | {values.mean():,.1f} |"
+
+    hedge_rows = shipped_test_rows("benchmark_berlin_test_hedge.csv", ("learned", "learned_hedge"))
+    says(TABLE, row("`replan` (online, beam 64)", td("replan")))
+    says(TABLE, row("the policy (`berlin`), greedy", shipped_td("learned")))
+    says(TABLE, row("the policy, guided search", shipped_td("learned_guided")))
+    says(TABLE, row("**the policy, hedging (`learned_hedge`)**", shipped_td("learned_hedge", hedge_rows)))
+    says(TABLE, row("`best_known` (clairvoyant)", td("best_known")))
+    delivered = [TEST["replan"], TEST["best_known"], SHIPPED["learned"], SHIPPED["learned_guided"],
+                 hedge_rows["learned_hedge"]]  # fmt: skip
+    assert all(float(r["pr_pct"]) == 100.0 for table in delivered for r in table.values())
+    # The paper's setup: the output block prints the paper's MSHA-RL TD beside the shipped generalist's zero-shot TD
+    # on Berlin P4 at each threshold, and both are the recorded ones.
+    paper = [PAPER_TABLE_II["berlin"]["MSHA-RL"][t][0] for t in (-7, -6, -5, -4, -3)]
+    zero_shot = [fixed(i, "learned") for i in BERLIN_P4]
+    for threshold, ours, theirs in zip((-7, -6, -5, -4, -3), zero_shot, paper, strict=True):
+        assert re.search(rf"{threshold} dB\s+100\s+{m(ours)}\s+{m(theirs)}", OUTPUT), threshold
+    fixed_rows = [r for r in rows("benchmark_fixed.csv") + rows("benchmark_fixed_berlin_p4_lookahead2.csv")
+                  if r["instance"] in BERLIN_P4 and r["feasibility"] == "endpoint_block"
+                  and r["method"] in ("best_known", "learned")]  # fmt: skip
+    assert len(fixed_rows) >= 10 and all(float(r["pr_pct"]) == 100.0 for r in fixed_rows)

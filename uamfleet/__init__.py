@@ -41,9 +41,10 @@ def vector_env(
 
 
 def pretrained(name: str = "berlin", device: str = "cpu") -> Any:
-    """A pretrained planner shipped with the package (:mod:`uamfleet.zoo`): ``uamfleet.pretrained("berlin")``
-    plans one taxi on the Berlin map at any threshold -7 ... -3 dB; ``.fly(cfg)`` flies a config of yours."""
-    from uamfleet.zoo import pretrained as load  # torch is imported only when asked for
+    """A pretrained planner shipped with the package (:mod:`uamfleet.policies.learned`):
+    ``uamfleet.pretrained("berlin")`` plans one taxi on the Berlin map at any threshold -7 ... -3 dB;
+    ``.fly(cfg)`` flies a config of yours."""
+    from uamfleet.policies.learned import pretrained as load  # torch is imported only when asked for
 
     return load(name, device=device)
 

@@ -170,14 +170,9 @@ def make_fleet_instance(
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
     ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield";
     ``hover_action``: action 16 hovers (off in every table before issue 21's hover, where idle taxis zig-zag)."""
-    check_family(family)
-    seed = check_integer("seed", seed, 0, MAX_SEED)
-    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
-    num_requests = check_integer("num_requests", num_requests, 1, MAX_PASSENGERS, fix=" (one passenger slot each)")
-    num_vertiports = check_integer("num_vertiports", num_vertiports, 0)
-    if num_vertiports == 1:
-        raise ValueError(f"num_vertiports={num_vertiports} must be 0 (random sites) or >= 2.")
-    check_number("arrival_window_s", arrival_window_s, positive=True)
+    seed, num_taxis, num_requests, num_vertiports = _check_fleet_args(
+        family, seed, num_taxis, num_requests, num_vertiports, arrival_window_s
+    )
     fam = FAMILIES[family]
 
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
@@ -214,6 +209,21 @@ def make_fleet_instance(
             scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
+def _check_fleet_args(
+    family: str, seed: int, num_taxis: int, num_requests: int, num_vertiports: int, arrival_window_s: float
+) -> tuple[int, int, int, int]:
+    """:func:`make_fleet_instance`'s arguments checked in order: (seed, num_taxis, num_requests, num_vertiports)."""
+    check_family(family)
+    seed = check_integer("seed", seed, 0, MAX_SEED)
+    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
+    num_requests = check_integer("num_requests", num_requests, 1, MAX_PASSENGERS, fix=" (one passenger slot each)")
+    num_vertiports = check_integer("num_vertiports", num_vertiports, 0)
+    if num_vertiports == 1:
+        raise ValueError(f"num_vertiports={num_vertiports} must be 0 (random sites) or >= 2.")
+    check_number("arrival_window_s", arrival_window_s, positive=True)
+    return seed, num_taxis, num_requests, num_vertiports
 
 
 def _check_window(arrival_window_s: float, slot_s: float) -> None:

@@ -107,6 +107,29 @@ def _mean_or_nan(x: np.ndarray) -> float:
     return float(np.mean(x)) if x.size else math.nan
 
 
+def _service_steps(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(release, pick-up, drop-off) step of each existing passenger; NaN where the pick-up or drop-off never
+    happened."""
+    exists = traj.pax_exists
+    picked = traj.stacked("picked_up")[:, exists]  # [T, N]
+    dropped = traj.stacked("dropped_off")[:, exists]
+    steps_idx = np.arange(1, traj.num_steps + 1)  # the step index after each transition
+    release = traj.release_step[exists].astype(float)
+    pickup_step = np.where(picked.any(0), steps_idx[np.argmax(picked, axis=0)], np.nan)
+    dropoff_step = np.where(dropped.any(0), steps_idx[np.argmax(dropped, axis=0)], np.nan)
+    return release, pickup_step, dropoff_step
+
+
+def _load_shares(traj: Trajectory, span: int) -> tuple[float, float]:
+    """(ELR in %: share of taxi-steps with nobody on board, occupancy: mean passengers on board per seat) over
+    the first ``span`` steps."""
+    pickups = traj.stacked("pickups")[:span]
+    dropoffs = traj.stacked("dropoffs")[:span]
+    # passengers on board during each step = boarded before it minus delivered before it
+    on_board = np.cumsum(pickups - dropoffs, axis=0) - (pickups - dropoffs)  # [span, A]
+    return 100.0 * float(np.mean(on_board == 0)), float(np.mean(on_board) / traj.seats)
+
+
 def episode_metrics(
     traj: Trajectory, radio: RadioMap, threshold_db: float | None = None, sample_m: float = 10.0
 ) -> EpisodeMetrics:
@@ -117,12 +140,7 @@ def episode_metrics(
     threshold = traj.sinr_min_db if threshold_db is None else threshold_db
     slot = traj.slot_s
     exists = traj.pax_exists
-    picked = traj.stacked("picked_up")[:, exists]  # [T, N]
-    dropped = traj.stacked("dropped_off")[:, exists]
-    steps_idx = np.arange(1, traj.num_steps + 1)  # the step index after each transition
-    release = traj.release_step[exists].astype(float)
-    pickup_step = np.where(picked.any(0), steps_idx[np.argmax(picked, axis=0)], np.nan)
-    dropoff_step = np.where(dropped.any(0), steps_idx[np.argmax(dropped, axis=0)], np.nan)
+    release, pickup_step, dropoff_step = _service_steps(traj)
     delivered = ~np.isnan(dropoff_step)
     num_requests = int(exists.sum())
     # span: until the last drop-off when everyone was delivered, else the whole episode
@@ -130,12 +148,7 @@ def episode_metrics(
 
     moved = traj.stacked("moved")[:span]  # [span, A]
     td = float(moved.sum() * traj.step_m)
-    pickups = traj.stacked("pickups")[:span]
-    dropoffs = traj.stacked("dropoffs")[:span]
-    # passengers on board during each step = boarded before it minus delivered before it
-    on_board = np.cumsum(pickups - dropoffs, axis=0) - (pickups - dropoffs)  # [span, A]
-    elr = 100.0 * float(np.mean(on_board == 0))
-    occupancy = float(np.mean(on_board) / traj.seats)
+    elr, occupancy = _load_shares(traj, span)
 
     wait_s = (pickup_step - release) * slot
     ride_s = (dropoff_step - release) * slot

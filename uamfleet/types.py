@@ -24,7 +24,7 @@ DELIVERED = 3
 
 # ---- observation columns (docs/rules.md "Observation"): the names of each field's last axis, and the indices the
 # kernels write through, derived from them. Which fields a config observes, with shapes, bounds and kinds:
-# uamfleet.env.layout.observation_layout (the one spec; it names these tuples as the fields' columns).
+# uamfleet.observe.spec.observation_layout (the one spec; it names these tuples as the fields' columns).
 SELF_FEATURES: tuple[str, ...] = ("x", "y", "free_seats", "time")  # x, y / side; seats / capacity; t / limit
 SELF_X = SELF_FEATURES.index("x")
 SELF_Y = SELF_FEATURES.index("y")
@@ -109,7 +109,7 @@ STATE_PASSENGER_FEATURES: tuple[str, ...] = (
 class FleetState(NamedTuple):
     """The whole simulator state. Arrays are updated in place by :func:`uamfleet.sim.dynamics.step`
     (copying the visit counts every step would cost more than the step itself). A NamedTuple of arrays, so
-    the compiled kernels (:mod:`uamfleet.env.kernels`) take it whole."""
+    the compiled kernels (:mod:`uamfleet.sim.motion`, :mod:`uamfleet.observe`) take it whole."""
 
     t: np.ndarray  # [E] int64, steps since reset
     pos_m: np.ndarray  # [E, A, 2] float64, taxi positions (world frame)

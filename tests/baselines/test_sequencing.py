@@ -298,6 +298,7 @@ def test_solve_in_order_appends_late_request() -> None:
         (_line([0, 1, 2]), [0.0], {"on_board": [True], "done": [True]}, "both on_board and done"),
         (_line([0, 1, 2, 3, 4]), [0.0, 0.0], {"on_board": [True, True], "capacity": 1}, "raise capacity"),
         (_line([0, 1, 2]), [math.nan], {}, "release_s must be finite"),
+        (_line([0, 1, 2]), [0.0], {"start_s": math.inf}, r"start_s must be a finite time in seconds, got inf"),
         (np.zeros((19, 19)), [0.0] * 9, {}, "N = 9 .* insertion heuristic"),
     ],
 )

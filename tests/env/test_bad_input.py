@@ -129,7 +129,7 @@ def test_step_before_reset():
 
 
 def test_observation_of_wrong_shape_is_named():
-    from uamfleet.env.observer import ObservationShapeError, check_observation
+    from uamfleet.observe.observer import ObservationShapeError, check_observation
 
     env = VectorEnv(small_config(), num_envs=2)
     obs, _ = env.reset(seed=0)

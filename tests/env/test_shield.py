@@ -17,7 +17,7 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import Request, RewardConfig
-from uamfleet.env import kernels
+from uamfleet.sim import motion
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.presets import make_config
@@ -34,12 +34,12 @@ def end(p: tuple[float, float], k: int) -> np.ndarray:
 
 
 def shield(pos, requested, free_seats=None, allowed=None, stayed=None):
-    """kernels.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
+    """motion.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
     pos = np.asarray(pos, dtype=float)
     n = len(pos)
     world = World(small_config(OPEN_10, starts_m=tuple(map(tuple, pos))))
     flown = np.empty(n, np.int64)
-    kernels.shield_headings(
+    motion.shield_headings(
         pos,
         np.asarray(free_seats if free_seats is not None else [2] * n, np.int64),
         np.asarray(stayed if stayed is not None else [0] * n, np.int64),

@@ -18,7 +18,7 @@ from conftest import small_config
 from uamfleet.baselines import make_policy
 from uamfleet.checks import ConfigError
 from uamfleet.config import Request
-from uamfleet.env import kernels
+from uamfleet.sim import motion
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
@@ -33,12 +33,12 @@ FAR_REQUEST = (Request(0, (50.0, 950.0), (950.0, 950.0)),)  # nobody reaches it 
 
 
 def shield(pos, requested, min_separation_m, allowed=None):
-    """kernels.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
+    """motion.shield_headings on one env of drawn positions: the headings flown (-1: stays)."""
     pos = np.asarray(pos, dtype=float)
     n = len(pos)
     world = World(small_config(OPEN_10, starts_m=tuple(map(tuple, pos)), min_separation_m=min_separation_m))
     flown = np.empty(n, np.int64)
-    kernels.shield_headings(
+    motion.shield_headings(
         pos, np.full(n, 2, np.int64), np.zeros(n, np.int64), np.ones((n, 16), bool) if allowed is None else allowed,
         np.asarray(requested, np.int64), world.arrays, flown,
     )  # fmt: skip

@@ -76,6 +76,14 @@ def test_base_station_checks() -> None:
         BaseStation(math.nan, 0.0, 20.0)
 
 
+def test_base_stations_must_be_base_station_objects() -> None:
+    stations = (BaseStation(1.0, 2.0, 20.0), (3.0, 4.0, 20.0))
+    with pytest.raises(ValueError, match=r"^base_stations must hold BaseStation objects, got tuple$"):
+        RadioMap(np.zeros((2, 2)), resolution_m=1.0, base_stations=stations)  # type: ignore[arg-type]
+    radio = RadioMap(np.zeros((2, 2)), resolution_m=1.0, base_stations=[BaseStation(1.0, 2.0, 20.0)])  # type: ignore[arg-type]
+    assert radio.base_stations == (BaseStation(1.0, 2.0, 20.0),)
+
+
 def test_sinr_at_nearest_cell_and_boundaries() -> None:
     radio = drawn_4x4()
     # Exactly half-way between centres 0 and 10 goes to the higher cell.

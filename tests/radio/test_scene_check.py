@@ -5,6 +5,7 @@ one that fails the test if it is ever called (tests/radio/test_raytrace.py prove
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import subprocess
@@ -158,6 +159,7 @@ def test_a_plugin_path_is_refused_and_nothing_runs(kind: str, city: Path, opened
         ('  <shape type="serialized"/>', ("<shape>", "not one a city scene needs", "ply, obj, rectangle")),
         ('  <bsdf type="measured" id="m"/>', ("<bsdf>", "'measured'",)),
         ('  <path value="/"/>', ("line 6", "<path>", "not an element a scene may hold")),
+        ('  <scene version="2.1.0"/>', ("line 6", "<scene>", "may only be the file's top element")),
         ('  <alias id="concrete" as="c"/>', ("<alias>", "not an element")),
         ('  <shape type="rectangle" evil="1"/>', ("<shape>", "attribute 'evil'")),
         ('  <shape type="$t"/>', ("<shape>", "$parameters may stand only in numbers")),
@@ -403,6 +405,15 @@ def test_a_raster_over_the_cell_limit_is_refused_before_loading(city: Path) -> N
     path = write(city, plane("1e7"))
     with pytest.raises(UnsafeSceneError, match="20,000,000 m wide"):
         raytrace.ray_traced_radio_map(path, base_stations=GBS)
+
+
+@pytest.mark.parametrize("altitude_m", [0.0, -100.0, math.nan, math.inf])
+def test_a_bad_altitude_is_refused_before_the_area_and_the_scene(altitude_m: float, tmp_path: Path) -> None:
+    # the scene does not exist and the extent is over its limit: the altitude is named first
+    with pytest.raises(ValueError, match=r"^altitude_m must be > 0 \(the flight altitude, e\.g\. 100\), got "):
+        raytrace.ray_traced_radio_map(
+            tmp_path / "nowhere.xml", altitude_m=altitude_m, extent=(0, 0, 60000, 10), base_stations=GBS
+        )
 
 
 def test_the_default_area_is_bounded_too() -> None:

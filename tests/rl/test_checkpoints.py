@@ -15,7 +15,7 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import Request
-from uamfleet.env.layout import layout_to_dict, observation_layout
+from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.trainer import Checkpoint, TrainArgs, load_policy, read_progress, train, upgrade_checkpoint
 

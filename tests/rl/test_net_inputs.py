@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from uamfleet.env.layout import layout_to_dict, observation_layout, observation_space
+from uamfleet.observe.spec import layout_to_dict, observation_layout, observation_space
 from uamfleet.presets import make_config
 from uamfleet.rl.checkpoint import Checkpoint, CheckpointError
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
@@ -36,6 +36,7 @@ def _space(**flags: bool):
         (dict(stop_inputs=True, rival_inputs=True, stop_hover=True), r"stop_hover=True needs claim_inputs=True"),
         (dict(stop_inputs=True, rival_inputs=True, claim_inputs=True, stop_hover=True), r"needs action_head='stops'"),
         (dict(variant="le", stop_inputs=True), r"linear encoder \('le'\) does not make"),
+        (dict(lookahead_inputs=True), r"^lookahead_inputs=True corrects the stop head's flight: it needs action_head="),
     ],
 )
 def test_inputs_that_cannot_work_together_are_refused(kwargs, message):

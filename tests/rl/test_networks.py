@@ -10,7 +10,7 @@ import torch
 from gymnasium import spaces
 
 import uamfleet
-from uamfleet.env.observer import ObservationShapeError
+from uamfleet.observe.observer import ObservationShapeError
 from uamfleet.rl.networks import (
     VARIANTS,
     GridReadout,
@@ -32,7 +32,7 @@ STATE_DIM = 41  # berlin_p4, one taxi: 4 + 4 * 9 + 1
 
 
 def obs_space(k: int = 4, P: int = 4, O: int = 1, H: int = 3) -> spaces.Dict:  # noqa: E741
-    """The per-taxi space of uamfleet.env.observer for patch size k, P passenger slots, O other-taxi rows."""
+    """The per-taxi space of uamfleet.observe.observer for patch size k, P passenger slots, O other-taxi rows."""
     f32 = np.float32
     return spaces.Dict(
         {

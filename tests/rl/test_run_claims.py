@@ -139,6 +139,39 @@ def test_an_existing_run_is_refused_under_the_lock_and_the_lock_released(tmp_pat
     assert list(folder.iterdir()) == []
 
 
+def test_a_command_that_cannot_resume_offers_only_overwrite(tmp_path):
+    folder = tmp_path / "r"
+    folder.mkdir()
+    (folder / "best.pt").write_bytes(b"a run")
+    with pytest.raises(RunFolderError) as caught:
+        claim_run(tmp_path, "r", resumable=False)
+    assert str(caught.value) == (
+        f"{folder} already holds a run (best.pt); replace it with --overwrite, or choose another --run-name."
+    )
+    assert sorted(p.name for p in folder.iterdir()) == ["best.pt"]  # the lock released
+
+
+def test_a_lock_that_cannot_be_made_names_the_folder_and_removes_the_folder_it_made(tmp_path, monkeypatch):
+    real = os.open
+
+    def refuse_lock(path, *args, **kwargs):
+        if Path(path).name == LOCK_FILE:
+            raise PermissionError(13, "Permission denied", str(path))
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", refuse_lock)
+    with pytest.raises(OSError) as caught:
+        claim_run(tmp_path, "r")
+    assert str(caught.value).startswith(
+        f"--run-dir {tmp_path}: cannot create the run folder {tmp_path / 'r'}: Permission denied"
+    )
+    assert not (tmp_path / "r").exists()  # made by this claim, removed again
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(OSError, match="cannot create the run folder"):
+        claim_run(tmp_path, "kept")
+    assert (tmp_path / "kept").is_dir()  # someone else's folder stays
+
+
 @pytest.mark.parametrize("name", ["/abs/path", "../x", "a/b", ".hidden"])
 def test_imitate_refuses_a_path_as_run_name_as_train_does(tmp_path, monkeypatch, capsys, name):
     monkeypatch.chdir(tmp_path)

@@ -44,12 +44,24 @@ def make_policy(
     if arrival_window_s is not None:
         arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
     if name in PLANNERS or name in STEP_PLANNERS:
-        if num_taxis != 1:
-            raise ValueError(
-                f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
-                f"dispatcher ({', '.join(FLEET_DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
-            )
-        return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
+        return _planner(name, num_taxis)
+    if name == "random":
+        return RandomPolicy(seed=seed)
+    return _dispatcher(name, assignment_value, arrival_window_s)
+
+
+def _planner(name: str, num_taxis: int) -> Any:
+    """The single-taxi planner ``name``; ValueError for a fleet."""
+    if num_taxis != 1:
+        raise ValueError(
+            f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
+            f"dispatcher ({', '.join(FLEET_DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
+        )
+    return PlannerPolicy(name) if name in PLANNERS else StepPlannerPolicy(name)
+
+
+def _dispatcher(name: str, assignment_value: Path | None, arrival_window_s: float | None) -> Any:
+    """The fleet dispatcher ``name`` with the options it carries (:func:`make_policy`)."""
     base, options = split_options(name)
     batch = base == "batch_assignment" or base.partition(":")[0] == VALUE_DISPATCHER
     if base != name and not (batch or base == "insertion"):
@@ -73,8 +85,6 @@ def make_policy(
             unassigned_price_s=options.unassigned_price_s,
             unassigned_guard_s=options.unassigned_guard_s,
         )
-    if name == "random":
-        return RandomPolicy(seed=seed)
     raise ValueError(f"unknown --policy {name!r}; choose one of {POLICIES}.")
 
 

@@ -203,16 +203,13 @@ class AnticipatingReplan:
         to :attr:`plans`."""
         start = time.perf_counter()
         t = int(known.t[0])
-        base = self.search.solve(known, self.replan_settings)
-        if base is None:  # as replan: a wider, slack-free search before giving up
-            wider = [SearchSettings(4 * s.beam, s.cell_m, 0.0) for s in self.replan_settings]
-            base = self.search.solve(known, wider)
+        base = self._base_plan(known)
         if base is None:
             return Decision([], False, known, None)
         candidates: list[StepPlan] = [base]
         bases = [known]  # the state each candidate was planned over
         horizons = [len(base.actions)]  # how far each candidate is flown before deciding again
-        makers = [f for f in (self.prior.sample(known, rng) for _ in range(self.futures)) if f is not None]
+        makers = self._draw_futures(known, rng, self.futures)
         for future in makers:
             plan = self.search.solve(future, self.future_settings)
             if plan is not None:
@@ -222,7 +219,7 @@ class AnticipatingReplan:
         if len(candidates) == 1:
             self.plans.append((t, 1, 0, float(base.moves), len(base.actions), time.perf_counter() - start))
             return Decision(list(base.actions), False, known, base)
-        scored = [f for f in (self.prior.sample(known, rng) for _ in range(self.scored)) if f is not None]
+        scored = self._draw_futures(known, rng, self.scored)
         if not scored:
             scored = makers
         means = np.array([np.mean([self._score(c.actions, f, t) for f in scored]) for c in candidates])
@@ -230,6 +227,18 @@ class AnticipatingReplan:
         committed = list(candidates[best].actions[: horizons[best]])
         self.plans.append((t, len(candidates), best, float(means[best]), len(committed), time.perf_counter() - start))
         return Decision(committed, best > 0, bases[best], candidates[best])
+
+    def _base_plan(self, known: FleetState) -> StepPlan | None:
+        """Replan's plan over ``known``, or None when even its wider fallback search finds none."""
+        base = self.search.solve(known, self.replan_settings)
+        if base is None:  # as replan: a wider, slack-free search before giving up
+            wider = [SearchSettings(4 * s.beam, s.cell_m, 0.0) for s in self.replan_settings]
+            base = self.search.solve(known, wider)
+        return base
+
+    def _draw_futures(self, known: FleetState, rng: np.random.Generator, count: int) -> list[FleetState]:
+        """``count`` futures of ``known`` drawn from the prior in turn, the draws that return None left out."""
+        return [f for f in (self.prior.sample(known, rng) for _ in range(count)) if f is not None]
 
     def _score(self, actions: Sequence[int], future: FleetState, t: int) -> float:
         """Moves of ``actions`` in ``future`` until its next release, plus a clairvoyant search's moves from there."""

@@ -224,6 +224,9 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
         idle_at[a] = None
 
 
+_SetKey = tuple[int, tuple[int, ...]]  # (taxi, waiting passengers): one set of ScheduleFleetPolicy.sequence_each
+
+
 class ScheduleFleetPolicy:
     """Base of the dispatchers: per-taxi schedules, repaired every step and flown along feasible paths.
 
@@ -355,21 +358,31 @@ class ScheduleFleetPolicy:
         keys = [(taxi, tuple(int(p) for p in waiting)) for waiting in waiting_sets]
         todo = [key for key in dict.fromkeys(keys) if key not in self._sequenced]
         if todo:
-            riding = self.on_board(taxi)
-            joined: list[tuple[tuple[int, tuple[int, ...]], list[int]]] = []
-            alone: list[tuple[tuple[int, tuple[int, ...]], list[int]]] = []
-            for key in todo:
-                new = [p for p in key[1] if p not in riding]
-                (joined if all(a < b for a, b in itertools.pairwise(new)) else alone).append((key, new))
-            for key, new in alone:
-                (self._sequenced[key],) = self._solved(taxi, riding, riding + new, [list(range(len(riding + new)))])
-            if joined:
-                extra = sorted({p for _, new in joined for p in new})
-                index = {p: len(riding) + i for i, p in enumerate(extra)}
-                subsets = [list(range(len(riding))) + [index[p] for p in new] for _, new in joined]
-                solved = self._solved(taxi, riding, riding + extra, subsets)
-                self._sequenced.update(zip([key for key, _ in joined], solved, strict=True))
+            self._solve_sets(taxi, todo)
         return [(plan, list(route)) for plan, route in (self._sequenced[key] for key in keys)]
+
+    def _solve_sets(self, taxi: int, todo: list[_SetKey]) -> None:
+        """Solves each set of ``todo`` into :attr:`_sequenced`: first each set whose new passengers are not in
+        ascending order, alone, then all the others over one joined stop matrix."""
+        riding = self.on_board(taxi)
+        joined: list[tuple[_SetKey, list[int]]] = []
+        alone: list[tuple[_SetKey, list[int]]] = []
+        for key in todo:
+            new = [p for p in key[1] if p not in riding]
+            (joined if all(a < b for a, b in itertools.pairwise(new)) else alone).append((key, new))
+        for key, new in alone:
+            (self._sequenced[key],) = self._solved(taxi, riding, riding + new, [list(range(len(riding + new)))])
+        if joined:
+            self._solve_joined(taxi, riding, joined)
+
+    def _solve_joined(self, taxi: int, riding: list[int], joined: list[tuple[_SetKey, list[int]]]) -> None:
+        """Solves the sets of ``joined`` (key, new passengers ascending) over one stop matrix of the riders and every
+        new passenger of them, into :attr:`_sequenced`."""
+        extra = sorted({p for _, new in joined for p in new})
+        index = {p: len(riding) + i for i, p in enumerate(extra)}
+        subsets = [list(range(len(riding))) + [index[p] for p in new] for _, new in joined]
+        solved = self._solved(taxi, riding, riding + extra, subsets)
+        self._sequenced.update(zip([key for key, _ in joined], solved, strict=True))
 
     def _solved(
         self, taxi: int, riding: list[int], passengers: list[int], subsets: list[list[int]]

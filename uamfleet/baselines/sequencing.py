@@ -94,28 +94,8 @@ def _problem(
     release = tuple(float(r) for r in release_s)
     n = len(release)
     dist = _check_distances(dist_m, n)
-    speed = float(speed_mps)
-    if not (math.isfinite(speed) and speed > 0):
-        raise ValueError(f"speed_mps must be a finite number > 0, got {speed_mps!r}")
-    if not all(math.isfinite(r) for r in release):
-        raise ValueError(f"release_s must be finite times in seconds, got {list(release)}")
-    if int(capacity) != capacity or capacity < 1:
-        raise ValueError(f"capacity must be an integer >= 1 (seats), got {capacity!r}")
-    if objective not in OBJECTIVES:
-        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(map(repr, OBJECTIVES))}")
-    start = float(start_s)
-    if not math.isfinite(start):
-        raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
-    beta = float(wait_weight)
-    if not (math.isfinite(beta) and beta >= 0):
-        raise ValueError(
-            f"wait_weight must be a finite number >= 0 (seconds of ride per second of wait), got {wait_weight!r}"
-        )
-    if beta and objective != "ride":
-        raise ValueError(
-            f"wait_weight={wait_weight} weighs waits in the 'ride' objective; objective={objective!r} has none: "
-            "pass objective='ride' or wait_weight=0"
-        )
+    speed, start = _check_times(speed_mps, release, capacity, objective, start_s)
+    beta = _check_wait_weight(wait_weight, objective)
     board, finished = _check_flags(on_board, done, n, capacity)
     travel = dist / speed
     return _Problem(
@@ -131,6 +111,40 @@ def _problem(
         travel_array=travel,
         dist_array=np.ascontiguousarray(dist),
     )
+
+
+def _check_times(
+    speed_mps: float, release: tuple[float, ...], capacity: int, objective: str, start_s: float
+) -> tuple[float, float]:
+    """The speed, release times, seats, objective and start time checked in that order: (speed, start time)."""
+    speed = float(speed_mps)
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed_mps must be a finite number > 0, got {speed_mps!r}")
+    if not all(math.isfinite(r) for r in release):
+        raise ValueError(f"release_s must be finite times in seconds, got {list(release)}")
+    if int(capacity) != capacity or capacity < 1:
+        raise ValueError(f"capacity must be an integer >= 1 (seats), got {capacity!r}")
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective {objective!r}; choose one of {', '.join(map(repr, OBJECTIVES))}")
+    start = float(start_s)
+    if not math.isfinite(start):
+        raise ValueError(f"start_s must be a finite time in seconds, got {start_s!r}")
+    return speed, start
+
+
+def _check_wait_weight(wait_weight: float, objective: str) -> float:
+    """β of the "ride" objective as a float: finite, >= 0, and 0 under any other objective."""
+    beta = float(wait_weight)
+    if not (math.isfinite(beta) and beta >= 0):
+        raise ValueError(
+            f"wait_weight must be a finite number >= 0 (seconds of ride per second of wait), got {wait_weight!r}"
+        )
+    if beta and objective != "ride":
+        raise ValueError(
+            f"wait_weight={wait_weight} weighs waits in the 'ride' objective; objective={objective!r} has none: "
+            "pass objective='ride' or wait_weight=0"
+        )
+    return beta
 
 
 def _check_distances(dist_m: np.ndarray, n: int) -> np.ndarray:

@@ -20,11 +20,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import csv
-import functools
 import math
 import multiprocessing as mp
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,29 +43,25 @@ from uamfleet.cli._common import (
     output_paths,
     run,
 )
-from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
-from uamfleet.baselines.finish import FinishWithSearch
-from uamfleet.baselines.planner_policy import PLANNERS, PlannerPolicy, planner_env_overrides
-from uamfleet.baselines.step_planner import (
-    STEP_PLANNERS,
-    SearchSettings,
-    StepPlannerPolicy,
-    instance_lower_bound_m,
-)
+from uamfleet.baselines.planner_policy import PLANNERS, planner_env_overrides
+from uamfleet.baselines.step_planner import STEP_PLANNERS, instance_lower_bound_m
 from uamfleet.config import EnvConfig
 from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
 from uamfleet.sim.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make, parse
+from uamfleet.policies.learned import learned_policy
+from uamfleet.policies.registry import BASE
 from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS
 from uamfleet.rollout import fly
 from uamfleet.types import NUM_HEADINGS
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
 """The methods flown by default."""
-FINISHED = "_finish"
-"""The suffix of a learned method finished by one search once no request can come (``--finish-beam``)."""
+FAMILY_MODELS: tuple[str, ...] = ("replan_futures", "hedge", "finish")
+"""Policies that read the instance family's demand model (instances only: a fixed scenario has none)."""
 SLOW_METHODS: tuple[str, ...] = ("replan_futures",)
 """Methods flown only when named (seconds per release): ``replan_futures``, the online search that scores its
 plans on futures sampled from the instance family's demand (uamfleet/baselines/anticipation.py)."""
@@ -166,71 +161,48 @@ def _config(task: Task) -> EnvConfig:
     return make_instance(source, int(seed), feasibility=rule)  # type: ignore[arg-type]
 
 
-DEFAULT_HEDGE = (4, 8, 4, 10, 8)
-"""learned_hedge's (first headings, futures, commit, tail, samples) unless the job says (``Args.hedge_*``)."""
+@dataclass(frozen=True)
+class Job:
+    """One instance and what flies on it (one worker process's work): ``methods`` by their recorded names
+    (:func:`uamfleet.policies.parse` reads each as its call), ``checkpoint`` the learned methods' policy, and
+    ``options`` the command line's options of each registered policy (``{"replan": {"beam": 64}, ...}``)."""
+
+    task: Task
+    methods: tuple[str, ...]
+    checkpoint: Path | None = None
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
-def _policy(
-    method: str, checkpoint: Path | None, beams: tuple[int, ...], replan_beam: int,
-    guided: tuple[int, int, float, int, int], task: Task, cfg: EnvConfig, finish_beam: int = 0,
-    hedge: tuple[int, int, int, int, int] = DEFAULT_HEDGE,
-) -> Any:  # fmt: skip
-    if method.endswith(FINISHED):  # the family's demand model says when nothing more can come
-        base = _policy(method.removesuffix(FINISHED), checkpoint, beams, replan_beam, guided, task, cfg)
-        return FinishWithSearch.of_family(base, task[1], cfg.slot_s, beam=finish_beam)
-    if method == "replan_futures":  # the family's demand model: instances only (the fixed scenarios have none)
-        return AnticipatingReplan(DemandPrior.of_family(task[1], cfg))
-    if method in PLANNERS:
-        return PlannerPolicy(method)
-    if method == "best_known":
-        slack = (1.0, 0.0)
-        return StepPlannerPolicy(method, [SearchSettings(b, rank_slack=slack[i % 2]) for i, b in enumerate(beams)])
-    if method == "replan":
-        return StepPlannerPolicy(method, [SearchSettings(replan_beam, rank_slack=1.0)])
-    assert checkpoint is not None
-    if method == "learned_hedge":  # the family's demand model: instances only
-        from uamfleet.rl.guided import AnticipatingGuidedSearch
-
-        top_k, _, temperature, expert_beam, horizon = guided
-        first_headings, futures, commit, tail, samples = hedge
-        return AnticipatingGuidedSearch(
-            traced_policy(checkpoint), task[1], first_headings=first_headings, futures=futures, commit=commit,
-            tail=None if tail < 0 else tail, top_k=top_k, samples=samples, temperature=temperature,
-            expert_beam=expert_beam, horizon=horizon or None,
-        )  # fmt: skip
-    if method == "learned_guided":
-        from uamfleet.rl.guided import GuidedSearchPolicy
-
-        top_k, samples, temperature, expert_beam, horizon = guided
-        return GuidedSearchPolicy(
-            learned_policy(checkpoint),
-            top_k=top_k,
-            samples=samples,
-            temperature=temperature,
-            expert_beam=expert_beam,
-            horizon=horizon or None,
-        )
-    return learned_policy(checkpoint)
+def job_options(args: Args) -> dict[str, dict[str, Any]]:
+    """The options of each registered policy that ``args`` sets (the benchmark's defaults are the registry's)."""
+    horizon = args.guided_horizon or None  # 0: to the end
+    guided = {"top_k": args.guided_top_k, "temperature": args.guided_temperature,
+              "expert_beam": args.guided_expert_beam, "horizon": horizon}  # fmt: skip
+    return {
+        "replan": {"beam": args.replan_beam},
+        "best_known": {"beams": tuple(args.best_known_beams)},
+        "guided": {**guided, "samples": args.guided_samples},
+        "hedge": {**guided, "samples": args.hedge_samples, "first_headings": args.hedge_first_headings,
+                  "futures": args.hedge_futures, "commit": args.hedge_commit, "tail": args.hedge_tail},
+        "finish": {"beam": args.finish_beam},
+    }  # fmt: skip
 
 
-@functools.lru_cache(maxsize=8)
-def learned_policy(checkpoint: Path) -> Any:
-    """The greedy policy of a checkpoint, loaded once per worker process (it keeps no state between episodes)."""
-    from uamfleet.rl.policy import load_policy
-
-    return load_policy(checkpoint)[0]
-
-
-@functools.lru_cache(maxsize=8)
-def traced_policy(checkpoint: Path) -> Any:
-    """A second copy of a checkpoint's greedy policy with its actor traced (the same actions, less overhead per
-    call; ``GreedyPolicy.trace_actor``), for a search that calls the actor thousands of times per release. A copy,
-    so the ``learned`` rows' decision times stay those of the eager policy."""
-    from uamfleet.rl.policy import load_policy
-
-    policy = load_policy(checkpoint)[0]
-    policy.trace_actor()
-    return policy
+def method_call(name: str, options: dict[str, Any], job: Job, cfg: EnvConfig) -> tuple[str, dict[str, Any]]:
+    """The call of a method on the job's instance: the job's options of ``name`` under the method's own, the
+    instance's family for a demand model, the checkpoint for a learned policy (bases filled alike)."""
+    out = {**job.options.get(name, {}), **options}
+    if name in FAMILY_MODELS:
+        out["family"] = job.task[1]
+    if name == "finish":
+        out["slot_s"] = cfg.slot_s
+    if name == "learned":
+        assert job.checkpoint is not None
+        out["source"] = str(job.checkpoint)
+    if BASE in out:
+        base_name, base_options = out[BASE]
+        out[BASE] = method_call(base_name, base_options, job, cfg)
+    return name, out
 
 
 def check_checkpoint(path: Path) -> None:
@@ -243,19 +215,29 @@ def check_checkpoint(path: Path) -> None:
         )
 
 
-Job = tuple[
-    Task, tuple[str, ...], Path | None, tuple[int, ...], int, tuple[int, int, float, int, int], int,
-    tuple[int, int, int, int, int],
-]  # fmt: skip
-"""(task, methods, checkpoint, best_known beams, replan beam, guided-search settings, finish beam, hedge settings);
-a 6-field job has no finish beam and a 7-field one the default hedge (scripts/fly_city.py)."""
+def flown(method: str, job: Job, cfg: EnvConfig, name: str) -> tuple[EnvConfig, Any] | None:
+    """(the config it flies, the policy) of ``method`` on the instance ``name``; None, after a line saying why,
+    for one it cannot fly (a demand model on a fixed scenario, more passengers than a learned policy's slots)."""
+    call = method_call(*parse(method), job, cfg)
+    if job.task[0] == "fixed" and call[0] in FAMILY_MODELS:
+        print(f"{method} skipped on {name}: a fixed scenario has no demand model", flush=True)
+        return None
+    overrides = planner_env_overrides(method) if method in PLANNERS else {}
+    run_cfg = cfg.replace(**overrides) if overrides else cfg
+    policy = make(call[0], **call[1])
+    if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
+        windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
+        if not windowed and run_cfg.num_passengers > policy.passenger_slots:
+            print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
+                  f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
+            return None
+        run_cfg = policy.layout(run_cfg)
+    return run_cfg, policy
 
 
 def run_instance(job: Job) -> list[dict[str, Any]]:
     """Every method on one instance (one worker process)."""
-    task, methods, checkpoint, beams, replan_beam, guided = job[:6]
-    finish_beam = job[6] if len(job) > 6 else 0
-    hedge = job[7] if len(job) > 7 else DEFAULT_HEDGE
+    task = job.task
     try:
         cfg = _config(task)
         validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
@@ -266,22 +248,12 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     name = f"{source}@{cfg.sinr_min_db:g}dB" if label == "fixed" else str(seed)
     bound = instance_lower_bound_m(cfg)
     rows = []
-    for method in methods:
-        if (method in ("replan_futures", "learned_hedge") or method.endswith(FINISHED)) and label == "fixed":
-            print(f"{method} skipped on {name}: a fixed scenario has no demand model", flush=True)
+    for method in job.methods:
+        flight = flown(method, job, cfg, name)
+        if flight is None:
             continue
-        overrides = planner_env_overrides(method) if method in PLANNERS else {}
-        run_cfg = cfg.replace(**overrides) if overrides else cfg
-        policy = _policy(method, checkpoint, beams, replan_beam, guided, task, cfg, finish_beam, hedge)
-        if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
-            windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
-            if not windowed and run_cfg.num_passengers > policy.passenger_slots:
-                print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
-                      f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
-                continue
-            run_cfg = policy.layout(run_cfg)
         start = time.perf_counter()
-        traj = fly(run_cfg, policy)
+        traj = fly(*flight)
         elapsed = time.perf_counter() - start
         m = episode_metrics(traj, cfg.radio, threshold_db=cfg.sinr_min_db)
         decisions = np.asarray(traj.decision_s) * 1000.0
@@ -454,6 +426,14 @@ def check_guided(args: Args) -> None:
     if (args.guided or args.hedge) and args.checkpoint is None:
         flag = "--guided" if args.guided else "--hedge"
         raise UsageError(f"{flag} searches with a learned policy: give its --checkpoint as well.")
+    _check_hedge(args)
+    if (args.finish_beam and args.checkpoint is None) or not 0 <= args.finish_beam <= 4096:
+        raise UsageError(f"--finish-beam {args.finish_beam}: a search width 0 <= beam <= 4096 (0: off, e.g. 16), for "
+                         "the policy of a --checkpoint.")  # fmt: skip
+    _check_guided_search(args)
+
+
+def _check_hedge(args: Args) -> None:
     if not (1 <= args.hedge_first_headings <= NUM_HEADINGS and 1 <= args.hedge_futures <= MAX_FUTURES
             and 1 <= args.hedge_commit <= MAX_STEPS and -1 <= args.hedge_tail <= MAX_STEPS
             and 0 <= args.hedge_samples <= MAX_SAMPLES):  # fmt: skip
@@ -464,9 +444,9 @@ def check_guided(args: Args) -> None:
             f"commit >= 1, tail >= -1 (-1: to the end), both at most {MAX_STEPS}, and 0 <= samples <= {MAX_SAMPLES} "
             "(e.g. 4, 8, 4, 10 and 8)."
         )
-    if (args.finish_beam and args.checkpoint is None) or not 0 <= args.finish_beam <= 4096:
-        raise UsageError(f"--finish-beam {args.finish_beam}: a search width 0 <= beam <= 4096 (0: off, e.g. 16), for "
-                         "the policy of a --checkpoint.")  # fmt: skip
+
+
+def _check_guided_search(args: Args) -> None:
     if not (1 <= args.guided_top_k <= NUM_HEADINGS and 0 <= args.guided_samples <= MAX_SAMPLES
             and math.isfinite(args.guided_temperature) and args.guided_temperature > 0
             and 0 <= args.guided_expert_beam <= MAX_EXPERT_BEAM and 0 <= args.guided_horizon <= MAX_STEPS):  # fmt: skip
@@ -513,14 +493,10 @@ def main(args: Args) -> list[dict[str, Any]]:
         write_outputs(args, earlier, 60.0 * args.wall_min)
         return earlier
     learned: tuple[str, ...] = ("learned", "learned_guided") if args.guided else ("learned",)
-    learned += tuple(m + FINISHED for m in learned) if args.finish_beam else ()
+    learned += tuple(f"{m}_finish" for m in learned) if args.finish_beam else ()  # recorded names (aliases)
     learned += ("learned_hedge",) if args.hedge else ()
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
-    guided = (args.guided_top_k, args.guided_samples, args.guided_temperature, args.guided_expert_beam,
-              args.guided_horizon)  # fmt: skip
-    hedge = (args.hedge_first_headings, args.hedge_futures, args.hedge_commit, args.hedge_tail, args.hedge_samples)
-    jobs = [(t, methods, args.checkpoint, args.best_known_beams, args.replan_beam, guided, args.finish_beam, hedge)
-            for t in selected]  # fmt: skip
+    jobs = [Job(t, methods, args.checkpoint, job_options(args)) for t in selected]
     start = time.perf_counter()
     rows = fly_all(args, jobs)
     if not rows:

@@ -38,11 +38,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
-from uamfleet.cli.benchmark import _ci, command_header, learned_policy
-from uamfleet.baselines import FLEET_DISPATCHERS, POLICIES, make_policy
+from uamfleet.cli.benchmark import _ci, command_header
+from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.checks import check_number
-from uamfleet.baselines.fleet_dispatch import shared_fields, split_options
+from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.policies import PolicyNameError, available, make, parse
+from uamfleet.policies.learned import learned_policy
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
@@ -125,7 +127,7 @@ def dispatcher_row_name(name: str, assignment_value: Path | None) -> str:
     """A dispatcher's name in the rows: a valued dispatcher flown with a value file other than the shipped one is
     ``<name>@<file stem>`` (e.g. ``batch_assignment_value:100+wait=1+release@refit``), so that its rows stay apart
     from the shipped value's in one CSV (``--merge-csv`` replaces the earlier rows of a name flown now)."""
-    if split_options(name)[0].partition(":")[0] != VALUE_DISPATCHER or assignment_value is None:
+    if parse(name)[0] != VALUE_DISPATCHER or assignment_value is None:
         return name
     if Path(assignment_value).resolve() == shipped_value_path().resolve():
         return name
@@ -144,13 +146,27 @@ def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int 
     """The greedy policy of a checkpoint for ``taxis`` taxis and ``requests`` passenger slots (or a passenger window
     of K rows): as trained, or resized zero-shot (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it
     cannot read that fleet."""
-    policy = learned_policy(checkpoint)
+    rows = {"passenger_window": passenger_window} if passenger_window is not None else {"passenger_slots": requests}
+    make("learned", source=str(checkpoint))  # a file it cannot read is refused here, not skipped
     try:
-        if passenger_window is not None:
-            return policy.for_fleet(taxis, passenger_window=passenger_window)
-        return policy.for_fleet(taxis, passenger_slots=requests)
+        return make("learned", source=str(checkpoint), taxis=taxis, **rows)
     except ValueError:
         return None
+
+
+def dispatcher(name: str, taxis: int, value_path: Path | None, arrival_window_s: float | None) -> Any:
+    """The dispatcher ``name`` (a recorded name or the grammar of :mod:`uamfleet.policies.names`) for ``taxis``
+    taxis: a valued one reads ``value_path`` (None: the shipped value) for a service of ``arrival_window_s``; a
+    single-taxi planner (``make_policy``'s, refused for a fleet) flies one taxi."""
+    call, options = parse(name)
+    if available()[call][0] == "planner" and not options:
+        return make_policy(call, num_taxis=taxis)
+    if call == VALUE_DISPATCHER:
+        if value_path is not None:
+            options.setdefault("value", str(value_path))
+        if arrival_window_s is not None:
+            options["arrival_window_s"] = arrival_window_s
+    return make(call, **options)
 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
@@ -172,7 +188,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
         (
             dispatcher_row_name(name, value_path),
             cfg,
-            make_policy(name, num_taxis=taxis, assignment_value=value_path, arrival_window_s=arrival_s),
+            dispatcher(name, taxis, value_path, arrival_s),
         )
         for name in dispatchers
     ]
@@ -313,19 +329,28 @@ def _check_names(args: Args) -> None:
     repeated = sorted({d for d in args.dispatchers if list(args.dispatchers).count(d) > 1})
     if repeated:
         raise UsageError(f"--dispatchers names {', '.join(repeated)} more than once; name each dispatcher once.")
-    bases = {d: split_options(d)[0] for d in args.dispatchers}
-    unknown = [d for d, b in bases.items() if b not in POLICIES and b.partition(":")[0] != VALUE_DISPATCHER]
+    unknown = [d for d in args.dispatchers if _kind(d) not in ("planner", "dispatcher")]
     if unknown:
         raise ValueError(
             f"unknown --dispatchers {unknown}; choose from {(*FLEET_DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
-            "dispatchers with options such as +wait=<β> and +release: uamfleet.baselines.fleet_dispatch.split_options)."
+            "dispatchers with options such as +wait=<β> and +release, or batch_assignment:wait=1,release=true: "
+            "uamfleet.policies.names)."
         )
     # a name's options, value file and price are checked now, before anything flies (at the smallest fleet named,
     # where a one-taxi planner is still allowed)
     taxis = min((setting_size(setting)[0] for setting in args.settings), default=1)
     for name in args.dispatchers:
-        make_policy(name, num_taxis=taxis, assignment_value=args.assignment_value,
-                    arrival_window_s=args.arrival_window_s)  # fmt: skip
+        dispatcher(name, taxis, args.assignment_value, args.arrival_window_s)
+
+
+def _kind(name: str) -> str | None:
+    """The registry's kind of a dispatcher name; None for a name of no policy (an option's error is raised)."""
+    try:
+        return available()[parse(name)[0]][0]
+    except PolicyNameError as err:
+        if str(err).startswith("unknown policy") or "published figure" in str(err):
+            return None
+        raise
 
 
 def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:

@@ -31,6 +31,7 @@ COMMANDS: dict[str, str] = {
     "paper-table": "paper_table",
     "msha-table": "msha_table",
     "radio-map": "radio_map",
+    "docs-tables": "docs_tables",
 }
 """Each command of ``uamfleet <command>`` and its module in :mod:`uamfleet.cli`, in the order ``--help`` lists them."""
 

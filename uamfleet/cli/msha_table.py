@@ -13,8 +13,10 @@ by :mod:`uamfleet.metrics`. Training cost comes from the run's ``progress.csv`` 
 iterations): agent-steps and wall-clock seconds to the first evaluation that delivers everyone, that is at or
 below the paper's TD, and that is within 5 % of raster_opt.
 
-Writes ``docs/results/msha_table.csv`` and the marked section ``msha_table`` of ``docs/results.md`` (``--out-csv``,
-``--section`` and ``--out-md`` change them, e.g. for a second table under the strict ``segment_raster`` rule).
+Writes ``docs/results/msha_table.csv`` (``--out-csv`` changes it, e.g. for a second table under the strict
+``segment_raster`` rule) and prints the tables; the results pages are generated from that CSV by
+``uamfleet docs-tables``. ``--out-md FILE`` also (re)writes the marked section ``msha_table`` (``--section``) of
+the Markdown file FILE.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from typing import Any, Literal
 import uamfleet
 from uamfleet.cli._common import UsageError, Variant, check_jobs, check_outputs, output_paths, run
 from uamfleet.cli._common import fmt as fmt_value
+from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.io import replace_section, write_csv_atomic
@@ -103,9 +106,9 @@ class Args:
     """runs trained side by side (one CPU thread each)"""
     extra: tuple[str, ...] = ()
     """extra train/ppo.py flags for every run, e.g. --extra --total-timesteps 300000"""
-    out_md: Path = Path("docs/results.md")
-    """Markdown file whose marked section is (re)written (paths are relative to the current folder: run it from
-    the repository root to update the repository's docs)"""
+    out_md: Path | None = None
+    """Markdown file whose marked section is (re)written; without it no Markdown is written (the results pages
+    are generated from --out-csv by `uamfleet docs-tables`)"""
     section: str = "msha_table"
     """name of that section (<!-- name:begin --> ... <!-- name:end -->)"""
     out_csv: Path = Path("docs/results/msha_table.csv")
@@ -303,8 +306,13 @@ def main(args: Args) -> list[dict[str, object]]:
     if not rows:
         raise UsageError(f"no trained runs under {args.run_dir}; nothing to tabulate (and nothing written).")
     write_csv_atomic(args.out_csv, rows, list(rows[0]))
-    replace_section(args.out_md, args.section, markdown(rows, planners))
-    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md}")
+    if args.out_md is None:
+        print(markdown(rows, planners), end="")
+        print(f"wrote {args.out_csv}")
+        print(REFRESH_HINT)
+    else:
+        replace_section(args.out_md, args.section, markdown(rows, planners))
+        print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md}")
     return rows
 
 

@@ -3,12 +3,15 @@
     uamfleet-paper-table                    # all scenarios (a few minutes on 2 cores)
     uamfleet-paper-table --quick            # Berlin at -3 dB only (for smoke tests)
 
-Writes ``docs/results/paper_table.csv``, the marked section ``paper_table`` of ``docs/results.md`` and PNG
-figures under ``docs/figures/``. Every planner is flown through the same environment (same rules, same
-metrics); TD is the distance flown in 100 m (Berlin) / 320 m (Detroit) steps, ``TD exact`` the shortest
-feasible path through the exact stops in the order they were served (what the paper's baselines report).
-Rows of an earlier table that this run does not produce (e.g. the learned ``msha-*`` rows of ``--checkpoints``
-given then) are kept; existing results are replaced only with ``--overwrite``, and figures are byte-stable.
+Writes ``docs/results/paper_table.csv`` and PNG figures under ``docs/figures/``, and prints the table; the
+results pages are generated from that CSV by ``uamfleet docs-tables``. ``--out-md FILE`` also (re)writes the
+marked section ``paper_table`` of the Markdown file FILE.
+
+Every planner is flown through the same environment (same rules, same metrics); TD is the distance flown in
+100 m (Berlin) / 320 m (Detroit) steps, ``TD exact`` the shortest feasible path through the exact stops in the
+order they were served (what the paper's baselines report). Rows of an earlier table that this run does not
+produce (e.g. the learned ``msha-*`` rows of ``--checkpoints`` given then) are kept; existing results are
+replaced only with ``--overwrite``, and figures are byte-stable.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import numpy as np
 import uamfleet
 from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli._common import check_outputs, output_paths, run
+from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import (
     PLANNERS,
@@ -52,9 +56,9 @@ COLUMNS = ("setting", "threshold_db", "method", "source", "pr_pct", "td_m", "td_
 
 @dataclass
 class Args:
-    out_md: Path = Path("docs/results.md")
-    """Markdown file whose `paper_table` section is (re)written (paths are relative to the current folder: run it
-    from the repository root to update the repository's docs)"""
+    out_md: Path | None = None
+    """Markdown file whose `paper_table` section is (re)written; without it no Markdown is written (the results
+    pages are generated from --out-csv by `uamfleet docs-tables`)"""
     out_csv: Path = Path("docs/results/paper_table.csv")
     figures: Path = Path("docs/figures")
     quick: bool = False
@@ -174,13 +178,10 @@ def keep_other_rows(rows: list[dict[str, object]], earlier: list[dict[str, objec
     return sorted(merged, key=place)
 
 
-def main(args: Args) -> list[dict[str, object]]:
-    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
-    check_outputs(args.overwrite, [args.out_csv], args.out_md, "paper_table")
-    settings = ((SETTINGS[0][0], SETTINGS[0][1], (-3.0,), SETTINGS[0][3]),) if args.quick else SETTINGS
-    rows: list[dict[str, object]] = []
+def learned_policies(checkpoints: Sequence[Path]) -> dict[tuple[str, float], list[Learned]]:
+    """The trained policies of ``checkpoints`` by the (scenario, threshold) they were trained on."""
     learned: dict[tuple[str, float], list[Learned]] = {}
-    for path in args.checkpoints:
+    for path in checkpoints:
         policy, trained = load_policy(path)
         at = (
             trained.env.sinr_min_db
@@ -191,6 +192,15 @@ def main(args: Args) -> list[dict[str, object]]:
         learned.setdefault((trained.env.scenario, float(at)), []).append(
             (f"msha-{trained.net.variant}", policy, overrides)
         )
+    return learned
+
+
+def main(args: Args) -> list[dict[str, object]]:
+    output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
+    check_outputs(args.overwrite, [args.out_csv], args.out_md, "paper_table")
+    settings = ((SETTINGS[0][0], SETTINGS[0][1], (-3.0,), SETTINGS[0][3]),) if args.quick else SETTINGS
+    rows: list[dict[str, object]] = []
+    learned = learned_policies(args.checkpoints)
     for scenario, key, thresholds, label in settings:
         connectivity: dict[str, list[float]] = {p: [] for p in PLANNERS}
         for threshold in thresholds:
@@ -220,8 +230,13 @@ def main(args: Args) -> list[dict[str, object]]:
                               args.figures / f"connectivity_{scenario}.png")  # fmt: skip
     rows = keep_other_rows(rows, read_rows(args.out_csv))
     write_csv_atomic(args.out_csv, rows, COLUMNS)
-    replace_section(args.out_md, "paper_table", markdown(rows))
-    print(f"wrote {args.out_csv}, the paper_table section of {args.out_md}, figures in {args.figures}/")
+    if args.out_md is None:
+        print(markdown(rows))
+        print(f"wrote {args.out_csv}, figures in {args.figures}/")
+        print(REFRESH_HINT)
+    else:
+        replace_section(args.out_md, "paper_table", markdown(rows))
+        print(f"wrote {args.out_csv}, the paper_table section of {args.out_md}, figures in {args.figures}/")
     return rows
 
 

@@ -19,7 +19,7 @@ Observation space
 A ``Dict`` per taxi, tabulated in :class:`UAMFleetParallelEnv` (``self``, ``history``, ``passengers`` with
 ``passenger_mask``, ``sinr_patch``, ``visit_patch``, ``others`` with ``others_mask``, ``action_mask``, and the
 stop fields of ``stop_features`` / ``stop_rivals`` / ``stop_claims``); one spec:
-:func:`uamfleet.env.layout.observation_layout`;
+:func:`uamfleet.observe.spec.observation_layout`;
 ``state()`` returns the global state for centralised critics (``state_space``), tabulated there too. The rules
 behind every field: ``docs/rules.md``.
 
@@ -95,7 +95,7 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     waiting requests nearest to it (feasible-path distance to the origin with ``stop_features``, else straight
     line; ties by request index), then empty rows (docs/rules.md "Passenger window"); ``state()``'s P is always
     every request. The spec of
-    every field (bounds, column names, how a learner treats it): :func:`uamfleet.env.layout.observation_layout`;
+    every field (bounds, column names, how a learner treats it): :func:`uamfleet.observe.spec.observation_layout`;
     the column names in the meanings are its ``columns``. The last five fields are there with the config flags
     their meaning starts with (the ``*_instances`` scenarios: ``stop_features``; ``*_fleet``: ``stop_claims``):
 

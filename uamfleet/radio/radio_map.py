@@ -173,6 +173,44 @@ class BlockMap:
         return self.sinr_at(points) >= _threshold(threshold_db)
 
 
+def _checked_raster(sinr_db: Any, what: str) -> np.ndarray:
+    """A private float64 copy of ``sinr_db``: a non-empty 2-D array without ±inf, within the map-cell size limit."""
+    declared = np.shape(sinr_db) if isinstance(sinr_db, np.ndarray) else None
+    if declared is not None and len(declared) == 2:  # before the private copy below
+        check_size("map_cells", math.prod(declared), f"{what} (a {declared[0]} x {declared[1]} raster)", 8)
+    arr = np.array(sinr_db, dtype=np.float64)  # a private copy: the caller's array stays theirs
+    if arr.ndim != 2 or 0 in arr.shape:
+        raise ValueError(f"RadioMap.sinr_db must be a non-empty 2-D array [nx, ny], got shape {arr.shape}")
+    if np.isinf(arr).any():
+        raise ValueError("RadioMap.sinr_db contains ±inf; use finite dB values, or NaN for not-computed cells")
+    return arr
+
+
+def _checked_side(side_m: float | None, shape: tuple[int, ...], res: float) -> float:
+    """The side of the operating square: ``side_m``, or inferred from the raster's ``shape`` when None; > 0."""
+    if side_m is None:
+        side = min(n - 1 for n in shape) * res
+        if side <= 0:
+            raise ValueError(
+                f"cannot infer side_m from a raster of shape {shape} (needs >= 2 points per axis); "
+                "pass side_m explicitly"
+            )
+    else:
+        side = _finite(side_m, "side_m")
+        if side <= 0:
+            raise ValueError(f"side_m must be > 0, got {side}")
+    return side
+
+
+def _checked_stations(base_stations: Any) -> tuple[BaseStation, ...]:
+    """``base_stations`` as a tuple of :class:`BaseStation` objects."""
+    stations = tuple(base_stations)
+    for bs in stations:
+        if not isinstance(bs, BaseStation):
+            raise ValueError(f"base_stations must hold BaseStation objects, got {type(bs).__name__}")
+    return stations
+
+
 @dataclass(frozen=True, eq=False)
 class RadioMap:
     """Expected SINR (dB) at flight altitude on a regular raster of cell centres.
@@ -196,41 +234,20 @@ class RadioMap:
 
     def __post_init__(self) -> None:
         what = f"radio map {self.name!r}" if self.name else "RadioMap"
-        declared = np.shape(self.sinr_db) if isinstance(self.sinr_db, np.ndarray) else None
-        if declared is not None and len(declared) == 2:  # before the private copy below
-            check_size("map_cells", math.prod(declared), f"{what} (a {declared[0]} x {declared[1]} raster)", 8)
-        arr = np.array(self.sinr_db, dtype=np.float64)  # a private copy: the caller's array stays theirs
-        if arr.ndim != 2 or 0 in arr.shape:
-            raise ValueError(f"RadioMap.sinr_db must be a non-empty 2-D array [nx, ny], got shape {arr.shape}")
-        if np.isinf(arr).any():
-            raise ValueError("RadioMap.sinr_db contains ±inf; use finite dB values, or NaN for not-computed cells")
+        arr = _checked_raster(self.sinr_db, what)
         object.__setattr__(self, "sinr_db", _read_only(arr))
         res = _finite(self.resolution_m, "resolution_m")
         if res <= 0:
             raise ValueError(f"resolution_m must be > 0, got {res}")
         object.__setattr__(self, "resolution_m", res)
         object.__setattr__(self, "origin_m", _pair(self.origin_m, "origin_m"))
-        if self.side_m is None:
-            side = min(n - 1 for n in arr.shape) * res
-            if side <= 0:
-                raise ValueError(
-                    f"cannot infer side_m from a raster of shape {arr.shape} (needs >= 2 points per axis); "
-                    "pass side_m explicitly"
-                )
-        else:
-            side = _finite(self.side_m, "side_m")
-            if side <= 0:
-                raise ValueError(f"side_m must be > 0, got {side}")
+        side = _checked_side(self.side_m, arr.shape, res)
         check_map_size(what, arr.shape, res, side, self.origin_m)
         object.__setattr__(self, "side_m", side)
         object.__setattr__(self, "altitude_m", _finite(self.altitude_m, "altitude_m"))
         if self.utm_origin_m is not None:
             object.__setattr__(self, "utm_origin_m", _pair(self.utm_origin_m, "utm_origin_m"))
-        stations = tuple(self.base_stations)
-        for bs in stations:
-            if not isinstance(bs, BaseStation):
-                raise ValueError(f"base_stations must hold BaseStation objects, got {type(bs).__name__}")
-        object.__setattr__(self, "base_stations", stations)
+        object.__setattr__(self, "base_stations", _checked_stations(self.base_stations))
         object.__setattr__(self, "is_estimate", bool(self.is_estimate))
 
     # -- pickling (envs in subprocesses): drop the caches, keep the array read-only -------------------------

@@ -342,6 +342,27 @@ def path_gains(
     return np.ascontiguousarray(gains.transpose(0, 2, 1))  # [M, ix, iy]
 
 
+def _checked_request(
+    altitude_m: float, extent: Extent | tuple[float, float, float, float] | None, cell_m: float
+) -> Extent | None:
+    """The altitude, then the measurement area (None: the scene's box) and its raster, checked before the scene
+    is loaded; the area as an :class:`Extent`."""
+    if not (math.isfinite(altitude_m) and altitude_m > 0):
+        raise ValueError(f"altitude_m must be > 0 (the flight altitude, e.g. 100), got {altitude_m!r}")
+    given = None if extent is None else extent if isinstance(extent, Extent) else Extent(*extent)
+    if given is not None:
+        check_extent(given, "the extent")
+        MapGrid.covering(given, cell_m)
+    return given
+
+
+def _sinr_of_gains(gains: np.ndarray, stations: Sequence[BaseStation], params: RayTracingParams) -> np.ndarray:
+    """``[nx, ny]`` best-server SINR (dB) from each station's ``[M, nx, ny]`` path gains, power and loading."""
+    received_mw = gains * np.array([10.0 ** (bs.power_dbm / 10.0) for bs in stations])[:, None, None]
+    loading = np.array([bs.loading for bs in stations])
+    return best_server_sinr_db(received_mw, loading, 10.0 ** (params.noise_dbm / 10.0))
+
+
 def ray_traced_radio_map(
     scene: str | os.PathLike[str] = "munich",
     *,
@@ -358,12 +379,7 @@ def ray_traced_radio_map(
     grid (:func:`grid_base_stations`). ``extent`` is the measurement area in scene coordinates, by default the
     scene's bounding box. The map's :func:`provenance` says how it was made.
     """
-    if not (math.isfinite(altitude_m) and altitude_m > 0):
-        raise ValueError(f"altitude_m must be > 0 (the flight altitude, e.g. 100), got {altitude_m!r}")
-    given = None if extent is None else extent if isinstance(extent, Extent) else Extent(*extent)
-    if given is not None:  # the area and its raster are checked before the scene is loaded
-        check_extent(given, "the extent")
-        MapGrid.covering(given, cell_m)
+    given = _checked_request(altitude_m, extent, cell_m)
     started = time.perf_counter()
     loaded = load_scene(scene)
     load_s = time.perf_counter() - started
@@ -377,9 +393,7 @@ def ray_traced_radio_map(
     started = time.perf_counter()
     gains = path_gains(loaded, stations, grid, altitude_m, params)
     compute_s = time.perf_counter() - started
-    received_mw = gains * np.array([10.0 ** (bs.power_dbm / 10.0) for bs in stations])[:, None, None]
-    loading = np.array([bs.loading for bs in stations])
-    sinr = best_server_sinr_db(received_mw, loading, 10.0 ** (params.noise_dbm / 10.0))
+    sinr = _sinr_of_gains(gains, stations, params)
     scene_label = scene if isinstance(scene, str) and not scene.endswith(".xml") else str(Path(scene).resolve())
     record = {
         "format": NPZ_FORMAT,

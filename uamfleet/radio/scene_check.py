@@ -330,13 +330,9 @@ class _Checker:
             self.defaults.setdefault(name, value)
 
     def walk(self, element: ET.Element, parent: str) -> None:
+        """Check ``element`` (inside a ``<parent>``; "" at the top) and everything under it, in document order."""
         tag = element.tag
-        if tag not in _ATTRIBUTES or tag == "include":
-            raise self.fail(element, "is not an element a scene may hold (docs/inputs.md lists them)")
-        if tag == "scene" and parent != "":
-            raise self.fail(element, "may only be the file's top element")
-        if tag != "scene" and parent == "":
-            raise self.fail(element, "is the top element; a scene file's top element is <scene>")
+        self.check_position(element, parent)
         self.check_attributes(element)
         self.substitute(element)
         if tag in PLUGIN_TYPES:
@@ -344,9 +340,7 @@ class _Checker:
         elif tag != "scene" and parent not in PLUGIN_TYPES and parent != "scene":
             raise self.fail(element, f"cannot stand inside <{parent}>")
         if tag == "string" and element.get("name", "").lower() == "filename":
-            target = self.reference(element, element.get("value", ""), self.folder, "filename")
-            self.add_bytes(target, target.stat().st_size)
-            element.set("value", str(target))
+            self.resolve_file(element)
         if tag == "transform":
             for op in element:
                 self.check_attributes_of_op(op)
@@ -357,10 +351,30 @@ class _Checker:
             self.walk(child, tag)
         if tag == "shape":
             self.place(element)
-            if element.get("type") == "ply":  # whatever the file's name: Mitsuba reads it as PLY
-                for child in element.findall("string"):
-                    if child.get("name", "").lower() == "filename":
-                        self.check_ply(child, Path(child.get("value", "")))  # the checked absolute path
+            self.check_ply_files(element)
+
+    def check_position(self, element: ET.Element, parent: str) -> None:
+        """Refuse an element a scene never holds, and a ``<scene>`` anywhere but at the top (``parent`` "")."""
+        tag = element.tag
+        if tag not in _ATTRIBUTES or tag == "include":
+            raise self.fail(element, "is not an element a scene may hold (docs/inputs.md lists them)")
+        if tag == "scene" and parent != "":
+            raise self.fail(element, "may only be the file's top element")
+        if tag != "scene" and parent == "":
+            raise self.fail(element, "is the top element; a scene file's top element is <scene>")
+
+    def resolve_file(self, element: ET.Element) -> None:
+        """Point a ``<string name="filename">`` at the checked absolute path of its file, and count its bytes."""
+        target = self.reference(element, element.get("value", ""), self.folder, "filename")
+        self.add_bytes(target, target.stat().st_size)
+        element.set("value", str(target))
+
+    def check_ply_files(self, shape: ET.Element) -> None:
+        """:meth:`check_ply` on the file of a ``<shape type="ply">``, walked already (its path checked, absolute)."""
+        if shape.get("type") == "ply":  # whatever the file's name: Mitsuba reads it as PLY
+            for child in shape.findall("string"):
+                if child.get("name", "").lower() == "filename":
+                    self.check_ply(child, Path(child.get("value", "")))  # the checked absolute path
 
     def check_type(self, element: ET.Element, parent: str) -> None:
         kind = element.get("type", "")

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from uamfleet.env.layout import field_kind, field_row_mask
+from uamfleet.observe.spec import field_kind, field_row_mask
 from uamfleet.rl.distributed import Ranks
 
 
@@ -111,7 +111,7 @@ def global_moments(
 
 
 class ObservationNormalizer:
-    """Normalises the observation fields of kind ``"feature"`` and ``"set"`` (:data:`uamfleet.env.layout.FIELD_KINDS`)
+    """Normalises the observation fields of kind ``"feature"`` and ``"set"`` (:data:`uamfleet.observe.spec.FIELD_KINDS`)
     with running statistics, keeping the masked rows of a set at zero; ``"mask"`` and ``"raw"`` fields pass through
     unchanged. ``shapes``: one agent's shape of each field, by name (ValueError for a name that is no field)."""
 

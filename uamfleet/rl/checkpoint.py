@@ -32,7 +32,7 @@ import torch
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig
-from uamfleet.env.layout import Layout, layout_differences, layout_from_dict
+from uamfleet.observe.spec import Layout, layout_differences, layout_from_dict
 from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config

@@ -18,7 +18,7 @@ import torch
 from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
-from uamfleet.env.layout import Layout, layout_shapes, observation_layout
+from uamfleet.observe.spec import Layout, layout_shapes, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv

@@ -171,17 +171,22 @@ class AnticipatingExpert:
             plan, basis = self.plans[e], self.basis[e]
             if not plan or basis is None or plan[0] == proposals[e]:  # type: ignore[index]
                 continue
-            heading = int(proposals[e])  # type: ignore[index]
-            after, moved, done = _one_step(self._child_env, basis, 0, heading)
-            rest = None if done or not moved else self.planner.search.solve(after, self._settings(e))
-            moves = 1 if done and moved else (1 + rest.moves if rest is not None else None)
-            if moves is not None and moves <= self.rest_moves[e]:
-                actions = [heading, *(rest.actions if rest is not None else [])]
-                self.plans[e] = actions[: len(plan)] if self.cut[e] else actions
-                self.rest_moves[e] = moves
-            else:
-                self.corrections += 1
+            self._weigh_proposal(e, basis, int(proposals[e]))  # type: ignore[index]
         return np.array([p[0] if p else NO_LABEL for p in self.plans], np.int64)
+
+    def _weigh_proposal(self, e: int, basis: FleetState, heading: int) -> None:
+        """Env ``e``'s plan starts with the policy's ``heading`` where flying it from ``basis`` then searching takes
+        no more moves than the plan's rest (cut to the plan's length after a sampled future); else a correction."""
+        plan = self.plans[e]
+        after, moved, done = _one_step(self._child_env, basis, 0, heading)
+        rest = None if done or not moved else self.planner.search.solve(after, self._settings(e))
+        moves = 1 if done and moved else (1 + rest.moves if rest is not None else None)
+        if moves is not None and moves <= self.rest_moves[e]:
+            actions = [heading, *(rest.actions if rest is not None else [])]
+            self.plans[e] = actions[: len(plan)] if self.cut[e] else actions
+            self.rest_moves[e] = moves
+        else:
+            self.corrections += 1
 
     def _settings(self, e: int) -> tuple[SearchSettings, ...]:
         return self.planner.future_settings if self.cut[e] else self.planner.replan_settings

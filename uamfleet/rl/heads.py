@@ -136,6 +136,20 @@ class StopHead(nn.Module):
         :data:`PRIOR_FLOOR` plus the learned per-heading corrections."""
         onehot = as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
+        hidden, scores, open_stop = self._stop_scores(features, tokens, actionable, path_to_stop, claimed_by_other)
+        idle, hover_at = self._idle_scores(features, open_stop, hover_mask)
+        weights = torch.log_softmax(torch.cat([scores, *idle], dim=-1), dim=-1)  # [B, P + 1 (+ 1)]
+        logp = self._mixture(weights, onehot, free_logits, hover_at)  # [B, 16 (+ 1)]
+        if not ((self.residual or self.lookahead) and with_residual):
+            return logp
+        return self._corrected(logp, weights, hidden, features, lookahead)
+
+    def _stop_scores(
+        self, features: torch.Tensor, tokens: torch.Tensor, actionable: torch.Tensor,
+        path_to_stop: torch.Tensor | None, claimed_by_other: torch.Tensor | None,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:  # fmt: skip
+        """(hidden [B, P, H], each stop's score [B, P] with its prior and claim, :data:`NOT_THIS` where it is not
+        actionable, open_stop [B, P]: the actionable stops that keep the free component closed)."""
         hidden = torch.tanh(self.from_features(features).unsqueeze(1) + self.from_token(tokens))  # [B, P, H]
         scores = self.score(hidden).squeeze(-1)  # [B, P]
         if path_to_stop is not None:  # relative to the nearest stop: only the free move's weight sees the shift
@@ -148,31 +162,49 @@ class StopHead(nn.Module):
                 raise ValueError("this stop head reads claims: pass claimed_by_other [B, P] (obs 'stop_claims').")
             scores = scores - self.log_claim_weight.exp() * claimed_by_other.to(scores.dtype)
             open_stop = actionable & ~claimed_by_other
-        scores = scores.masked_fill(~actionable, NOT_THIS)  # [B, P]
+        return hidden, scores.masked_fill(~actionable, NOT_THIS), open_stop
+
+    def _idle_scores(
+        self, features: torch.Tensor, open_stop: torch.Tensor, hover_mask: torch.Tensor | None
+    ) -> tuple[list[torch.Tensor], torch.Tensor | None]:
+        """(the free component's score [B, 1] and, with ``hover``, the hover component's; the hover heading one-hot
+        [B, 16] with ``hover``, else None)."""
         free_score = self.free(features)  # [B, 1]
         if not self.free_move:  # only when there is no stop to fly to (that no other taxi is matched with)
             free_score = free_score.masked_fill(open_stop.any(-1, keepdim=True), NOT_THIS)
-        idle = [free_score]
-        if self.hovers:
-            if hover_mask is None:
-                raise ValueError("this stop head hovers: pass hover_mask [B, 16] (obs 'hover_heading_mask').")
-            hover_at = as_bool(hover_mask)  # [B, 16] one-hot (all zero: no move allowed)
-            closed = open_stop.any(-1, keepdim=True)  # [B, 1] a stop to fly to: no hovering
-            if not self.hover_logit:  # the hover heading is needed to hover by it; the hover action needs none
-                closed = closed | ~hover_at.any(-1, keepdim=True)
-            idle.append(self.hover(features).masked_fill(closed, NOT_THIS))
-        weights = torch.log_softmax(torch.cat([scores, *idle], dim=-1), dim=-1)  # [B, P + 1 (+ 1)]
-        P = scores.shape[-1]
+        if not self.hovers:
+            return [free_score], None
+        if hover_mask is None:
+            raise ValueError("this stop head hovers: pass hover_mask [B, 16] (obs 'hover_heading_mask').")
+        hover_at = as_bool(hover_mask)  # [B, 16] one-hot (all zero: no move allowed)
+        closed = open_stop.any(-1, keepdim=True)  # [B, 1] a stop to fly to: no hovering
+        if not self.hover_logit:  # the hover heading is needed to hover by it; the hover action needs none
+            closed = closed | ~hover_at.any(-1, keepdim=True)
+        return [free_score, self.hover(features).masked_fill(closed, NOT_THIS)], hover_at
+
+    def _mixture(
+        self, weights: torch.Tensor, onehot: torch.Tensor, free_logits: torch.Tensor, hover_at: torch.Tensor | None
+    ) -> torch.Tensor:
+        """log pi [B, 16] of the mixture of the stops' headings, the free move and the hover heading; with
+        ``hover_logit`` the hover action's log-probability appended [B, 17]."""
+        P = onehot.shape[1]
         per_stop = weights[:, :P, None] + torch.where(onehot, 0.0, NOT_THIS)  # [B, P, 16]
         free = weights[:, P : P + 1, None] + torch.log_softmax(free_logits, dim=-1).unsqueeze(1)  # [B, 1, 16]
         parts = [per_stop, free]
-        if self.hovers and not self.hover_logit:
+        if hover_at is not None and not self.hover_logit:
             parts.append(weights[:, P + 1 :, None] + torch.where(hover_at, 0.0, NOT_THIS).unsqueeze(1))  # [B, 1, 16]
         logp = torch.logsumexp(torch.cat(parts, dim=1), dim=1)  # [B, 16] log-probabilities
         if self.hover_logit:  # the hover's log-weight is the hover action's log-probability (+ logp's: 1 in all)
             logp = torch.cat([logp, weights[:, P + 1 :]], dim=-1)  # [B, 17]
-        if not ((self.residual or self.lookahead) and with_residual):
-            return logp
+        return logp
+
+    def _corrected(
+        self, logp: torch.Tensor, weights: torch.Tensor, hidden: torch.Tensor, features: torch.Tensor,
+        lookahead: torch.Tensor | None,
+    ) -> torch.Tensor:  # fmt: skip
+        """The mixture's log-probabilities floored at :data:`PRIOR_FLOOR` plus the learned residual and look-ahead
+        corrections of the headings [B, 16 (+ 1)]."""
+        P = hidden.shape[1]
         logits = logp.clamp(min=PRIOR_FLOOR)  # [B, 16 (+ 1)] the corrections below are the headings' only
         headings = logits[:, :NUM_HEADINGS]  # [B, 16]
         if self.residual:  # each stop's own flight correction (from its hidden row), weighted by its mixture weight

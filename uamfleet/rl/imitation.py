@@ -47,7 +47,7 @@ from uamfleet.rl.options import Flat, flat_options, grouped_from_flat, option_gr
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
-from uamfleet.env.layout import layout_to_dict, observation_layout
+from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.types import NUM_HEADINGS
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from uamfleet.config import ConfigError, EnvConfig
-from uamfleet.env.layout import layout_differences, observation_layout
+from uamfleet.observe.spec import layout_differences, observation_layout
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, compute_gae
 from uamfleet.rl.checkpoint import ARCHITECTURE_FIELDS, Checkpoint, checkpoint_source
 from uamfleet.rl.collector import Run, _critic_input, _tensor, normalise

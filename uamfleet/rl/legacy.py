@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from uamfleet.config import EnvConfig
-from uamfleet.env.layout import layout_to_dict, observation_layout
+from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.presets import make_config
 from uamfleet.rl.checkpoint import Checkpoint, CheckpointError, _load_error, with_input_flags
 from uamfleet.rl.options import TrainArgs

@@ -42,7 +42,7 @@ from gymnasium import spaces
 from torch import nn
 from torch.distributions import Categorical
 
-from uamfleet.env.observer import ObservationShapeError
+from uamfleet.observe.observer import ObservationShapeError
 from uamfleet.rl.encoders import (
     layer_init,
     mlp3,
@@ -155,6 +155,10 @@ class NetConfig:
                             ("stop_hover", "claim_inputs")):  # fmt: skip
             if getattr(self, name) and not getattr(self, needs):
                 raise ValueError(f"{name}=True needs {needs}=True (the observation has them only together).")
+        self._check_stop_head_inputs()
+
+    def _check_stop_head_inputs(self) -> None:
+        """The inputs only the stop head reads (its hover, its look-ahead), and the look-ahead rule's weight."""
         if self.stop_hover and self.action_head != "stops":
             raise ValueError("stop_hover=True is a component of the stop head: it needs action_head='stops'.")
         if self.hover_logit and not self.stop_hover:

@@ -1,5 +1,5 @@
 """The trained policy at inference: :class:`GreedyPolicy` (greedy actions, the layout it reads, the same weights for
-another fleet size). Its shapes come from the observation spec (:func:`uamfleet.env.layout.observation_layout`),
+another fleet size). Its shapes come from the observation spec (:func:`uamfleet.observe.spec.observation_layout`),
 never from a built env. Loading one from a checkpoint: :func:`load_policy` (no env is built, the training loop is
 not imported).
 """
@@ -17,7 +17,7 @@ import torch
 
 from uamfleet.checks import MAX_PASSENGERS, ConfigError
 from uamfleet.config import MAX_TAXIS, EnvConfig, check_integer
-from uamfleet.env.layout import (
+from uamfleet.observe.spec import (
     PASSENGER_AXIS_FIELDS,
     Layout,
     layout_differences,

@@ -106,15 +106,36 @@ def claim_run(
     if resume and overwrite:
         raise ConfigError("--resume continues the run and --overwrite replaces it: pass one of them.")
     folder = run_dir / name
+    created = _open_folder(run_dir, folder)
+    lock_id = _take_lock(run_dir, folder, created)
+    # Of racing claims the one that made the folder need not be the one that won the lock: the winner owns a folder
+    # that held nothing else, whoever made it, and removes it again if the run writes nothing.
+    created = created or all(entry.name == LOCK_FILE for entry in folder.iterdir())
+    claim = RunClaim(folder, (), replace=False, created=created, _lock_id=lock_id)
+    try:
+        _check_held(claim, resume, overwrite, resumable)
+    except BaseException:
+        claim.release()
+        raise
+    return claim
+
+
+def _open_folder(run_dir: Path, folder: Path) -> bool:
+    """Make ``run_dir`` (if new) and the run folder in it; whether the run folder was new."""
     try:
         if run_dir.exists() and not run_dir.is_dir():
             raise PathError(f"--run-dir {shown_path(run_dir)} is a file, not a folder; give a folder.", path=run_dir)
         run_dir.mkdir(parents=True, exist_ok=True)
-        created = _make_folder(folder)
+        return _make_folder(folder)
     except (RunFolderError, PathError):
         raise
     except OSError as err:
         raise _unusable(run_dir, folder, err) from None
+
+
+def _take_lock(run_dir: Path, folder: Path, created: bool) -> tuple[int, int]:
+    """Create the run folder's lock file (exclusively) naming this process; its (device, inode). A folder this
+    claim ``created`` is removed again when the lock cannot be made."""
     try:
         fd = os.open(folder / LOCK_FILE, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
     except FileExistsError:
@@ -126,29 +147,25 @@ def claim_run(
     with os.fdopen(fd, "w") as f:
         f.write(f"pid={os.getpid()} host={socket.gethostname()} since={time.strftime('%Y-%m-%dT%H:%M:%S%z')}\n")
         stat = os.fstat(f.fileno())
-    # Of racing claims the one that made the folder need not be the one that won the lock: the winner owns a folder
-    # that held nothing else, whoever made it, and removes it again if the run writes nothing.
-    created = created or all(entry.name == LOCK_FILE for entry in folder.iterdir())
-    claim = RunClaim(folder, (), replace=False, created=created, _lock_id=(stat.st_dev, stat.st_ino))
-    try:
-        claim.held = tuple(f for f in RUN_FILES if (folder / f).exists())
-        if claim.held and not resume:
-            if not overwrite:
-                offer = (
-                    "continue it with --resume, replace it with --overwrite"
-                    if resumable
-                    else "replace it with --overwrite"
-                )
-                raise RunFolderError(
-                    f"{folder} already holds a run ({', '.join(claim.held)}); {offer}, or choose another --run-name."
-                )
-            claim.replace = True
-        if resume and not (folder / "last.pt").exists():
-            raise FileNotFoundError(f"--resume: no checkpoint at {folder / 'last.pt'}; train without --resume first.")
-    except BaseException:
-        claim.release()
-        raise
-    return claim
+    return stat.st_dev, stat.st_ino
+
+
+def _check_held(claim: RunClaim, resume: bool, overwrite: bool, resumable: bool) -> None:
+    """Record the run files the claimed folder holds; refuse an existing run unless ``resume`` or ``overwrite``
+    (which marks it for :meth:`RunClaim.clear`), and a ``resume`` without ``last.pt``."""
+    folder = claim.folder
+    claim.held = tuple(f for f in RUN_FILES if (folder / f).exists())
+    if claim.held and not resume:
+        if not overwrite:
+            offer = (
+                "continue it with --resume, replace it with --overwrite" if resumable else "replace it with --overwrite"
+            )
+            raise RunFolderError(
+                f"{folder} already holds a run ({', '.join(claim.held)}); {offer}, or choose another --run-name."
+            )
+        claim.replace = True
+    if resume and not (folder / "last.pt").exists():
+        raise FileNotFoundError(f"--resume: no checkpoint at {folder / 'last.pt'}; train without --resume first.")
 
 
 def _unusable(run_dir: Path, folder: Path, err: OSError) -> PathError:

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from uamfleet.config import REWARD_TERMS, EnvConfig
-from uamfleet.env.layout import layout_to_dict
+from uamfleet.observe.spec import layout_to_dict
 from uamfleet.env.workers import ShardedVectorEnv
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics

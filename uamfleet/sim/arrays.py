@@ -1,6 +1,7 @@
 """What the compiled kernels read of the world, passed to them whole: :class:`WorldArrays` (built by
-:class:`uamfleet.sim.world.World`, read by :mod:`uamfleet.sim.motion` and :mod:`uamfleet.env.kernels`). A leaf
-module, so that the geometry and the kernels both import it and neither imports the other for its type.
+:class:`uamfleet.sim.world.World`, read by :mod:`uamfleet.sim.motion` and the observation kernels of
+:mod:`uamfleet.observe`). A leaf module, so that the geometry and the kernels both import it and neither
+imports the other for its type.
 """
 
 from __future__ import annotations

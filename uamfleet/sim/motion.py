@@ -1,6 +1,6 @@
 """The motion kernels (numba): the action mask, the separation shield, separation, and the one batched step
-(``step``: the rules of docs/rules.md "Motion" and "Release and pick-up" in order, each in a named part). Re-exported
-by :mod:`uamfleet.env.kernels`, which holds the observation kernels; :mod:`uamfleet.sim.dynamics` is the entry point.
+(``step``: the rules of docs/rules.md "Motion" and "Release and pick-up" in order, each in a named part); the
+observation kernels are :mod:`uamfleet.observe`'s. :mod:`uamfleet.sim.dynamics` is the entry point.
 """
 
 from __future__ import annotations

@@ -1,0 +1,89 @@
+"""The simulator without an observer (uamfleet/sim/core.py): it flies the episodes the vector env flies, ends
+episodes as its ``autoreset`` says, and its global state is the one written out by hand. That it imports no
+observation code is tests/test_layers.py's rule (``uamfleet.sim`` sits below ``uamfleet.env``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import small_config
+
+from uamfleet.config import Request
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.sim.core import Simulator
+
+
+def _two_taxis(**overrides):
+    starts = ((150.0, 150.0), (350.0, 350.0))
+    requests = (Request(0, (350.0, 150.0), (350.0, 350.0)), Request(2, (150.0, 350.0), (450.0, 50.0)))
+    return small_config(starts_m=starts, requests=requests, time_limit_steps=7, **overrides)
+
+
+def test_the_simulator_flies_what_the_vector_env_flies_without_observing() -> None:
+    cfg = _two_taxis()
+    sim, env = Simulator(cfg, num_envs=3), VectorEnv(cfg, num_envs=3)
+    state = sim.reset(seed=5)
+    env.reset(seed=5)
+    assert state is sim.state
+    rng = np.random.default_rng(0)
+    ended = 0
+    for _ in range(20):
+        mask = sim.state.action_mask
+        np.testing.assert_array_equal(mask, env.state.action_mask)
+        actions = np.argmax(rng.random(mask.shape) * np.where(mask.any(-1, keepdims=True), mask, 1), -1)
+        rewards, terminated, truncated, info = sim.step(actions)
+        _, env_rewards, env_terminated, env_truncated, env_info = env.step(actions)
+        np.testing.assert_array_equal(rewards, env_rewards)
+        np.testing.assert_array_equal(terminated, env_terminated)
+        np.testing.assert_array_equal(truncated, env_truncated)
+        assert set(info) == set(env_info) - {"final_obs"}
+        if "_episode" in info:
+            ended += 1
+            for key, value in info["episode"].items():
+                np.testing.assert_array_equal(value, env_info["episode"][key], err_msg=key)
+        for name, value in sim.state._asdict().items():
+            np.testing.assert_array_equal(value, getattr(env.state, name), err_msg=name)
+        np.testing.assert_array_equal(sim.global_state(), env.global_state())
+    assert ended >= 2  # the time limit of 7 steps ended episodes that were drawn anew
+
+
+def test_advance_leaves_the_finished_state_and_end_episodes_draws_the_next_one() -> None:
+    sim = Simulator(_two_taxis(), num_envs=2)
+    sim.reset(seed=0)
+    stay = np.zeros((2, 2), np.int64)
+    for _ in range(6):
+        *_, info = sim.advance(stay)
+        assert "_episode" not in info
+    _, terminated, truncated, info = sim.advance(stay)
+    np.testing.assert_array_equal(truncated, [True, True])
+    np.testing.assert_array_equal(sim.state.t, [7, 7])  # not drawn anew yet
+    np.testing.assert_array_equal(info["episode"]["length"], [7, 7])
+    np.testing.assert_array_equal(sim.end_episodes(truncated | terminated), [0, 1])
+    np.testing.assert_array_equal(sim.state.t, [0, 0])
+    assert not sim.episode_terms.any()
+
+
+def test_without_autoreset_a_finished_episode_needs_a_reset() -> None:
+    sim = Simulator(_two_taxis(), num_envs=1, autoreset=False)
+    with pytest.raises(RuntimeError, match="before reset"):
+        sim.step(np.zeros((1, 2), np.int64))
+    sim.reset(seed=0)
+    for _ in range(7):
+        sim.step(np.zeros((1, 2), np.int64))
+    assert sim.needs_reset and sim.state.t[0] == 7
+    with pytest.raises(RuntimeError, match="before reset"):
+        sim.step(np.zeros((1, 2), np.int64))
+    sim.reset(seed=0)
+    assert sim.state.t[0] == 0
+
+
+def test_the_global_state_by_hand() -> None:
+    sim = Simulator(_two_taxis(), num_envs=1)
+    sim.reset(seed=0)
+    side, limit = 500.0, 7.0
+    taxis = [150 / side, 150 / side, 1.0, 0.0, 350 / side, 350 / side, 1.0, 0.5]  # x, y, free seats / 2, a / A
+    first = [350 / side, 150 / side, 350 / side, 350 / side, 1, 0, 0, 0.0, 0 / limit]  # waiting, no carrier
+    hidden = [0.0] * 9  # released at step 2
+    expected = np.array([taxis + first + hidden + [0.0]], np.float32)
+    assert sim.state_size == expected.shape[1] and sim.state_space.shape == (expected.shape[1],)
+    np.testing.assert_allclose(sim.global_state(), expected, rtol=1e-6)

@@ -1,0 +1,144 @@
+"""Per-taxi observations, computed for all envs and taxis at once (the global state for centralised critics is
+the simulator's: :func:`uamfleet.sim.core.global_state`).
+
+Positions are relative to the observing taxi and divided by the map side, so they lie in [-1, 1]; SINR is in
+dB relative to the threshold (>= 0 means flyable), clipped to [-30, 30]; visit ratios are the taxi's visits
+of a block divided by the steps flown so far (the paper's "uncertainty map"). Every field, with shape, dtype and
+unit: ``docs/rules.md`` ("Observation", "State"); feature names and indices: :mod:`uamfleet.types`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from uamfleet.observe import basic, stops, window
+from uamfleet.observe.lookahead import heading_lookahead
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
+from uamfleet.paths import table_for
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import World
+from uamfleet.types import HISTORY_FEATURES, OTHER_FEATURES, PASSENGER_FEATURES, SELF_FEATURES, FleetState
+
+__all__ = [
+    "HISTORY_FEATURES",
+    "OTHER_FEATURES",
+    "PASSENGER_FEATURES",
+    "SELF_FEATURES",
+    "ObservationShapeError",
+    "Observer",
+    "check_observation",
+]
+
+
+class Observer:
+    """Builds the observation dict ``{name: [E, A, ...] array}``; its fields, shapes and dtypes are
+    :func:`uamfleet.observe.spec.observation_layout`'s (``self.layout``). With a passenger window
+    (``EnvConfig.passenger_window``) every field is computed for every passenger of the state (``self.computed``),
+    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.observe.window`)."""
+
+    def __init__(self, world: World) -> None:
+        cfg = world.cfg
+        self.world = world
+        self.cfg = cfg
+        self.num_taxis = cfg.num_taxis
+        self.layout = observation_layout(cfg)
+        self.computed = computed_layout(cfg)  # the layout itself without a window
+        self.window = cfg.passenger_window
+        self.observation_space = observation_space(self.layout)
+        # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
+        self.table = table_for(world) if "stop_paths" in self.layout else None
+        # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
+        self._observe, self._hover = PreTyped(basic.observe), PreTyped(basic.hover_headings)
+
+    def observe(self, state: FleetState) -> dict[str, np.ndarray]:
+        """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
+        E, A = state.num_envs, state.num_taxis
+        obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.computed.items()}
+        self._observe(
+            state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
+            obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
+        )  # fmt: skip
+        if "hover_heading_mask" in obs:
+            self._hover(state, self.world.arrays, obs["hover_heading_mask"])
+        if self.table is not None:
+            self._stop_fields(state, obs)
+        if self.window is None:
+            return obs
+        rows = self.window_rows(state)
+        picked = window.take_rows(obs, rows, [name for name in PASSENGER_AXIS_FIELDS if name in obs])
+        return {name: picked.get(name, obs[name]) for name in self.layout}
+
+    def window_rows(self, state: FleetState) -> np.ndarray:
+        """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
+        (:mod:`uamfleet.observe.window`; needs ``passenger_window``)."""
+        assert self.window is not None
+        E, A = state.num_envs, state.num_taxis
+        dist = np.full((E, A, self.cfg.num_passengers), np.inf)
+        if self.table is None:
+            window.straight_distances(state, dist)
+        elif not window.path_distances(state, self.table.arrays, dist):
+            self.table.ensure(state.pax_origin_m[state.pax_exists])
+            if not window.path_distances(state, self.table.arrays, dist):
+                raise RuntimeError("the passenger window read a distance-table row that ensure() did not compute.")
+        rows = np.empty((E, A, self.window), np.int64)
+        window.window_rows(state, dist, rows)
+        return rows
+
+    def _stop_fields(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
+        """Write ``stop_paths`` and ``stop_heading_mask``, and ``stop_rivals`` (and ``stop_claims``) where the layout
+        has them; a stop whose table rows are not computed yet (a new instance) gets them, then all are written
+        again."""
+        assert self.table is not None
+        table = self.table
+        paths = (state, self.world.arrays, table.arrays, obs["stop_paths"], obs["stop_heading_mask"])
+        rivals = None
+        if "stop_rivals" in obs:
+            claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
+            rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
+        if not stops.stop_features(*paths) or (rivals is not None and not stops.stop_rivals(*rivals)):
+            exists = state.pax_exists
+            table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
+            stops.stop_features(*paths)
+            if rivals is not None:
+                stops.stop_rivals(*rivals)
+        depth = self.cfg.lookahead_depth
+        if "heading_lookahead" in obs and not heading_lookahead(
+            state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
+        ):
+            raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
+
+
+class ObservationShapeError(ValueError):
+    """An observation does not match the observation space of the env config it is used with."""
+
+
+def check_observation(obs: dict[str, np.ndarray], space: spaces.Dict, batch_dims: int = 0) -> None:
+    """Raise :class:`ObservationShapeError` naming the field, its shape and the expected one.
+
+    ``batch_dims`` leading axes are allowed before each field's shape (2 for the core's ``[E, A, ...]``).
+    Policies call this on their input so that an observation from another config (another number of
+    passengers, patch size or fleet size) fails loudly instead of being silently broadcast.
+    """
+    if not isinstance(obs, dict):
+        raise ObservationShapeError(f"observation must be a dict of arrays, got {type(obs).__name__}.")
+    missing = sorted(set(space.spaces) - set(obs))
+    if missing:
+        raise ObservationShapeError(f"observation lacks field(s) {missing}; expected fields {sorted(space.spaces)}.")
+    batch_shape: tuple[int, ...] | None = None
+    for key, sub in space.spaces.items():
+        value = np.asarray(obs[key])
+        expected = tuple(sub.shape or ())
+        shape = value.shape
+        if len(shape) != batch_dims + len(expected) or shape[batch_dims:] != expected:
+            raise ObservationShapeError(
+                f"observation field {key!r} has shape {shape}, expected {('*',) * batch_dims + expected} "
+                f"({batch_dims} batch axes); build observations with an env of the same config "
+                "(num_passengers, patch_size, history_len, num_taxis)."
+            )
+        if batch_shape is None:
+            batch_shape = shape[:batch_dims]
+        elif shape[:batch_dims] != batch_shape:
+            raise ObservationShapeError(
+                f"observation field {key!r} has batch shape {shape[:batch_dims]}, other fields {batch_shape}."
+            )

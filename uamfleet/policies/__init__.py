@@ -1,0 +1,41 @@
+"""One registry of policies: planners, fleet dispatchers, learned policies and search at decision time, by name.
+
+    from uamfleet import policies
+    policies.available()                                  # {name: (kind, OptionsClass)}
+    planner = policies.make("replan", beam=32)
+    search = policies.make(*policies.parse("guided:top_k=4(learned:source=berlin)"))
+
+The string form (:mod:`uamfleet.policies.names`) is the one the command lines take; the names the benchmarks
+recorded before it read as aliases.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from uamfleet.policies import learned as _learned
+from uamfleet.policies import planners as _planners
+from uamfleet.policies import search as _search
+from uamfleet.policies.names import format, is_recorded, parse
+from uamfleet.policies.registry import KINDS, PolicyNameError, available, make, register
+
+
+def make_named(text: str, **overrides: Any) -> Any:
+    """The policy a name in the string form (or a recorded alias) names, ``overrides`` on top of its options."""
+    name, options = parse(text)
+    return make(name, **{**options, **overrides})
+
+
+_REGISTERED = (_learned, _planners, _search)  # importing them registers their policies
+
+__all__ = [
+    "KINDS",
+    "PolicyNameError",
+    "available",
+    "format",
+    "is_recorded",
+    "make",
+    "make_named",
+    "parse",
+    "register",
+]

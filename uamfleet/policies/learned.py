@@ -1,0 +1,155 @@
+"""Learned policies: the shipped ones (the model zoo) and any checkpoint, by name or file, in the registry.
+
+    import uamfleet
+    planner = uamfleet.pretrained("berlin")            # the Berlin generalist (one taxi, -7 ... -3 dB)
+    cfg = uamfleet.make_config("berlin_p4", sinr_min_db=-5.0)   # or any start / requests / threshold
+    traj = planner.fly(cfg)     # one episode; score it with uamfleet.metrics.episode_metrics(traj, cfg.radio)
+
+    from uamfleet import policies
+    fleet = policies.make("learned", source="berlin_fleet", taxis=4, passenger_window=24)
+
+Each shipped file is a training checkpoint stripped of its optimiser and RNG state (:func:`export_policy`), loaded
+with ``torch.load(weights_only=True)`` like every checkpoint.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from uamfleet.checks import MAX_TAXIS, check_integer
+from uamfleet.policies.registry import PolicyNameError, register
+from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
+from uamfleet.rl.policy import GreedyPolicy, load_policy
+
+
+def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
+    """The shipped policy ``name`` (:data:`PRETRAINED`) as a greedy planner: call it on observations, or
+    ``.fly(cfg)`` any config of its map (``.layout(cfg)`` fits the passenger axis and features to it). Flown at a
+    threshold outside those it trained on (its training arguments' ``thresholds``, else ``sinr_min_db``), it
+    warns once."""
+    policy, args = load_policy(pretrained_path(name), device=device)
+    assert policy.trained_on is not None  # load_policy always sets it
+    single = args.env.sinr_min_db if args.env.sinr_min_db is not None else policy.trained_on.sinr_min_db
+    trained = [float(t) for t in args.env.thresholds] if args.env.thresholds else [float(single)]
+    policy.thresholds_db = (min(trained), max(trained))
+    return policy
+
+
+def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
+    """Write ``checkpoint`` without what only training needs (optimiser moments, RNG states): a few hundred
+    kB that still loads with :func:`uamfleet.rl.policy.load_policy` (it cannot be resumed)."""
+    ckpt = Checkpoint.load(checkpoint)
+    ckpt.optimizer = {}
+    ckpt.numpy_rng = {}
+    ckpt.reward_scaler = None
+    ckpt.cuda_rng = None
+    out = Path(out)
+    ckpt.save(out)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def learned_policy(checkpoint: Path) -> GreedyPolicy:
+    """The greedy policy of a checkpoint file, loaded once per process (it keeps no state between episodes)."""
+    return load_policy(checkpoint)[0]
+
+
+@functools.lru_cache(maxsize=8)
+def traced_policy(checkpoint: Path) -> GreedyPolicy:
+    """A second copy of a checkpoint's greedy policy with its actor traced (the same actions, less overhead per
+    call; ``GreedyPolicy.trace_actor``), for a search that calls the actor thousands of times per decision. A copy,
+    so the eager policy's decision times stay its own."""
+    policy = load_policy(checkpoint)[0]
+    policy.trace_actor()
+    return policy
+
+
+@functools.lru_cache(maxsize=8)
+def _shipped(name: str, device: str, traced: bool) -> GreedyPolicy:
+    policy = pretrained(name, device=device)
+    return policy.trace_actor() if traced else policy
+
+
+@dataclass(frozen=True)
+class LearnedOptions:
+    """``learned``: the greedy policy of ``source`` (a :data:`PRETRAINED` name or a checkpoint file) on ``device``.
+    ``taxis``, ``passenger_slots`` (rows of the passenger axis; ``"world"``: as many as the world has requests,
+    resolved by :func:`for_world`) and ``passenger_window`` (K rows per taxi, any number of requests; exclusive
+    with ``passenger_slots``) fly it zero-shot on another fleet (``GreedyPolicy.for_fleet``); ``loop_guard``
+    false: the argmax alone; ``traced``: its actor traced (a copy, for searches)."""
+
+    source: str = "berlin"
+    device: str = "cpu"
+    passenger_window: int | None = None
+    passenger_slots: int | Literal["world"] | None = None
+    taxis: int | None = None
+    loop_guard: bool = True
+    traced: bool = False
+
+    def __post_init__(self) -> None:
+        if self.passenger_window is not None and self.passenger_slots is not None:
+            raise PolicyNameError(
+                f"passenger_window={self.passenger_window} and passenger_slots={self.passenger_slots!r} both size "
+                "the passenger axis; give one."
+            )
+        if self.passenger_window is not None:
+            check_integer("passenger_window", self.passenger_window, 1)
+        if isinstance(self.passenger_slots, int):
+            check_integer("passenger_slots", self.passenger_slots, 1)
+        if self.taxis is not None:
+            check_integer("taxis", self.taxis, 1, MAX_TAXIS)
+
+
+def for_world(options: dict[str, Any], taxis: int, requests: int) -> dict[str, Any]:
+    """``learned`` options for a world of ``taxis`` and ``requests``: ``passenger_slots="world"`` becomes
+    ``requests``, and the fleet size is ``taxis`` where the options size the passenger axis."""
+    out = dict(options)
+    if out.get("passenger_slots") == "world":
+        out["passenger_slots"] = requests
+    if out.get("passenger_slots") is not None or out.get("passenger_window") is not None:
+        out.setdefault("taxis", taxis)
+    return out
+
+
+def load(options: LearnedOptions) -> GreedyPolicy:
+    """The greedy policy ``options`` name, loaded once per process and source (a fitted copy when resized)."""
+    if options.source in PRETRAINED:
+        policy = _shipped(options.source, options.device, options.traced)
+    else:
+        path = checkpoint_source(options.source)
+        if options.device != "cpu":
+            policy = load_policy(path, device=options.device)[0].trace_actor(options.traced)
+        else:
+            policy = (traced_policy if options.traced else learned_policy)(path)
+    if options.passenger_slots == "world":
+        raise PolicyNameError(
+            "learned: passenger_slots='world' is read against a world; resolve it with "
+            "uamfleet.policies.learned.for_world(options, taxis, requests) or give a number."
+        )
+    if options.taxis is not None or options.passenger_window is not None or options.passenger_slots is not None:
+        slots = options.passenger_slots if isinstance(options.passenger_slots, int) else None
+        taxis = options.taxis if options.taxis is not None else policy.num_taxis or 1
+        policy = policy.for_fleet(taxis, passenger_slots=slots, passenger_window=options.passenger_window)
+    if not options.loop_guard:
+        policy = copy.copy(policy)
+        policy.loop_guard = None
+    return policy
+
+
+register("learned", "learned", LearnedOptions, lambda o, _b: load(o))
+
+__all__ = [
+    "PRETRAINED",
+    "LearnedOptions",
+    "export_policy",
+    "for_world",
+    "learned_policy",
+    "load",
+    "pretrained",
+    "pretrained_path",
+    "traced_policy",
+]

@@ -1,0 +1,123 @@
+"""Search at decision time as wrappers over a base policy: ``argmax`` (the base itself), ``guided``, ``hedge`` and
+``finish``, built from :mod:`uamfleet.rl.guided` and :mod:`uamfleet.baselines.finish` (their constructors as they
+are). ``guided(BASE)``, ``hedge(BASE)`` need a learned base (a :class:`~uamfleet.rl.policy.GreedyPolicy`);
+``finish(BASE)`` takes any one-taxi policy.
+
+    from uamfleet import policies
+    search = policies.make("hedge", base=("learned", {"traced": True}), family="berlin")
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from uamfleet.baselines.finish import FinishWithSearch
+from uamfleet.checks import check_integer, check_number
+from uamfleet.config import EnvConfig
+from uamfleet.instances import check_family
+from uamfleet.policies.registry import NoOptions, PolicyNameError, register
+from uamfleet.rl.guided import (
+    MAX_EXPERT_BEAM,
+    MAX_FUTURES,
+    MAX_SAMPLES,
+    MAX_STEPS,
+    AnticipatingGuidedSearch,
+    GuidedSearchPolicy,
+)
+from uamfleet.rl.policy import GreedyPolicy
+from uamfleet.types import NUM_HEADINGS
+
+
+@dataclass(frozen=True)
+class GuidedOptions:
+    """``guided``: at each release, the base's greedy flights after its ``top_k`` likeliest first headings and
+    ``samples`` flights sampled at ``temperature`` (and, ``expert_beam`` > 0, replan's beam search of that width),
+    rolled forward over the known requests (``horizon`` steps at most, none: to the end); the shortest is flown."""
+
+    top_k: int = 8
+    samples: int = 24
+    temperature: float = 2.0
+    expert_beam: int = 0
+    horizon: int | None = None
+
+    def __post_init__(self) -> None:
+        check_integer("top_k", self.top_k, 1, NUM_HEADINGS, fix=" (e.g. 8)")
+        check_integer("samples", self.samples, 0, MAX_SAMPLES, fix=" (e.g. 24)")
+        check_number("temperature", self.temperature, positive=True)
+        check_integer("expert_beam", self.expert_beam, 0, MAX_EXPERT_BEAM, fix=" (0: none)")
+        if self.horizon is not None:
+            check_integer("horizon", self.horizon, 1, MAX_STEPS, fix=" or none (to the end), e.g. 40")
+
+
+@dataclass(frozen=True)
+class HedgeOptions:
+    """``hedge``: while a request of ``family``'s demand model may come, every ``commit`` steps and at each release,
+    the base's ``first_headings`` likeliest first headings flown in ``futures`` sampled futures (rollouts end
+    ``tail`` steps after the last possible release, -1: at the end); then guided search with ``top_k`` and
+    ``samples``."""
+
+    family: str = "berlin"
+    first_headings: int = 4
+    futures: int = 8
+    commit: int = 4
+    tail: int = 10
+    samples: int = 8
+    top_k: int = 8
+    temperature: float = 2.0
+    expert_beam: int = 0
+    horizon: int | None = None
+
+    def __post_init__(self) -> None:
+        check_family(self.family)
+        check_integer("first_headings", self.first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
+        check_integer("futures", self.futures, 1, MAX_FUTURES, fix=" (e.g. 8)")
+        check_integer("commit", self.commit, 1, MAX_STEPS, fix=" (e.g. 4)")
+        check_integer("tail", self.tail, -1, MAX_STEPS, fix=" (-1: every rollout to its end), e.g. 10")
+        GuidedOptions(self.top_k, self.samples, self.temperature, self.expert_beam, self.horizon)
+
+
+@dataclass(frozen=True)
+class FinishOptions:
+    """``finish``: the base until ``family``'s demand model (slots of ``slot_s`` seconds) says no request can
+    come, then one step-level search of width ``beam`` over the requests, flown to the end."""
+
+    family: str = "berlin"
+    beam: int = 16
+    slot_s: float = EnvConfig.slot_s
+
+    def __post_init__(self) -> None:
+        check_family(self.family)
+        check_integer("beam", self.beam, 1, fix=" (e.g. 16)")
+        check_number("slot_s", self.slot_s, positive=True)
+
+
+def _learned_base(name: str, base: Any) -> GreedyPolicy:
+    if not isinstance(base, GreedyPolicy):
+        raise PolicyNameError(f"{name} searches over a learned policy's logits; give base=learned:…, not {base!r}.")
+    return base
+
+
+def _guided(o: GuidedOptions, base: Any) -> GuidedSearchPolicy:
+    return GuidedSearchPolicy(
+        _learned_base("guided", base), top_k=o.top_k, samples=o.samples, temperature=o.temperature,
+        expert_beam=o.expert_beam, horizon=o.horizon,
+    )  # fmt: skip
+
+
+def _hedge(o: HedgeOptions, base: Any) -> AnticipatingGuidedSearch:
+    return AnticipatingGuidedSearch(
+        _learned_base("hedge", base), o.family, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
+        tail=None if o.tail < 0 else o.tail, top_k=o.top_k, samples=o.samples, temperature=o.temperature,
+        expert_beam=o.expert_beam, horizon=o.horizon,
+    )  # fmt: skip
+
+
+register("argmax", "search", NoOptions, lambda _o, base: base)
+register("guided", "search", GuidedOptions, _guided)
+register("hedge", "search", HedgeOptions, _hedge)
+register(
+    "finish", "search", FinishOptions, lambda o, base: FinishWithSearch.of_family(base, o.family, o.slot_s, o.beam)
+)
+
+__all__ = ["FinishOptions", "GuidedOptions", "HedgeOptions"]
