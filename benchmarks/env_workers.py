@@ -39,11 +39,11 @@ class Args:
 
 
 def training_envs_configs(args: Args) -> list:
-    train_args = TrainArgs(
+    train_args = TrainArgs.from_flat(dict(
         scenario="berlin_instances", thresholds=(-7.0, -6.0, -5.0, -4.0, -3.0), action_head="stops",
         time_limit_steps=600, shaping=0.0, heading_lookahead=args.heading_lookahead,
         lookahead_depth=args.lookahead_depth,
-    )  # fmt: skip
+    ))  # fmt: skip
     cfg = run_config(train_args, "berlin_instances", training=True)
     return training_configs(train_args, cfg, "berlin_instances")
 

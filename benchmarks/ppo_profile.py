@@ -74,13 +74,13 @@ class Args:
 
 def recipe(args: Args, run_dir: Path) -> TrainArgs:
     """The generalist's training options, one thread, nothing logged."""
-    return TrainArgs(
+    return TrainArgs.from_flat(dict(
         scenario="berlin_instances", thresholds=(-7, -6, -5, -4, -3), action_head="stops", variant="de_msfea",
         d_model=32, num_envs=args.num_envs, num_steps=args.num_steps, num_minibatches=args.num_minibatches,
         gamma=0.995, gae_lambda=0.95, learning_rate=1e-4, ent_coef=0.0, shaping=0.0, time_limit_steps=600,
         total_timesteps=10**9, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="profile",
         progress=False, tensorboard=False, threads=1, heading_lookahead=args.heading_lookahead,
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
 class Clock:
@@ -161,7 +161,7 @@ def module_profile(
     """{module: [forward s, backward s]} and the whole forward + backward's seconds, over ``batches`` minibatches
     of the update's size (the loss: the PPO loss's ingredients summed, enough to reach every parameter)."""
     net, buf = learner.net, run.buffer
-    size = run.batch_size // run.args.num_minibatches
+    size = run.batch_size // run.args.ppo.num_minibatches
     times: dict[str, list[float]] = {name: [0.0, 0.0] for name in timed_modules(net)}
     starts: dict[str, float] = {}
     handles = []
@@ -228,7 +228,7 @@ def interleaved_network_checks(
     update's size) with the map CNNs paired or one by one, and the rollout's forward (one step's agents) with the
     map CNNs paired or not, under no_grad or inference_mode."""
     net, buf = learner.net, run.buffer
-    size = run.batch_size // run.args.num_minibatches
+    size = run.batch_size // run.args.ppo.num_minibatches
     rng = np.random.default_rng(1)
     batches = [buf.minibatch(rng.choice(run.batch_size, size, replace=False), run.device) for _ in range(4)]
     steps = [obs_to_torch({k: v[t] for k, v in buf.obs.items()}, run.device) for t in range(8)]

@@ -69,16 +69,16 @@ class Args:
 
 
 def train_args(args: Args, variant: str, run_dir: Path, taxis: int | None = None, env_workers: int = 0) -> TrainArgs:
-    return TrainArgs(
-        scenario=args.scenario, num_taxis=taxis, action_head=args.action_head,  # type: ignore[arg-type]
-        stop_prior=args.stop_prior, d_model=args.d_model, variant=variant,  # type: ignore[arg-type]
+    return TrainArgs.from_flat(dict(
+        scenario=args.scenario, num_taxis=taxis, action_head=args.action_head,
+        stop_prior=args.stop_prior, d_model=args.d_model, variant=variant,
         total_timesteps=args.iterations * args.num_envs * args.num_steps * (taxis or 1), num_envs=args.num_envs,
         num_steps=args.num_steps, eval_every=0, checkpoint_every=10**9, run_dir=run_dir, run_name="bench",
-        progress=False, tensorboard=False, threads=args.threads, device=args.device,  # type: ignore[arg-type]
+        progress=False, tensorboard=False, threads=args.threads, device=args.device,
         thresholds=args.thresholds, num_minibatches=args.num_minibatches, update_epochs=args.update_epochs,
         time_limit_steps=args.time_limit_steps, shaping=args.shaping, heading_lookahead=args.heading_lookahead,
         env_workers=env_workers,
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
 def _rank_main(args: Args, variant: str, run_dir: str, taxis: int | None = None, env_workers: int = 0) -> None:

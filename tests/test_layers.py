@@ -47,7 +47,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     # The held-out instances (and their batched validation) are drawn from env and paths; rl's trainer uses them.
     # Below the loop in rl: the training options (rl.options), checkpoints (rl.checkpoint) and the run folder and
     # its log (rl.runs), so reading a checkpoint or a run's progress never imports the loop.
-    (7, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.instances")),
+    # rl.legacy (format-1 files, the flat training arguments) sits beside rl.checkpoint, whose Checkpoint it reads.
+    (7, ("uamfleet.baselines", "uamfleet.rl", "uamfleet.rl.checkpoint", "uamfleet.rl.legacy", "uamfleet.instances")),
     (8, ("uamfleet.rollout", "uamfleet.metrics")),
     # The training loop evaluates its greedy policy with rollout + metrics: it sits above them, below viz.
     # So does the greedy policy (GreedyPolicy.fly, load_policy), which the loop evaluates and the zoo ships (the

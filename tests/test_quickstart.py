@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from uamfleet.cli import quickstart
-from uamfleet.rl.checkpoint import Checkpoint, checkpoint_args, pretrained_path
+from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
+from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.options import TrainArgs, make_env_config
 
 
@@ -37,7 +38,7 @@ def trainer_options(tmp_path: Path, argv: list[str]) -> TrainArgs:
 def shaping_of(args: TrainArgs, potential: float, next_potential: float) -> float:
     """The shaping term the env pays for one step, F = w (gamma_Phi Phi(s') - Phi(s)), from the config the run
     trains on (uamfleet.rl.options.make_env_config), written out by hand."""
-    reward = make_env_config(args.scenario, args).reward
+    reward = make_env_config(args.env.scenario, args).reward
     return reward.shaping * (reward.shaping_gamma * next_potential - potential)
 
 
@@ -46,11 +47,11 @@ def test_the_main_job_fine_tunes_the_shipped_generalist_on_its_own_reward(tmp_pa
     iteration (and the start first: tests/rl/test_fine_tuning.py), and trains on the reward the start was trained
     on (read here from the shipped checkpoint itself), so the value head and the advantages mean what they meant."""
     recipe = trainer_options(tmp_path, [])
-    assert recipe.init_from == "berlin" and recipe.kl_to_init == 0.01 and recipe.eval_every == 1
-    assert recipe.scenario == "berlin_p4" and recipe.sinr_min_db == -3.0 and recipe.threads == 1
-    assert recipe.total_timesteps == quickstart.FINE_TUNE_STEPS == 24 * 32 * 64  # whole iterations
+    assert recipe.net.init_from == "berlin" and recipe.net.kl_to_init == 0.01 and recipe.eval.eval_every == 1
+    assert recipe.env.scenario == "berlin_p4" and recipe.env.sinr_min_db == -3.0 and recipe.run.threads == 1
+    assert recipe.ppo.total_timesteps == quickstart.FINE_TUNE_STEPS == 24 * 32 * 64  # whole iterations
     start = checkpoint_args(Checkpoint.load(pretrained_path("berlin")))
-    assert (recipe.shaping, recipe.gamma) == (start.shaping, start.gamma) == (0.0, 0.995)
+    assert (recipe.env.shaping, recipe.ppo.gamma) == (start.env.shaping, start.ppo.gamma) == (0.0, 0.995)
     assert "fine-tuning 'berlin' with PPO on Berlin P4 at -3 dB for 49,152 agent-steps" in capsys.readouterr().out
 
 
@@ -70,14 +71,14 @@ def test_the_recipe_from_scratch_pays_nothing_for_staying_away_from_the_stops(tm
 
 def test_the_recipe_from_scratch_evaluates_every_iteration_and_keeps_the_rest_of_the_trainer_defaults(tmp_path):
     recipe = trainer_options(tmp_path, ["--init-from", "None"])
-    assert recipe.init_from is None and recipe.kl_to_init == 0.0
-    assert recipe.eval_every == 1  # best.pt: the shortest greedy tour of any iteration, not of every 5th
-    assert recipe.threads == 1 and recipe.seed == 1 and recipe.total_timesteps == 150_000
-    assert recipe.scenario == "berlin_p4" and recipe.sinr_min_db == -3.0 and recipe.variant == "de_msfea"
+    assert recipe.net.init_from is None and recipe.net.kl_to_init == 0.0
+    assert recipe.eval.eval_every == 1  # best.pt: the shortest greedy tour of any iteration, not of every 5th
+    assert recipe.run.threads == 1 and recipe.ppo.seed == 1 and recipe.ppo.total_timesteps == 150_000
+    assert recipe.env.scenario == "berlin_p4" and recipe.env.sinr_min_db == -3.0 and recipe.net.variant == "de_msfea"
     defaults = TrainArgs()
     for name in ("gamma", "learning_rate", "ent_coef", "shaping", "shaping_anneal_frac", "num_envs", "num_steps"):
-        assert getattr(recipe, name) == getattr(defaults, name), name
-    assert recipe.max_wall_s == 600.0  # --minutes 10
+        assert recipe.flat()[name] == defaults.flat()[name], name
+    assert recipe.eval.max_wall_s == 600.0  # --minutes 10
 
 
 def test_the_old_recipe_is_one_flag_pair_away(tmp_path):
@@ -87,4 +88,4 @@ def test_the_old_recipe_is_one_flag_pair_away(tmp_path):
     old = trainer_options(
         tmp_path, ["--init-from", "None", "--shaping-gamma", "0.9", "--eval-every", "5", "--seed", "3"]
     )
-    assert (old.shaping_gamma, old.eval_every, old.seed) == (0.9, 5, 3)
+    assert (old.env.shaping_gamma, old.eval.eval_every, old.ppo.seed) == (0.9, 5, 3)

@@ -19,7 +19,8 @@ import pytest
 import torch
 
 from uamfleet.cli import benchmark, render
-from uamfleet.rl.checkpoint import NET_LIMITS, Checkpoint, CheckpointError, upgrade_checkpoint
+from uamfleet.rl.checkpoint import NET_LIMITS, Checkpoint, CheckpointError
+from uamfleet.rl.legacy import upgrade_checkpoint
 from uamfleet.rl.trainer import load_policy
 from uamfleet.zoo import pretrained_path
 

@@ -30,7 +30,7 @@ def args(tmp_path: Path, iterations: int = 2, **overrides) -> TrainArgs:
         threads=1, time_limit_steps=30, eval_time_limit_steps=30, d_model=16, num_heads=2,
     )  # fmt: skip
     base.update(overrides)
-    return TrainArgs(**base)
+    return TrainArgs.from_flat(base)
 
 
 def steps(folder: Path) -> list[int]:
@@ -191,7 +191,7 @@ def test_the_policy_of_a_checkpoint_flies(tmp_path):
     train(args(tmp_path, iterations=1), env_config=ONE_PASSENGER)
     policy, saved = load_policy(tmp_path / "run" / "best.pt", env_config=ONE_PASSENGER)
     obs, _ = uamfleet.VectorEnv(ONE_PASSENGER).reset(seed=0)
-    assert saved.num_envs == 4 and policy(obs).shape == (1, 1)
+    assert saved.env.num_envs == 4 and policy(obs).shape == (1, 1)
 
 
 def _torch_bytes(obj) -> bytes:

@@ -22,8 +22,8 @@ TWO_REQUESTS = small_config(
 
 
 def test_the_collector_stores_what_the_acting_network_did(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    args = TrainArgs(num_envs=3, num_steps=8, total_timesteps=3 * 8, num_minibatches=1, run_dir=tmp_path,
-                     time_limit_steps=6, progress=False, tensorboard=False, threads=1)  # fmt: skip
+    args = TrainArgs.from_flat(dict(num_envs=3, num_steps=8, total_timesteps=3 * 8, num_minibatches=1, run_dir=tmp_path,
+                     time_limit_steps=6, progress=False, tensorboard=False, threads=1))  # fmt: skip
     run = make_run(args, TWO_REQUESTS, Ranks(), torch.device("cpu"))
     torch.manual_seed(0)
     net = MSHAActorCritic(run.venv.single_observation_space, NetConfig(variant="le", d_model=16))

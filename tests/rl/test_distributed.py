@@ -29,12 +29,12 @@ NUM_ENVS = 4
 
 
 def args_for(run_dir: Path, iterations: int, resume: bool = False) -> TrainArgs:
-    return TrainArgs(
+    return TrainArgs.from_flat(dict(
         resume=resume,
         total_timesteps=iterations * 32 * NUM_ENVS * 2, num_envs=NUM_ENVS, num_steps=32, num_minibatches=4,
         update_epochs=2, eval_every=0, checkpoint_every=1, run_dir=run_dir, run_name="dp", progress=False,
         tensorboard=False, threads=1, time_limit_steps=12, d_model=16, num_heads=2, seed=5, device="cpu",
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
 def _flat_params(net: torch.nn.Module) -> torch.Tensor:

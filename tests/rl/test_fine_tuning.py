@@ -41,7 +41,7 @@ def fine_tune_args(tmp_path, **overrides) -> TrainArgs:
         progress=False, tensorboard=False, threads=1, d_model=16, num_heads=2, learning_rate=1e-12, shaping=0.0,
     )  # fmt: skip
     base.update(overrides)
-    return TrainArgs(**base)
+    return TrainArgs.from_flat(base)
 
 
 def test_a_run_from_the_generalist_evaluates_the_start_first_and_its_checkpoints_load(tmp_path):
@@ -63,7 +63,7 @@ def test_a_run_from_the_generalist_evaluates_the_start_first_and_its_checkpoints
     assert check_net_config(saved.net_config, "best.pt") == check_net_config(start.net_config, "berlin")
     assert saved.args["d_model"] == 32 and saved.args["action_head"] == "stops"
     policy, args = load_policy(tmp_path / "ft" / "best.pt")
-    assert args.init_from == "berlin"
+    assert args.net.init_from == "berlin"
     assert episode_metrics(policy.fly(cfg), cfg.radio).td_m == shipped.td_m
     # and the run resumes from its last.pt (its spec is checked against the same layout)
     more = train(fine_tune_args(tmp_path, kl_to_init=0.5, total_timesteps=128, resume=True))
@@ -72,7 +72,7 @@ def test_a_run_from_the_generalist_evaluates_the_start_first_and_its_checkpoints
 
 def test_the_start_must_be_named_and_must_not_live_in_the_run_folder(tmp_path):
     with pytest.raises(ConfigError, match=r"--kl-to-init=0\.1 pulls the policy toward the one it starts from"):
-        TrainArgs(kl_to_init=0.1)
+        TrainArgs.from_flat(dict(kl_to_init=0.1))
     with pytest.raises(FileNotFoundError, match=r"'no/such\.pt' is neither a shipped policy"):
         train(fine_tune_args(tmp_path, init_from="no/such.pt"))
     train(fine_tune_args(tmp_path))

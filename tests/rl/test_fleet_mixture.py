@@ -96,7 +96,7 @@ def _mixture_args(tmp_path: Path, **overrides: object) -> TrainArgs:
         progress=False, tensorboard=False, threads=1, shaping=0.0, learning_rate=1e-3,
     )  # fmt: skip
     base.update(overrides)
-    return TrainArgs(**base)  # type: ignore[arg-type]
+    return TrainArgs.from_flat(base)  # type: ignore[arg-type]
 
 
 def test_a_fine_tune_of_the_shipped_fleet_on_a_mixture_starts_from_its_actor_and_loads_and_resumes(
@@ -124,7 +124,9 @@ def test_a_fine_tune_of_the_shipped_fleet_on_a_mixture_starts_from_its_actor_and
     last = torch.load(tmp_path / "mix" / "last.pt", weights_only=True)["model"]
     assert any(not torch.equal(last[k], start[k]) for k in start if not k.startswith("critic."))
     policy, saved = load_policy(tmp_path / "mix" / "last.pt")
-    assert saved.fleet_mixture == ("1x6", "2x24") and saved.passenger_window == 24 and saved.reinit_critic
+    assert (
+        saved.env.fleet_mixture == ("1x6", "2x24") and saved.observer.passenger_window == 24 and saved.net.reinit_critic
+    )
     assert policy.num_taxis == 2 and policy.passenger_window == 24 and policy.net.cfg.critic_state_dim is None
     cfg = make_config("berlin_fleet", num_taxis=3, sinr_min_db=-5.0, time_limit_steps=12)
     assert len(policy.for_fleet(3).fly(cfg).stacked("actions")) == 12
@@ -156,13 +158,20 @@ def test_what_cannot_start_from_the_shipped_fleet_is_refused_with_the_fix(tmp_pa
 def test_a_run_with_its_own_window_keeps_its_own_requests_and_time_limit() -> None:
     """From a start without a window, a run with --passenger-window reads the window and keeps its own load and
     episode length; without one it takes the start's 24 passenger slots, which 48 requests do not fit."""
-    windowed = TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet_v1", passenger_window=24, num_requests=48,
-                         time_limit_steps=700)  # fmt: skip
+    windowed = TrainArgs.from_flat(
+        dict(
+            scenario="berlin_fleet",
+            init_from="berlin_fleet_v1",
+            passenger_window=24,
+            num_requests=48,
+            time_limit_steps=700,
+        )
+    )
     cfg = run_config(windowed, training=True)
     assert (cfg.passenger_window, cfg.num_passengers, cfg.demand.max_requests) == (24, 48, 48)
     assert cfg.time_limit_steps == 700 and cfg.observed_passengers == 24
     with pytest.raises(ConfigError, match="max_passengers=24 is smaller than the 48 requests"):
-        run_config(TrainArgs(scenario="berlin_fleet", init_from="berlin_fleet_v1", num_requests=48))
+        run_config(TrainArgs.from_flat(dict(scenario="berlin_fleet", init_from="berlin_fleet_v1", num_requests=48)))
 
 
 @pytest.mark.parametrize(
@@ -180,4 +189,4 @@ def test_a_run_with_its_own_window_keeps_its_own_requests_and_time_limit() -> No
 def test_fleet_mixture_options_are_checked(overrides: dict[str, object], message: str) -> None:
     base: dict[str, object] = {"scenario": "berlin_fleet"}
     with pytest.raises(ConfigError, match=message):
-        TrainArgs(**{**base, **overrides})  # type: ignore[arg-type]
+        TrainArgs.from_flat({**base, **overrides})  # type: ignore[arg-type]

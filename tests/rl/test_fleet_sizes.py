@@ -80,12 +80,12 @@ def test_the_fleet_design_trains_end_to_end_and_flies_another_size(tmp_path) -> 
     fleet: two PPO iterations, a checkpoint that loads with the claim-aware hovering head, flown with 3 taxis."""
     from uamfleet.rl.trainer import TrainArgs, load_policy, train
 
-    result = train(TrainArgs(
+    result = train(TrainArgs.from_flat(dict(
         scenario="berlin_fleet", num_taxis=2, action_head="stops", stop_prior="nearest", centralised_critic=True,
         variant="de_msfea", d_model=16, num_heads=2, total_timesteps=2 * 2 * 2 * 16, num_envs=2, num_steps=16,
         num_minibatches=1, update_epochs=1, eval_every=0, run_dir=tmp_path, run_name="fleet", progress=False,
         tensorboard=False, threads=1, shaping=0.0,
-    ))  # fmt: skip
+    )))  # fmt: skip
     assert result.global_step == 128 and result.iterations == 2
     policy, _ = load_policy(result.run_dir / "last.pt")
     head = policy.net.stop_head

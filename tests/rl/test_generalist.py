@@ -158,12 +158,12 @@ def test_the_stop_head_needs_stop_features() -> None:
 @pytest.fixture(scope="module")
 def generalist_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two iterations on a -7 / -3 dB mixture, evaluated on 3 validation instances (a tiny, untrained policy)."""
-    args = TrainArgs(
+    args = TrainArgs.from_flat(dict(
         scenario="berlin_instances", thresholds=(-7.0, -3.0), action_head="stops", d_model=16, num_heads=2,
         eval_instances=3, time_limit_steps=120, num_envs=4, num_steps=16, num_minibatches=2, update_epochs=1,
         total_timesteps=2 * 4 * 16, eval_every=1, run_dir=tmp_path_factory.mktemp("runs"), run_name="g",
         progress=False, tensorboard=False, threads=1, device="cpu", fill_tables=False,
-    )  # fmt: skip
+    ))  # fmt: skip
     result = train(args)
     assert result.iterations == 2
     assert result.best_eval["instances"] == 3.0
@@ -175,7 +175,7 @@ def test_load_policy_flies_another_threshold_and_fewer_passengers(generalist_run
     # another threshold than either trained one, and Berlin P4's 4 requests on the 6 slots
     p4 = make_config("berlin_p4", sinr_min_db=-5.0)
     policy, args = load_policy(generalist_run, env_config=p4.replace(max_passengers=6, stop_features=True))
-    assert args.thresholds == (-7.0, -3.0)
+    assert args.env.thresholds == (-7.0, -3.0)
     laid_out = policy.layout(p4)
     assert laid_out.sinr_min_db == -5.0 and laid_out.num_passengers == 6 and laid_out.stop_features
     assert laid_out.requests == p4.requests and laid_out.starts_m == p4.starts_m

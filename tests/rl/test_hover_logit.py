@@ -160,14 +160,14 @@ def test_a_fine_tune_with_the_option_trains_17_logits_and_its_checkpoint_records
     from uamfleet.rl.runs import read_progress
     from uamfleet.rl.trainer import TrainArgs, train
 
-    args = TrainArgs(
+    args = TrainArgs.from_flat(dict(
         scenario="berlin_fleet", init_from="berlin_fleet_v1", hover_logit=True, passenger_window=24, num_taxis=4,
         num_requests=24, reinit_critic=True, centralised_critic=False, total_timesteps=256, num_envs=2, num_steps=32,
         num_minibatches=2, update_epochs=1, eval_every=1, eval_instances=1, checkpoint_every=1, run_dir=tmp_path,
         run_name="hover", progress=False, tensorboard=False, threads=1, shaping=0.0, time_limit_steps=200,
-    )  # fmt: skip
+    ))  # fmt: skip
     train(args)
     rows = read_progress(tmp_path / "hover" / "progress.csv")
     assert rows[-1]["iteration"] == 1 and rows[0]["eval/pr_pct"] == 100.0
     policy, saved = load_policy(tmp_path / "hover" / "last.pt")
-    assert saved.hover_logit and policy.net.cfg.hover_logit and policy.net.num_actions == NUM_HEADINGS + 1
+    assert saved.net.hover_logit and policy.net.cfg.hover_logit and policy.net.num_actions == NUM_HEADINGS + 1

@@ -159,7 +159,7 @@ def test_dagger_fit_moves_the_policy_toward_the_expert() -> None:
             return float((net.masked_logits(obs_to_torch(x, "cpu")).argmax(-1).numpy() == y).mean())
 
     before = agreement()
-    args = ImitationArgs(epochs=30, minibatch=64, learning_rate=3e-3)
+    args = ImitationArgs.from_flat(dict(epochs=30, minibatch=64, learning_rate=3e-3))
     stats = fit(net, data, args, torch.optim.Adam(net.parameters(), lr=3e-3), rng)
     assert agreement() > max(before, 0.5) and stats["bc_agreement"] > before
     assert (y >= 0).all() and (y < NUM_HEADINGS).all()
@@ -210,10 +210,11 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: boo
     from uamfleet.rl.imitation import imitate
     from uamfleet.rl.policy import load_policy
 
-    args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=2, rounds=1, steps_per_round=8, eval_instances=2,
-                         epochs=1, minibatch=16, run_dir=tmp_path, run_name="tiny", lookahead=lookahead,
-                         train="lookahead" if lookahead else "residual",
-                         lookahead_rule=LOOKAHEAD_RULE if lookahead else 0.0)  # fmt: skip
+    args = ImitationArgs.from_flat(dict(
+        thresholds=(-5.0,), envs_per_threshold=2, rounds=1, steps_per_round=8, eval_instances=2, epochs=1,
+        minibatch=16, run_dir=tmp_path, run_name="tiny", lookahead=lookahead,
+        train="lookahead" if lookahead else "residual", lookahead_rule=LOOKAHEAD_RULE if lookahead else 0.0,
+    ))  # fmt: skip
     best = imitate(args)
     assert best["val_pr_pct"] == 100.0
     rows = (tmp_path / "tiny" / "progress.csv").read_text().splitlines()
@@ -227,11 +228,11 @@ def test_imitate_end_to_end_writes_loadable_checkpoints(tmp_path, lookahead: boo
     with pytest.raises(ConfigError, match="--overwrite"):
         imitate(args)
     with pytest.raises(ConfigError, match="pass --lookahead"):
-        ImitationArgs(train="lookahead")
+        ImitationArgs.from_flat(dict(train="lookahead"))
     with pytest.raises(ConfigError, match=r"--lookahead-rule=100\.0 weighs the look-ahead: pass --lookahead"):
-        ImitationArgs(lookahead_rule=100.0)
+        ImitationArgs.from_flat(dict(lookahead_rule=100.0))
     with pytest.raises(ConfigError, match="--lookahead-rule"):
-        ImitationArgs(lookahead=True, lookahead_rule=-1.0)
+        ImitationArgs.from_flat(dict(lookahead=True, lookahead_rule=-1.0))
 
 
 def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_two(tmp_path) -> None:
@@ -241,8 +242,10 @@ def test_a_lookahead_depth_is_refused_without_the_lookahead_or_outside_one_and_t
     from uamfleet.rl.imitation import imitate
 
     with pytest.raises(ConfigError, match="--lookahead-depth=2 is the look-ahead's depth: pass --lookahead"):
-        ImitationArgs(lookahead_depth=2)
-    args = ImitationArgs(lookahead=True, train="lookahead", lookahead_depth=3, run_dir=tmp_path, run_name="deep")
+        ImitationArgs.from_flat(dict(lookahead_depth=2))
+    args = ImitationArgs.from_flat(
+        dict(lookahead=True, train="lookahead", lookahead_depth=3, run_dir=tmp_path, run_name="deep")
+    )
     with pytest.raises(ConfigError, match="lookahead_depth=3 must be 1"):
         imitate(args)
     assert not (tmp_path / "deep").exists()
@@ -394,9 +397,11 @@ def test_imitate_with_the_anticipating_teacher_end_to_end(tmp_path) -> None:
     from uamfleet.rl.imitation import imitate
     from uamfleet.rl.policy import load_policy
 
-    args = ImitationArgs(thresholds=(-5.0,), envs_per_threshold=1, rounds=1, steps_per_round=6, eval_instances=1,
-                         epochs=1, minibatch=4, run_dir=tmp_path, run_name="fut", expert="futures", futures=1,
-                         scored_futures=1, expert_beam=8, future_beam=4, score_beam=2)  # fmt: skip
+    args = ImitationArgs.from_flat(dict(
+        thresholds=(-5.0,), envs_per_threshold=1, rounds=1, steps_per_round=6, eval_instances=1, epochs=1,
+        minibatch=4, run_dir=tmp_path, run_name="fut", expert="futures", futures=1, scored_futures=1, expert_beam=8,
+        future_beam=4, score_beam=2,
+    ))  # fmt: skip
     best = imitate(args)
     assert best["val_pr_pct"] == 100.0
     rows = (tmp_path / "fut" / "progress.csv").read_text().splitlines()
@@ -404,4 +409,4 @@ def test_imitate_with_the_anticipating_teacher_end_to_end(tmp_path) -> None:
     policy, _ = load_policy(tmp_path / "fut" / "best.pt")
     assert policy.net.cfg.heading_residual
     with pytest.raises(ConfigError, match="--scored-futures"):
-        ImitationArgs(expert="futures", scored_futures=0)
+        ImitationArgs.from_flat(dict(expert="futures", scored_futures=0))

@@ -106,7 +106,7 @@ def _with_layout(tmp_path: Path, name: str, layout: dict) -> Path:
 
 def _fleet_layout() -> dict:
     _, args = load_policy(pretrained_path("berlin_fleet_v1"))
-    return layout_to_dict(observation_layout(make_env_config(args.scenario, args, training=False)))
+    return layout_to_dict(observation_layout(make_env_config(args.env.scenario, args, training=False)))
 
 
 def test_a_stored_spec_is_kept_and_compared_field_by_field(tmp_path):

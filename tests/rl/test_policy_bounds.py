@@ -64,10 +64,10 @@ def test_a_fleet_sized_policy_keeps_the_threshold_range(fleet_policy):
 
 def test_minibatches_that_do_not_divide_the_batch_are_refused_before_a_run_starts(tmp_path: Path):
     # 2 envs x 8 steps x 1 taxi = 16 agent-steps: 3 minibatches would be 5 + 5 + 5 + a silent fourth of 1
-    args = TrainArgs(
+    args = TrainArgs.from_flat(dict(
         scenario="berlin_p4", num_envs=2, num_steps=8, num_minibatches=3, total_timesteps=16, run_dir=tmp_path,
         run_name="mb", eval_every=0, threads=1,
-    )  # fmt: skip
+    ))  # fmt: skip
     with pytest.raises(ConfigError, match=r"--num-minibatches=3 does not divide the batch of 16 .* e\.g\. 2"):
         train(args)
     assert not (tmp_path / "mb").exists()

@@ -85,7 +85,7 @@ def tiny_args(tmp_path, **overrides) -> TrainArgs:
         time_limit_steps=30, eval_time_limit_steps=30, d_model=16, num_heads=2,
     )  # fmt: skip
     base.update(overrides)
-    return TrainArgs(**base)
+    return TrainArgs.from_flat(base)
 
 
 ONE_PASSENGER = small_config(requests=(Request(0, (350.0, 150.0), (350.0, 350.0)),), time_limit_steps=30)
@@ -115,10 +115,10 @@ def test_checkpoint_resume_continues_the_run(tmp_path):
     first = train(tiny_args(tmp_path, total_timesteps=2 * 64 * 4), env_config=ONE_PASSENGER)
     assert (tmp_path / "tiny" / "last.pt").exists() and (tmp_path / "tiny" / "progress.csv").exists()
     assert first.iterations == 2
-    resumed = train(TrainArgs(**{**args.__dict__, "resume": True}), env_config=ONE_PASSENGER)
+    resumed = train(TrainArgs.from_flat({**args.flat(), "resume": True}), env_config=ONE_PASSENGER)
     assert resumed.global_step == 4 * 64 * 4 and resumed.iterations == 4  # 2 before + 2 after, in one CSV
     policy, saved = load_policy(tmp_path / "tiny" / "last.pt", env_config=ONE_PASSENGER)
-    assert saved.seed == args.seed
+    assert saved.ppo.seed == args.ppo.seed
     obs = {k: v for k, v in __import__("uamfleet").VectorEnv(ONE_PASSENGER).reset(seed=0)[0].items()}
     assert policy(obs).shape == (1, 1)
 
@@ -141,9 +141,12 @@ def test_must_learn_one_passenger_optimal_route(tmp_path):
 
 
 def test_shaping_discount_is_the_trainers_unless_given():
-    default = make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping=50.0))
+    default = make_env_config("berlin_p4", TrainArgs.from_flat(dict(gamma=0.9, shaping=50.0)))
     assert default.reward.shaping_gamma == 0.9 and default.reward.shaping == 50.0
-    assert make_env_config("berlin_p4", TrainArgs(gamma=0.9, shaping_gamma=1.0)).reward.shaping_gamma == 1.0
+    assert (
+        make_env_config("berlin_p4", TrainArgs.from_flat(dict(gamma=0.9, shaping_gamma=1.0))).reward.shaping_gamma
+        == 1.0
+    )
 
 
 def test_a_run_with_a_passenger_window_reads_k_rows_and_flies_any_number_of_requests(tmp_path):
@@ -157,7 +160,7 @@ def test_a_run_with_a_passenger_window_reads_k_rows_and_flies_any_number_of_requ
     trained_on = make_env_config(cfg, options, training=False)
     assert trained_on.passenger_window == 2 and trained_on.observed_passengers == 2
     policy, args = load_policy(result.run_dir / "last.pt", env_config=trained_on)
-    assert args.passenger_window == 2 and policy.obs_shapes is not None
+    assert args.observer.passenger_window == 2 and policy.obs_shapes is not None
     assert policy.obs_shapes["passengers"][0] == 2 and policy.passenger_window == 2
     five = tuple(Request(2 * i, (350.0, 150.0), (150.0, 350.0 - 50.0 * i)) for i in range(5))
     more = make_env_config(small_config(requests=five, time_limit_steps=30), options, training=False)

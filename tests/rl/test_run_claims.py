@@ -37,7 +37,7 @@ def exit_status(cli, argv: list[str]) -> int:
 def tiny(run_dir: Path, **overrides) -> TrainArgs:
     fields = dict(run_dir=run_dir, run_name="r", total_timesteps=64, num_envs=1, num_steps=64, progress=False,
                   tensorboard=False, device="cpu")  # fmt: skip
-    return TrainArgs(**{**fields, **overrides})
+    return TrainArgs.from_flat({**fields, **overrides})
 
 
 def test_of_many_concurrent_claims_of_one_name_exactly_one_wins(tmp_path):
@@ -187,7 +187,7 @@ def test_imitate_refuses_a_path_as_run_name_as_train_does(tmp_path, monkeypatch,
 
 def test_imitate_claims_its_folder_before_any_work(tmp_path, monkeypatch):
     monkeypatch.setattr(imitation, "_groups", lambda *a, **k: (_ for _ in ()).throw(Reached()))
-    args = ImitationArgs(run_dir=tmp_path, run_name="dagger", overwrite=True, eval_instances=1)
+    args = ImitationArgs.from_flat(dict(run_dir=tmp_path, run_name="dagger", overwrite=True, eval_instances=1))
     with claim_run(tmp_path, "dagger"):  # another command writes the run
         with pytest.raises(RunFolderError, match=f"{tmp_path / 'dagger'} is in use by another run"):
             imitation.imitate(args)

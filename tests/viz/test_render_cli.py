@@ -45,8 +45,24 @@ def test_planners_fly_one_taxi(tmp_path: Path) -> None:
 def test_render_a_trained_checkpoint(tmp_path: Path) -> None:
     from uamfleet.rl.trainer import TrainArgs, train
 
-    result = train(TrainArgs(total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1, update_epochs=1,
-                             run_dir=tmp_path, run_name="tiny", progress=False, tensorboard=False, threads=1,
-                             time_limit_steps=40, d_model=16, num_heads=2))  # fmt: skip
+    result = train(
+        TrainArgs.from_flat(
+            dict(
+                total_timesteps=64,
+                num_envs=2,
+                num_steps=32,
+                num_minibatches=1,
+                update_epochs=1,
+                run_dir=tmp_path,
+                run_name="tiny",
+                progress=False,
+                tensorboard=False,
+                threads=1,
+                time_limit_steps=40,
+                d_model=16,
+                num_heads=2,
+            )
+        )
+    )
     written = main(Args(checkpoint=result.run_dir / "best.pt", out=tmp_path / "msha.html"))
     assert written["html"].stat().st_size > 100_000

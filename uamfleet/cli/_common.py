@@ -146,7 +146,7 @@ def _deferring_checks(args_type: Callable[..., T]) -> Callable[..., T]:
             except (ValueError, OSError) as err:
                 object.__setattr__(self, "_cli_error", err)  # also for a frozen dataclass
 
-    return dataclasses.dataclass(Checked)
+    return dataclasses.dataclass(frozen=args_type.__dataclass_params__.frozen)(Checked)  # type: ignore[attr-defined]
 
 
 _RULE = set("─━-=+╭╮╰╯│| ")

@@ -24,8 +24,8 @@ def main(args: ImitationArgs) -> int:
     best = imitate(args)
     print(
         f"best validation round {int(best['round'])}: PR {fmt(best['val_pr_pct'], '.1f', ' %')}, mean TD "
-        f"{fmt(best['val_td_m'], '.0f', ' m')} over {args.eval_instances} instances; checkpoints and progress.csv "
-        f"in {args.run_dir / args.run_name}"
+        f"{fmt(best['val_td_m'], '.0f', ' m')} over {args.eval.eval_instances} instances; checkpoints and progress.csv "
+        f"in {args.run.run_dir / args.run.run_name}"
     )
     return 0
 

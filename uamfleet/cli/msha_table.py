@@ -171,8 +171,8 @@ def run_row(exp: Experiment, args: Args, opt_td: float) -> dict[str, object] | N
         return None
     policy, trained = load_policy(best)
     # the policy reads time as a fraction of its episode limit: fly it under the limit it trained with
-    cfg = uamfleet.make_config(exp.scenario, sinr_min_db=exp.threshold_db, feasibility=trained.feasibility,
-                               time_limit_steps=trained.time_limit_steps)  # fmt: skip
+    cfg = uamfleet.make_config(exp.scenario, sinr_min_db=exp.threshold_db, feasibility=trained.env.feasibility,
+                               time_limit_steps=trained.env.time_limit_steps)  # fmt: skip
     m = episode_metrics(fly(cfg, policy), cfg.radio, threshold_db=exp.threshold_db)
     progress = read_progress(args.run_dir / exp.name / "progress.csv")
     last = progress[-1]

@@ -184,12 +184,14 @@ def learned_policies(checkpoints: Sequence[Path]) -> dict[tuple[str, float], lis
     for path in checkpoints:
         policy, trained = load_policy(path)
         at = (
-            trained.sinr_min_db
-            if trained.sinr_min_db is not None
-            else uamfleet.make_config(trained.scenario).sinr_min_db
+            trained.env.sinr_min_db
+            if trained.env.sinr_min_db is not None
+            else uamfleet.make_config(trained.env.scenario).sinr_min_db
         )
-        overrides = {"feasibility": trained.feasibility, "time_limit_steps": trained.time_limit_steps}
-        learned.setdefault((trained.scenario, float(at)), []).append((f"msha-{trained.variant}", policy, overrides))
+        overrides = {"feasibility": trained.env.feasibility, "time_limit_steps": trained.env.time_limit_steps}
+        learned.setdefault((trained.env.scenario, float(at)), []).append(
+            (f"msha-{trained.net.variant}", policy, overrides)
+        )
     return learned
 
 

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 
@@ -37,7 +37,8 @@ from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.presets import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
-from uamfleet.rl.checkpoint import Checkpoint, checkpoint_args, checkpoint_source
+from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
+from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.trainer import GreedyPolicy, TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
 
@@ -70,12 +71,12 @@ class Args:
     of docs/results.md's "The main job over 10 seeds"; more threads change floating-point reductions, hence the
     whole run (a 2-thread run of seed 1 under the earlier recipe stalled at 1 of 4 passengers)"""
     shaping_gamma: float | None = 1.0
-    """from scratch: discount inside the shaping term gamma_Phi Phi(s') - Phi(s) (TrainArgs.shaping_gamma; None:
+    """from scratch: discount inside the shaping term gamma_Phi Phi(s') - Phi(s) (TrainArgs.env.shaping_gamma; None:
     the trainer's gamma, 0.9). 1: a step pays only for progress toward the next stop. With 0.9 the term also pays
     w (1 - 0.9) |Phi| per step for staying far from it: seeds 3 and 6 learned to hover there
     (docs/results.md, "The main job over 10 seeds"). Fine-tuning uses the start's reward (no shaping)"""
     kl_to_init: float = 0.01
-    """fine-tuning: weight of the KL divergence from the start in the PPO loss (TrainArgs.kl_to_init)"""
+    """fine-tuning: weight of the KL divergence from the start in the PPO loss (TrainArgs.net.kl_to_init)"""
     eval_every: int = 1
     """greedy evaluation every this many iterations; best.pt keeps the shortest tour of any of them (one episode,
     well under a second; with 5, tours flown between two evaluations were never kept)"""
@@ -108,7 +109,7 @@ def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics
 
 def training_args(args: Args) -> TrainArgs:
     """The trainer's options for the main job: fine-tuning from ``args.init_from``, or the recipe from scratch."""
-    common = TrainArgs(
+    common = dict(
         scenario="berlin_p4", sinr_min_db=args.sinr_min_db, seed=args.seed, run_dir=args.run_dir,
         run_name=args.run_name, max_wall_s=60.0 * args.minutes, feasibility=args.feasibility, threads=args.threads,
         eval_every=args.eval_every,
@@ -116,31 +117,33 @@ def training_args(args: Args) -> TrainArgs:
     )  # fmt: skip
     if args.init_from is None:
         steps = SCRATCH_STEPS if args.total_timesteps is None else args.total_timesteps
-        return replace(common, total_timesteps=steps, variant=args.variant, shaping_gamma=args.shaping_gamma)
+        return TrainArgs.from_flat(
+            {**common, "total_timesteps": steps, "variant": args.variant, "shaping_gamma": args.shaping_gamma}
+        )
     # The start's own reward (read from its checkpoint: for the shipped generalist no shaping and a long horizon),
     # a smaller step than from scratch, an entropy bonus to try other flights and a KL term to stay near the start
     # where the return does not say otherwise.
     start = checkpoint_args(Checkpoint.load(checkpoint_source(args.init_from), map_location="cpu"))
     steps = FINE_TUNE_STEPS if args.total_timesteps is None else args.total_timesteps
-    return replace(
+    return TrainArgs.from_flat(dict(
         common, total_timesteps=steps, init_from=args.init_from, kl_to_init=args.kl_to_init,
-        shaping=start.shaping, shaping_metric=start.shaping_metric, shaping_gamma=start.shaping_gamma,
-        gamma=start.gamma, learning_rate=3e-4, ent_coef=0.01,
-    )  # fmt: skip
+        shaping=start.env.shaping, shaping_metric=start.env.shaping_metric, shaping_gamma=start.env.shaping_gamma,
+        gamma=start.ppo.gamma, learning_rate=3e-4, ent_coef=0.01,
+    ))  # fmt: skip
 
 
 def main(args: Args) -> dict[str, EpisodeMetrics]:
     train_args = training_args(args)
     if args.init_from is None:
         print(f"training MSHA-PPO ({args.variant}) from scratch on Berlin P4 at {args.sinr_min_db:g} dB for "
-              f"{train_args.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
+              f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
     else:
         print(f"fine-tuning {args.init_from!r} with PPO on Berlin P4 at {args.sinr_min_db:g} dB for "
-              f"{train_args.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
+              f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
     result = train(train_args)
     policy, trained = load_policy(result.run_dir / "best.pt")
     rule = {"feasibility": args.feasibility}
-    name = f"MSHA-PPO {trained.variant} (ours)" if args.init_from is None else "MSHA-PPO fine-tuned (ours)"
+    name = f"MSHA-PPO {trained.net.variant} (ours)" if args.init_from is None else "MSHA-PPO fine-tuned (ours)"
     rows = {
         name: fly(policy, args.sinr_min_db, **rule),
         "raster_replan (ours)": fly(PlannerPolicy("raster_replan"), args.sinr_min_db, **rule),

@@ -77,8 +77,10 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
     }
     if args.checkpoint is not None:
         policy, trained = load_policy(args.checkpoint)
-        overrides = {"feasibility": trained.feasibility, **trained.env_overrides(training=False), **overrides}
-        shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
+        overrides = {"feasibility": trained.env.feasibility, **trained.env_overrides(training=False), **overrides}
+        shown = uamfleet.make_config(
+            trained.env.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides
+        )
         return fly_episode(shown, policy, seed=args.seed), shown
     flown, shown = planner_configs(args.scenario, args.policy, **overrides)
     policy = make_policy(args.policy, args.seed, shown.num_taxis)

@@ -33,8 +33,8 @@ def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
     warns once."""
     policy, args = load_policy(pretrained_path(name), device=device)
     assert policy.trained_on is not None  # load_policy always sets it
-    single = args.sinr_min_db if args.sinr_min_db is not None else policy.trained_on.sinr_min_db
-    trained = [float(t) for t in args.thresholds] if args.thresholds else [float(single)]
+    single = args.env.sinr_min_db if args.env.sinr_min_db is not None else policy.trained_on.sinr_min_db
+    trained = [float(t) for t in args.env.thresholds] if args.env.thresholds else [float(single)]
     policy.thresholds_db = (min(trained), max(trained))
     return policy
 

@@ -12,8 +12,7 @@ reads it and loading never runs code. A file is an input like any other, so befo
   tensor, not a RuntimeError listing them all.
 
 Every refusal is a :class:`CheckpointError` (a ValueError: one line and exit status 2 on the command line).
-:func:`upgrade_checkpoint` converts a checkpoint of format 1 (NumPy objects pickled inside) reading only NumPy
-arrays and scalars; unpickling anything else happens only with ``trust=True``, which warns what it means.
+Files of format 1 and the flat training arguments are read by :mod:`uamfleet.rl.legacy`.
 """
 
 from __future__ import annotations
@@ -22,7 +21,6 @@ import dataclasses
 import io
 import re
 import stat
-import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -34,9 +32,8 @@ import torch
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig
-from uamfleet.observe.spec import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
+from uamfleet.observe.spec import Layout, layout_differences, layout_from_dict
 from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
-from uamfleet.presets import make_config
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config
 
@@ -56,20 +53,6 @@ NET_LIMITS: dict[str, int] = {"d_model": 4096, "num_heads": 256, "local_window":
                               "critic_state_dim": 1_000_000}  # fmt: skip
 """Largest size each integer field of a checkpoint's ``net_config`` may ask for: far above any policy trained here
 (d_model 16 ... 128, hidden 128), low enough that a crafted file cannot make the loader allocate gigabytes."""
-
-try:  # NumPy 2 renamed numpy.core to numpy._core
-    from numpy._core import multiarray as _multiarray
-except ImportError:  # pragma: no cover - NumPy 1
-    from numpy.core import multiarray as _multiarray  # type: ignore[no-redef]
-
-NUMPY_GLOBALS: list[Any] = [
-    np.ndarray, np.dtype, _multiarray._reconstruct, _multiarray.scalar,
-    *(type(np.dtype(kind)) for kind in "?bBhHiIlLqQefdg"),  # numeric dtypes only: never object arrays
-    *((getattr(_multiarray, f), f"numpy.{core}.multiarray.{f}")  # the names files of either NumPy use
-      for core in ("core", "_core") for f in ("_reconstruct", "scalar")),
-]  # fmt: skip
-"""What a format-1 checkpoint pickled besides tensors: NumPy arrays and scalars (the RNG state, the normaliser's
-statistics). Rebuilding them runs no code of the file; :func:`upgrade_checkpoint` allows these and nothing else."""
 
 
 class CheckpointError(ValueError):
@@ -288,9 +271,10 @@ class Checkpoint:
         ``extra_ok``: fields only the env has are fine (a trained policy reads only the fields it knows)."""
         diffs = []
         if args is not None:
+            run = args.flat()
             for key in (*ARCHITECTURE_FIELDS, *ENVIRONMENT_FIELDS):
-                if key in self.args and self.args[key] != getattr(args, key):
-                    diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {getattr(args, key)!r}")
+                if key in self.args and self.args[key] != run[key]:
+                    diffs.append(f"{key}: checkpoint {self.args[key]!r}, this run {run[key]!r}")
         for key in sorted(set(self.obs_shapes) | set(obs_shapes)):
             saved, now = self.obs_shapes.get(key), obs_shapes.get(key)
             if saved is None and extra_ok:
@@ -449,92 +433,6 @@ def _load_error(err: Exception) -> str:
     return lines[0].split(". ")[0] if lines else type(err).__name__
 
 
-TRUST_WARNING = (
-    "upgrade_checkpoint(trust=True) unpickles {path} with torch.load(weights_only=False): any code the file holds "
-    "runs now, with your permissions. Trust only a file you wrote yourself and kept where nobody else could "
-    "change it."
-)
-
-
-def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *, trust: bool = False) -> Path:
-    """Re-save a checkpoint of format 1 (NumPy RNG state and statistics pickled inside) in the safe format, in
-    place (pass the ``env_config`` it was trained on, if not its named scenario).
-
-    It reads the file with ``torch.load(weights_only=True)`` allowing NumPy arrays and scalars only
-    (:data:`NUMPY_GLOBALS`): no code of the file runs, and a file holding anything else is refused. ``trust=True``
-    unpickles the file fully instead, which runs any code in it (it warns): only for a file you wrote yourself.
-    The result is checked like every checkpoint before it is saved."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"checkpoint {path} does not exist.")
-    old = _read_format1(path, trust)
-    if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
-        raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
-    _to_plain_values(old)
-    layout = observation_layout(_evaluation_config(old["args"], env_config))  # the spec: no env is built
-    old["obs_shapes"] = {k: list(spec.shape) for k, spec in layout.items()}
-    old["obs_layout"] = layout_to_dict(layout)
-    names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
-    upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
-    upgraded.net_config = with_input_flags(upgraded.net_config, upgraded.obs_shapes)
-    upgraded.validate(str(path))
-    upgraded.save(path)
-    return path
-
-
-def _read_format1(path: Path, trust: bool) -> Any:
-    """A format-1 file: NumPy arrays and scalars allowed and nothing else, or fully unpickled with ``trust``."""
-    if trust:
-        warnings.warn(TRUST_WARNING.format(path=path), UserWarning, stacklevel=3)
-        return torch.load(path, map_location="cpu", weights_only=False)
-    try:
-        with torch.serialization.safe_globals(NUMPY_GLOBALS):  # torch >= 2.5
-            return torch.load(path, map_location="cpu", weights_only=True)
-    except AttributeError:  # pragma: no cover - older torch
-        raise CheckpointError("upgrade_checkpoint needs torch >= 2.5 (torch.serialization.safe_globals).") from None
-    except Exception as err:
-        raise CheckpointError(
-            f"{path} holds more than tensors and NumPy arrays, so upgrade_checkpoint will not read it "
-            f"({_load_error(err)}): it is not a uamfleet checkpoint of format 1; train the run again."
-        ) from None
-
-
-def _to_plain_values(old: dict[str, Any]) -> None:
-    """In place: the NumPy RNG state as plain values, the normalisers' statistics as tensors and floats."""
-    if not isinstance(old["numpy_rng"], dict):
-        name, keys, pos, has_gauss, cached = old["numpy_rng"]
-        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
-                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
-    for key in ("obs_normalizer", "reward_scaler"):
-        if old.get(key) is not None:
-            fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
-            for rms in fields.values():
-                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
-                rms["count"] = float(rms["count"])
-    old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
-
-
-def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) -> EnvConfig:
-    """The config a run evaluated on, from its saved arguments (the observation layout is all that matters
-    here: the same overrides as ``TrainArgs.env_overrides(training=False)``)."""
-    overrides: dict[str, Any] = {"feasibility": args.get("feasibility", "endpoint_block")}
-    for key in ("sinr_min_db", "num_taxis"):
-        if args.get(key) is not None:
-            overrides[key] = args[key]
-    limit = args.get("eval_time_limit_steps") or args.get("time_limit_steps")
-    if limit is not None:
-        overrides["time_limit_steps"] = limit
-    return make_config(env_config if env_config is not None else str(args["scenario"]), **overrides)
-
-
-def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
-    """The training arguments a checkpoint was written with (options added since take their defaults)."""
-    known = {f.name for f in dataclasses.fields(TrainArgs)}
-    saved = {k: v for k, v in ckpt.args.items() if k in known}
-    saved["run_dir"] = Path(saved.get("run_dir", "runs"))
-    return TrainArgs(**saved)
-
-
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests;
     # berlin_stops plus a correction of its flight learned from replan (DAgger, issue 20), reading each heading's
@@ -589,36 +487,40 @@ _INIT_CHAIN_MAX = 8  # a run fine-tuned from a run fine-tuned from ...: deeper t
 
 def run_config(args: TrainArgs, scenario: str | EnvConfig | None = None, training: bool = True) -> EnvConfig:
     """The env config a run trains (``training``) or is evaluated on: :func:`~uamfleet.rl.options.make_env_config`
-    of ``scenario`` (default ``args.scenario``), laid out as the policy it starts from (``args.init_from``) reads
-    its observation: passenger axis, stop fields, look-ahead, patch, history and time limit
+    of ``scenario`` (default ``args.env.scenario``), laid out as the policy it starts from (``args.net.init_from``)
+    reads its observation: passenger axis, stop fields, look-ahead, patch, history and time limit
     (:meth:`EnvConfig.with_layout_of`). Training, evaluating and loading a fine-tuned run all go through here, so
     its checkpoint loads like any other.
 
     A run that sets its own ``--passenger-window`` reads that window whatever its start read: a windowed observation
     does not depend on the number of requests, so the run keeps its own requests and time limit (a start trained
     without a window is fitted to it as ``GreedyPolicy.for_fleet`` flies it: its passenger statistics pooled)."""
-    cfg = make_env_config(args.scenario if scenario is None else scenario, args, training=training)
+    cfg = make_env_config(args.env.scenario if scenario is None else scenario, args, training=training)
     like = _init_layout(args, depth=0)
     return cfg if like is None else cfg.with_layout_of(_with_own_window(like, args))
 
 
 def _with_own_window(like: EnvConfig, args: TrainArgs) -> EnvConfig:
     """The start's layout ``like`` with the run's own passenger window, when it sets one."""
-    return like if args.passenger_window is None else like.replace(passenger_window=args.passenger_window)
+    return (
+        like
+        if args.observer.passenger_window is None
+        else like.replace(passenger_window=args.observer.passenger_window)
+    )
 
 
 def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
-    """The config (layout) the policy of ``args.init_from`` was evaluated on; None without one."""
-    if args.init_from is None:
+    """The config (layout) the policy of ``args.net.init_from`` was evaluated on; None without one."""
+    if args.net.init_from is None:
         return None
     if depth >= _INIT_CHAIN_MAX:
         raise ValueError(
-            f"--init-from={args.init_from!r} starts a chain of more than {_INIT_CHAIN_MAX} runs, each fine-tuned "
+            f"--init-from={args.net.init_from!r} starts a chain of more than {_INIT_CHAIN_MAX} runs, each fine-tuned "
             "from the next: the files point at each other; start from a shipped policy or a run trained from scratch."
         )
-    source = checkpoint_source(args.init_from)
-    init_args = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
-    cfg = make_env_config(init_args.scenario, init_args, training=False)
+    source = checkpoint_source(args.net.init_from)
+    init_args = TrainArgs.from_saved(Checkpoint.load(source, map_location="cpu").args)
+    cfg = make_env_config(init_args.env.scenario, init_args, training=False)
     like = _init_layout(init_args, depth + 1)
     return cfg if like is None else cfg.with_layout_of(_with_own_window(like, init_args))
 
@@ -649,13 +551,11 @@ __all__ = [
     "check_net_config",
     "check_network",
     "check_state_dict",
-    "checkpoint_args",
     "checkpoint_source",
     "numpy_rng_state",
     "pretrained_path",
     "read_checkpoint_file",
     "run_config",
     "set_numpy_rng_state",
-    "upgrade_checkpoint",
     "with_input_flags",
 ]

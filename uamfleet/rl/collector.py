@@ -9,7 +9,6 @@ mixture over ``--thresholds`` and ``--fleet-mixture``, or env workers), the roll
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,7 +74,7 @@ class Run:
 
     @property
     def batch_size(self) -> int:  # global
-        return self.args.num_steps * self.total_agents
+        return self.args.ppo.num_steps * self.total_agents
 
     def flat(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The core's [E, A, ...] observation as the agents' [N, ...] rows (a mixture's padding taxis left out)."""
@@ -113,10 +112,10 @@ class Run:
 
 
 def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device: torch.device) -> Run:
-    if args.variant not in VARIANTS:
-        raise ValueError(f"variant={args.variant!r} is unknown; use one of {VARIANTS}.")
-    env_offset, local_envs = ranks.shard(args.num_envs)
-    base: str | EnvConfig = env_config if env_config is not None else args.scenario
+    if args.net.variant not in VARIANTS:
+        raise ValueError(f"variant={args.net.variant!r} is unknown; use one of {VARIANTS}.")
+    env_offset, local_envs = ranks.shard(args.env.num_envs)
+    base: str | EnvConfig = env_config if env_config is not None else args.env.scenario
     cfg = run_config(args, base, training=True)
     venv = _training_envs(args, cfg, base, local_envs)
     taxis = cfg.num_taxis  # taxis per env (a mixture of fleet sizes: its largest, padded; --num-taxis)
@@ -128,32 +127,32 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     if isinstance(venv, MixtureVectorEnv) and venv.mixed_sizes:
         if ranks.active:
             raise ConfigError(
-                f"--fleet-mixture={list(args.fleet_mixture)} mixes fleet sizes, whose agents do not split evenly "
+                f"--fleet-mixture={list(args.env.fleet_mixture)} mixes fleet sizes, whose agents do not split evenly "
                 "among torchrun ranks; train it in one process."
             )
         rows = np.flatnonzero(venv.taxi_mask.reshape(-1))
     local_agents = local_envs * taxis if rows is None else len(rows)
-    total_agents = args.num_envs * taxis if rows is None else len(rows)
-    batch = args.num_steps * total_agents
+    total_agents = args.env.num_envs * taxis if rows is None else len(rows)
+    batch = args.ppo.num_steps * total_agents
     _check_batch(args, batch, taxis)
     return Run(
-        args=args, ranks=ranks, device=device, folder=args.run_dir / args.name, cfg=cfg,
+        args=args, ranks=ranks, device=device, folder=args.run.run_dir / args.name, cfg=cfg,
         eval_cfg=run_config(args, base, training=False), venv=venv, obs_shapes=shapes, layout=layout,
-        buffer=RolloutBuffer(args.num_steps, local_agents, shapes, state_dim), env_offset=env_offset,
+        buffer=RolloutBuffer(args.ppo.num_steps, local_agents, shapes, state_dim), env_offset=env_offset,
         num_agents=local_agents, agent_offset=env_offset * taxis, total_agents=total_agents,
-        num_iterations=max(1, args.total_timesteps // batch), state_dim=state_dim, agent_rows=rows,
+        num_iterations=max(1, args.ppo.total_timesteps // batch), state_dim=state_dim, agent_rows=rows,
     )  # fmt: skip
 
 
 def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv | ShardedVectorEnv) -> int:
     """Size of the centralised critic's state (the env state and a one-hot of the taxi); 0 without one.
     ConfigError for a mixture whose settings' global states differ in size (no one critic input holds them)."""
-    if not args.centralised_critic:
+    if not args.net.centralised_critic:
         return 0
     if venv.state_space is None:
         raise ConfigError(
             f"--centralised-critic reads one global state, but the settings of --fleet-mixture="
-            f"{list(args.fleet_mixture)} have states of different sizes (taxis and passengers); train with "
+            f"{list(args.env.fleet_mixture)} have states of different sizes (taxis and passengers); train with "
             "--no-centralised-critic (the critic reads each taxi's own features, of any fleet), and with an "
             "--init-from policy whose critic is centralised add --reinit-critic."
         )
@@ -166,12 +165,12 @@ def _training_envs(
     """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``; tables
     filled if asked."""
     cfgs = training_configs(args, cfg, base)
-    fill = args.fill_tables and cfg.stop_features and cfg.requests is None
-    if args.env_workers:
-        if args.env_workers > local_envs:
+    fill = args.env.fill_tables and cfg.stop_features and cfg.requests is None
+    if args.env.env_workers:
+        if args.env.env_workers > local_envs:
             raise ConfigError(
-                f"--env-workers={args.env_workers} exceeds this rank's {local_envs} envs; give at most {local_envs} "
-                "(each worker steps one env at least), or more --num-envs."
+                f"--env-workers={args.env.env_workers} exceeds this rank's {local_envs} envs; give at most "
+                f"{local_envs} (each worker steps one env at least), or more --num-envs."
             )
         if fill and cache_dir() is not None:  # filled once here and saved to the disk cache, which every worker loads
             for c in cfgs:  # (without a disk cache each worker fills its own: filling here would be lost)
@@ -179,12 +178,17 @@ def _training_envs(
         try:
             # copy=False: collect_rollout copies each observation into its buffer before it steps again
             return ShardedVectorEnv(
-                cfgs, local_envs, args.env_workers, global_state=args.centralised_critic, fill_tables=fill, copy=False
+                cfgs,
+                local_envs,
+                args.env.env_workers,
+                global_state=args.net.centralised_critic,
+                fill_tables=fill,
+                copy=False,
             )
         except ValueError as err:
-            raise ConfigError(f"--env-workers={args.env_workers}: {err}") from err
+            raise ConfigError(f"--env-workers={args.env.env_workers}: {err}") from err
     venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
-    if args.thresholds or args.fleet_mixture:
+    if args.env.thresholds or args.env.fleet_mixture:
         venv = MixtureVectorEnv(cfgs, num_envs=local_envs)
     if fill:
         # Random demand reads every row of the distance tables within minutes: compute them now (or load them
@@ -198,34 +202,35 @@ def training_configs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig) -> 
     """The configs of the training envs' groups: ``cfg`` (the run's config) at each ``--thresholds`` value, in each
     ``--fleet-mixture`` setting (threshold-major); ``[cfg]`` without either."""
     settings = [cfg]
-    if args.fleet_mixture:
+    if args.env.fleet_mixture:
         if not isinstance(base, str):
             raise ConfigError(
-                f"--fleet-mixture={list(args.fleet_mixture)} draws each setting from a *_fleet scenario by name; "
+                f"--fleet-mixture={list(args.env.fleet_mixture)} draws each setting from a *_fleet scenario by name; "
                 "it cannot vary a config given as an EnvConfig (train one setting, or name the scenario)."
             )
         settings = [
-            run_config(dataclasses.replace(args, num_taxis=taxis, num_requests=requests, fleet_mixture=()), base)
+            run_config(args.with_options(num_taxis=taxis, num_requests=requests, fleet_mixture=()), base)
             for taxis, requests in args.fleet_settings()
         ]  # the run's own options (window, time limit, reward, the start's layout) in each setting
-    if not args.thresholds:
+    if not args.env.thresholds:
         return settings
-    return [c.replace(sinr_min_db=t) for t in args.thresholds for c in settings]
+    return [c.replace(sinr_min_db=t) for t in args.env.thresholds for c in settings]
 
 
 def _check_batch(args: TrainArgs, batch: int, taxis: int) -> None:
     """ConfigError unless an iteration's ``batch`` of agent-steps fits the run and splits into the minibatches."""
-    if args.total_timesteps < batch or args.num_minibatches > batch:
+    ppo = args.ppo
+    if ppo.total_timesteps < batch or ppo.num_minibatches > batch:
         raise ConfigError(
-            f"--total-timesteps={args.total_timesteps} and --num-minibatches={args.num_minibatches} need at least "
-            f"one iteration's batch of {batch} agent-steps (--num-steps {args.num_steps} x --num-envs "
-            f"{args.num_envs} x {taxis} taxi(s)) to split; raise --total-timesteps to >= {batch} or lower "
+            f"--total-timesteps={ppo.total_timesteps} and --num-minibatches={ppo.num_minibatches} need at least "
+            f"one iteration's batch of {batch} agent-steps (--num-steps {ppo.num_steps} x --num-envs "
+            f"{args.env.num_envs} x {taxis} taxi(s)) to split; raise --total-timesteps to >= {batch} or lower "
             "--num-envs / --num-steps."
         )
-    if batch % args.num_minibatches:  # else the last minibatch would be a silent extra, smaller update
-        divisor = max(d for d in range(1, args.num_minibatches) if batch % d == 0)
+    if batch % ppo.num_minibatches:  # else the last minibatch would be a silent extra, smaller update
+        divisor = max(d for d in range(1, ppo.num_minibatches) if batch % d == 0)
         raise ConfigError(
-            f"--num-minibatches={args.num_minibatches} does not divide the batch of {batch} agent-steps (--num-steps "
+            f"--num-minibatches={ppo.num_minibatches} does not divide the batch of {batch} agent-steps (--num-steps "
             f"x --num-envs x taxis); choose a divisor of {batch}, e.g. {divisor}."
         )
 
@@ -255,7 +260,7 @@ def collect_rollout(
     ``normalizer`` standardises (and updates), rewards scaled by ``scaler`` when given."""
     buf, dev = run.buffer, run.device
     term_sums, episodes = np.zeros(len(REWARD_TERMS)), EpisodeSums()
-    for step in range(run.args.num_steps):
+    for step in range(run.args.ppo.num_steps):
         norm_obs = normalise(run, normalizer, run.obs, update=True)
         for key, value in norm_obs.items():
             buf.obs[key][step] = value

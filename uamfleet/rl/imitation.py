@@ -25,7 +25,8 @@ import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import torch
@@ -42,6 +43,7 @@ from uamfleet.paths import table_for
 from uamfleet.rl.heads import PRIOR_FLOOR
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.checkpoint import PRETRAINED, pretrained_path, run_config
+from uamfleet.rl.options import Flat, flat_options, grouped_from_flat, option_groups
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
@@ -49,27 +51,58 @@ from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.types import NUM_HEADINGS
 
 
-@dataclass
-class ImitationArgs:
-    """DAgger from the online step-level search (every option is a flag of ``train/imitate.py``)."""
+@dataclass(frozen=True)
+class ImitationEnvOptions:
+    """The envs DAgger rolls out, and its rounds."""
 
-    init: str = "berlin_stops"
-    """checkpoint to start from: a shipped policy's name (uamfleet.zoo.PRETRAINED) or a file; its network,
-    normaliser and training scenario are kept and a heading residual is added"""
     thresholds: tuple[float, ...] = (-7.0, -6.0, -5.0, -4.0, -3.0)
     """SINR thresholds to roll out on (dB), one group of envs each"""
     envs_per_threshold: int = 8
     rounds: int = 6
     steps_per_round: int = 120
     """env steps per round, each over every env of every threshold"""
+
+
+@dataclass(frozen=True)
+class ImitationObserverOptions:
+    """What the policy reads beyond its start's observation."""
+
+    lookahead: bool = False
+    """also observe each heading's one-step look-ahead on the exact tour (``EnvConfig.heading_lookahead``) and fit
+    a learned correction of the flight from it (``NetConfig.lookahead_inputs``, zero at first)"""
+    lookahead_depth: int = 1
+    """with --lookahead: its depth (``EnvConfig.lookahead_depth``; 2: each heading's move, the best second move and
+    the tour after both)"""
+
+
+@dataclass(frozen=True)
+class ImitationNetOptions:
+    """The policy DAgger starts from, and what of it is fitted."""
+
+    init: str = "berlin_stops"
+    """checkpoint to start from: a shipped policy's name (uamfleet.zoo.PRETRAINED) or a file; its network,
+    normaliser and training scenario are kept and a heading residual is added"""
+    train: Literal["residual", "lookahead", "all"] = "residual"
+    """parameters fitted: the heading residual alone (the prior and the encoders frozen: the order of the stops
+    stays the prior's), only its look-ahead correction (with --lookahead), or the whole network"""
+    lookahead_rule: float = 0.0
+    """with --lookahead: fixed logits per move of look-ahead taken from each heading (``NetConfig.lookahead_rule``;
+    100 makes the untrained policy fly the least look-ahead heading, the prior breaking near-ties, so DAgger fits
+    corrections of that rule rather than of the prior)"""
+
+
+@dataclass(frozen=True)
+class ExpertOptions:
+    """The teacher and how often its actions are flown."""
+
     beta0: float = 1.0
     """share of the expert's actions in round 0 (1: the expert's own flights)"""
     beta_decay: float = 0.5
-    expert_beam: int = 32
-    """beam of the expert's search (``replan`` runs 64 in the benchmark; smaller is cheaper and close)"""
     expert: Literal["replan", "futures"] = "replan"
     """the teacher: ``replan``'s search over the released requests, or ``replan_futures``' decisions (that plan
     and sampled futures' plans, scored on other sampled futures: it anticipates releases; seconds per decision)"""
+    expert_beam: int = 32
+    """beam of the expert's search (``replan`` runs 64 in the benchmark; smaller is cheaper and close)"""
     futures: int = 2
     """with --expert futures: sampled futures whose plans are candidates (``replan_futures`` flies 4)"""
     scored_futures: int = 4
@@ -78,22 +111,15 @@ class ImitationArgs:
     """with --expert futures: beam of a future's plan (``replan_futures`` flies 16)"""
     score_beam: int = 4
     """with --expert futures: beam of the search that finishes a scored future (``replan_futures`` flies 8)"""
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """The fit to the aggregated labels, and the seed."""
+
     epochs: int = 3
     minibatch: int = 512
     learning_rate: float = 3e-4
-    train: Literal["residual", "lookahead", "all"] = "residual"
-    """parameters fitted: the heading residual alone (the prior and the encoders frozen: the order of the stops
-    stays the prior's), only its look-ahead correction (with --lookahead), or the whole network"""
-    lookahead: bool = False
-    """also observe each heading's one-step look-ahead on the exact tour (``EnvConfig.heading_lookahead``) and fit
-    a learned correction of the flight from it (``NetConfig.lookahead_inputs``, zero at first)"""
-    lookahead_depth: int = 1
-    """with --lookahead: its depth (``EnvConfig.lookahead_depth``; 2: each heading's move, the best second move and
-    the tour after both)"""
-    lookahead_rule: float = 0.0
-    """with --lookahead: fixed logits per move of look-ahead taken from each heading (``NetConfig.lookahead_rule``;
-    100 makes the untrained policy fly the least look-ahead heading, the prior breaking near-ties, so DAgger fits
-    corrections of that rule rather than of the prior)"""
     skip_ruled_out: bool = False
     """fit no label the stop head's prior rules out (log-probability at or below ``PRIOR_FLOOR``): a heading toward
     no known stop, e.g. the anticipating teacher's flight toward a sampled request, which the residual can only
@@ -102,54 +128,94 @@ class ImitationArgs:
     """weight of a state whose label corrects the policy's own heading (the others weigh 1)"""
     max_samples: int = 300_000
     """the aggregated data set's size limit; the oldest samples go first"""
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class ImitationEvalOptions:
+    """The validation after each round, and when to stop."""
+
     eval_instances: int = 50
+    max_wall_s: float | None = None
+
+
+@dataclass(frozen=True)
+class ImitationRunOptions:
+    """The run folder and threads."""
+
     run_dir: Path = Path("runs")
     run_name: str = "berlin_imitation"
     overwrite: bool = False
-    seed: int = 0
     threads: int = 1
-    max_wall_s: float | None = None
+
+
+@dataclass(frozen=True)
+class ImitationArgs:
+    """DAgger from the online step-level search (every option is a flag of ``train/imitate.py``), in groups named
+    as :class:`~uamfleet.rl.options.TrainArgs`' where they hold the same kind of option; flags flat."""
+
+    env: Annotated[ImitationEnvOptions, Flat] = field(default_factory=ImitationEnvOptions)
+    observer: Annotated[ImitationObserverOptions, Flat] = field(default_factory=ImitationObserverOptions)
+    net: Annotated[ImitationNetOptions, Flat] = field(default_factory=ImitationNetOptions)
+    expert: Annotated[ExpertOptions, Flat] = field(default_factory=ExpertOptions)
+    fit: Annotated[FitOptions, Flat] = field(default_factory=FitOptions)
+    eval: Annotated[ImitationEvalOptions, Flat] = field(default_factory=ImitationEvalOptions)
+    run: Annotated[ImitationRunOptions, Flat] = field(default_factory=ImitationRunOptions)
+
+    @classmethod
+    def from_flat(cls, flat: Mapping[str, Any]) -> ImitationArgs:
+        """The options of a flat dict (option name -> value; options it lacks take their defaults)."""
+        return grouped_from_flat(cls, flat)
+
+    def flat(self) -> dict[str, Any]:
+        """Every option by name."""
+        return flat_options(self)
+
+    def _set(self, name: str, value: Any) -> None:
+        """Store an option's checked value in its frozen group."""
+        object.__setattr__(getattr(self, IMITATION_GROUP_OF[name]), name, value)
 
     def __post_init__(self) -> None:
-        for name in (
-            "envs_per_threshold",
-            "rounds",
-            "steps_per_round",
-            "expert_beam",
-            "epochs",
-            "minibatch",
-            "futures",
-            "scored_futures",
-            "future_beam",
-            "score_beam",
-        ):
-            setattr(self, name, check_integer(f"--{name.replace('_', '-')}", getattr(self, name), minimum=1))
-        self.max_samples = check_integer("--max-samples", self.max_samples, minimum=self.minibatch)
-        self.eval_instances = check_integer("--eval-instances", self.eval_instances, minimum=1, maximum=10_000)
-        self.threads = check_integer("--threads", self.threads, minimum=1, maximum=256)
+        o = self.flat()
+        for name in ("envs_per_threshold", "rounds", "steps_per_round", "expert_beam", "epochs", "minibatch",
+                     "futures", "scored_futures", "future_beam", "score_beam"):  # fmt: skip
+            self._set(name, check_integer(f"--{name.replace('_', '-')}", o[name], minimum=1))
+        fit, net, observer = self.fit, self.net, self.observer
+        self._set("max_samples", check_integer("--max-samples", fit.max_samples, minimum=fit.minibatch))
+        self._set("eval_instances", check_integer("--eval-instances", o["eval_instances"], minimum=1, maximum=10_000))
+        self._set("threads", check_integer("--threads", o["threads"], minimum=1, maximum=256))
         for name in ("beta0", "beta_decay"):
-            value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), minimum=0.0)
+            value = check_number(f"--{name.replace('_', '-')}", o[name], minimum=0.0)
             if value > 1:
                 raise ConfigError(f"--{name.replace('_', '-')}={value} is a probability: use a value in [0, 1].")
-            setattr(self, name, value)
-        self.learning_rate = check_number("--learning-rate", self.learning_rate, positive=True)
-        self.correction_weight = check_number("--correction-weight", self.correction_weight, positive=True)
-        self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
-        if not self.thresholds or len(set(self.thresholds)) != len(self.thresholds):
-            raise ConfigError(f"--thresholds={list(self.thresholds)} must name one or more distinct dB values.")
-        self.run_dir = Path(self.run_dir)
-        check_run_name(self.run_name, self.run_dir)  # the rule of every command that writes a run
-        if self.train == "lookahead" and not self.lookahead:
+            self._set(name, value)
+        self._set("learning_rate", check_number("--learning-rate", fit.learning_rate, positive=True))
+        self._set("correction_weight", check_number("--correction-weight", fit.correction_weight, positive=True))
+        thresholds = tuple(check_number("--thresholds", t) for t in self.env.thresholds)
+        self._set("thresholds", thresholds)
+        if not thresholds or len(set(thresholds)) != len(thresholds):
+            raise ConfigError(f"--thresholds={list(thresholds)} must name one or more distinct dB values.")
+        self._set("run_dir", Path(self.run.run_dir))
+        check_run_name(self.run.run_name, self.run.run_dir)  # the rule of every command that writes a run
+        if net.train == "lookahead" and not observer.lookahead:
             raise ConfigError("--train lookahead fits the look-ahead correction: pass --lookahead too.")
-        self.lookahead_rule = check_number("--lookahead-rule", self.lookahead_rule, minimum=0.0)
-        if self.lookahead_rule > 0 and not self.lookahead:
-            raise ConfigError(f"--lookahead-rule={self.lookahead_rule} weighs the look-ahead: pass --lookahead too.")
-        if self.lookahead_depth != 1 and not self.lookahead:  # its value is checked by EnvConfig, as every run's
-            raise ConfigError(f"--lookahead-depth={self.lookahead_depth} is the look-ahead's depth: pass --lookahead.")
+        self._set("lookahead_rule", check_number("--lookahead-rule", net.lookahead_rule, minimum=0.0))
+        if net.lookahead_rule > 0 and not observer.lookahead:
+            raise ConfigError(f"--lookahead-rule={net.lookahead_rule} weighs the look-ahead: pass --lookahead too.")
+        if observer.lookahead_depth != 1 and not observer.lookahead:  # its value is checked by EnvConfig
+            raise ConfigError(
+                f"--lookahead-depth={observer.lookahead_depth} is the look-ahead's depth: pass --lookahead."
+            )
 
     def beta(self, round_index: int) -> float:
         """Probability that a step of round ``round_index`` flies the expert's heading."""
-        return self.beta0 * self.beta_decay**round_index
+        return self.expert.beta0 * self.expert.beta_decay**round_index
+
+
+IMITATION_GROUP_OF: dict[str, str] = {
+    f.name: name for name, group in option_groups(ImitationArgs).items() for f in dataclasses.fields(group)
+}
+"""The group of each option of :class:`ImitationArgs`, by its name."""
 
 
 @dataclass
@@ -263,16 +329,16 @@ def fitted_parameters(net: MSHAActorCritic, which: str) -> list[torch.nn.Paramet
 
 def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: torch.optim.Optimizer,
         rng: np.random.Generator) -> dict[str, float]:  # fmt: skip
-    """``args.epochs`` passes of cross-entropy between the masked logits and the expert's headings; a state where
-    the expert corrected the policy weighs ``args.correction_weight``."""
+    """``args.fit.epochs`` passes of cross-entropy between the masked logits and the expert's headings; a state where
+    the expert corrected the policy weighs ``args.fit.correction_weight``."""
     obs, labels, corrected = data.arrays()
-    weights = np.where(corrected, args.correction_weight, 1.0).astype(np.float32)
+    weights = np.where(corrected, args.fit.correction_weight, 1.0).astype(np.float32)
     net.train()
     n, losses, hits = len(labels), [], []
-    for _ in range(args.epochs):
+    for _ in range(args.fit.epochs):
         order = rng.permutation(n)
-        for start in range(0, n, args.minibatch):
-            idx = order[start : start + args.minibatch]
+        for start in range(0, n, args.fit.minibatch):
+            idx = order[start : start + args.fit.minibatch]
             batch = obs_to_torch({k: v[idx] for k, v in obs.items()}, "cpu")
             target = torch.as_tensor(labels[idx])
             weight = torch.as_tensor(weights[idx])
@@ -285,7 +351,7 @@ def fit(net: MSHAActorCritic, data: Dataset, args: ImitationArgs, optimizer: tor
             losses.append(float(loss.detach()))
             hits.append(float((logits.argmax(-1) == target).float().mean()))
     net.eval()
-    tail = max(1, len(losses) // max(args.epochs, 1))  # the last epoch
+    tail = max(1, len(losses) // max(args.fit.epochs, 1))  # the last epoch
     return {"bc_loss": float(np.mean(losses[-tail:])), "bc_agreement": float(np.mean(hits[-tail:]))}
 
 
@@ -293,38 +359,38 @@ def imitate(args: ImitationArgs) -> dict[str, float]:
     """Run DAgger (module docstring); writes ``best.pt``, ``last.pt`` and ``progress.csv`` in the run folder and
     returns the best validation row. The folder is claimed first (:func:`~uamfleet.rl.runs.claim_run`): an existing
     run is refused without ``overwrite``, and so is a name another command is writing."""
-    with claim_run(args.run_dir, args.run_name, overwrite=args.overwrite, resumable=False) as claim:
+    with claim_run(args.run.run_dir, args.run.run_name, overwrite=args.run.overwrite, resumable=False) as claim:
         return _imitate(args, claim)
 
 
 def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
     folder = claim.folder
-    torch.set_num_threads(args.threads)
-    torch.manual_seed(args.seed)
-    rng = np.random.default_rng(args.seed)
+    torch.set_num_threads(args.run.threads)
+    torch.manual_seed(args.fit.seed)
+    rng = np.random.default_rng(args.fit.seed)
     start = time.time()
-    init = pretrained_path(args.init) if args.init in PRETRAINED else Path(args.init)
+    init = pretrained_path(args.net.init) if args.net.init in PRETRAINED else Path(args.net.init)
     ckpt = Checkpoint.load(init)
     source_args = checkpoint_args(ckpt)
-    if args.lookahead:
-        source_args = dataclasses.replace(source_args, heading_lookahead=True, lookahead_depth=args.lookahead_depth)
+    if args.observer.lookahead:
+        source_args = source_args.with_options(heading_lookahead=True, lookahead_depth=args.observer.lookahead_depth)
     prior, _ = load_policy(init)
-    policy = with_heading_residual(prior, lookahead=args.lookahead, lookahead_rule=args.lookahead_rule)
-    family = family_of(source_args.scenario)
+    policy = with_heading_residual(prior, lookahead=args.observer.lookahead, lookahead_rule=args.net.lookahead_rule)
+    family = family_of(source_args.env.scenario)
     eval_like = run_config(source_args, training=False)
     groups = _groups(args, run_config(source_args, training=True), family)
-    optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.train), lr=args.learning_rate)
+    optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.net.train), lr=args.fit.learning_rate)
     claim.clear()  # every option checked: an earlier run replaced with --overwrite goes now
-    first = validation_metrics(policy, family, args.eval_instances, eval_like)
+    first = validation_metrics(policy, family, args.eval.eval_instances, eval_like)
     rows: list[dict[str, float]] = [{"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)}]
     best = dict(rows[-1])
     _save(folder / "best.pt", ckpt, policy, args, best, eval_like)
     data = Dataset()
-    for r in range(args.rounds):
-        if args.max_wall_s is not None and time.time() - start > args.max_wall_s:
+    for r in range(args.env.rounds):
+        if args.eval.max_wall_s is not None and time.time() - start > args.eval.max_wall_s:
             break
         counts, stats = _round(r, groups, policy, data, args, optimizer, rng)
-        val = validation_metrics(policy, family, args.eval_instances, eval_like)
+        val = validation_metrics(policy, family, args.eval.eval_instances, eval_like)
         row = {**counts, "wall_s": time.time() - start, **stats, **_val(val)}  # progress.csv's column order
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
@@ -340,20 +406,21 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
 def _groups(args: ImitationArgs, base: EnvConfig, family: str) -> list[Group]:
     """One group of ``envs_per_threshold`` envs (tables filled) and its expert per training threshold."""
     groups = []
-    for i, threshold in enumerate(args.thresholds):
+    for i, threshold in enumerate(args.env.thresholds):
         cfg = base.replace(sinr_min_db=threshold)
-        venv = VectorEnv(cfg, num_envs=args.envs_per_threshold)
+        venv = VectorEnv(cfg, num_envs=args.env.envs_per_threshold)
         table_for(venv.world).fill()
-        obs, _ = venv.reset(seed=args.seed + 1000 * i)
+        obs, _ = venv.reset(seed=args.fit.seed + 1000 * i)
         expert: ReplanExpert | AnticipatingExpert
-        if args.expert == "futures":  # the family's demand model on this threshold's flyable sites
+        teacher = args.expert
+        if teacher.expert == "futures":  # the family's demand model on this threshold's flyable sites
             planner = AnticipatingReplan(
-                DemandPrior.of_family(family, cfg), args.futures, args.scored_futures,
-                SearchSettings(args.expert_beam, rank_slack=0.5), args.future_beam, args.score_beam,
+                DemandPrior.of_family(family, cfg), teacher.futures, teacher.scored_futures,
+                SearchSettings(teacher.expert_beam, rank_slack=0.5), teacher.future_beam, teacher.score_beam,
             )  # fmt: skip
-            expert = AnticipatingExpert(cfg, venv.num_envs, planner, seed=args.seed + 1000 * i)
+            expert = AnticipatingExpert(cfg, venv.num_envs, planner, seed=args.fit.seed + 1000 * i)
         else:
-            expert = ReplanExpert(cfg, venv.num_envs, args.expert_beam)
+            expert = ReplanExpert(cfg, venv.num_envs, args.expert.expert_beam)
         groups.append(Group(venv, expert, obs, released_count(venv)))
     return groups
 
@@ -366,10 +433,10 @@ def _round(
     expert solves) and the fit's statistics."""
     solves_before = sum(g.expert.solves for g in groups)
     corrections_before = sum(g.expert.corrections for g in groups)
-    new = collect(groups, policy, args.beta(r), args.steps_per_round, rng, args.skip_ruled_out)
+    new = collect(groups, policy, args.beta(r), args.env.steps_per_round, rng, args.fit.skip_ruled_out)
     for o, lab, cor in zip(new.obs, new.labels, new.corrected, strict=True):
         data.add(o, lab, cor)
-    data.trim(args.max_samples)
+    data.trim(args.fit.max_samples)
     stats = fit(policy.net, data, args, optimizer, rng)
     counts = {
         "round": r, "beta": args.beta(r), "samples": len(data), "new_samples": len(new),
@@ -391,14 +458,16 @@ def _save(
     on): loads with load_policy like any trained checkpoint."""
     layout = observation_layout(like)
     read = {k: spec for k, spec in layout.items() if k in policy.net.shapes}
-    extra = {"heading_lookahead": True, "lookahead_depth": args.lookahead_depth} if args.lookahead else {}
+    extra = (
+        {"heading_lookahead": True, "lookahead_depth": args.observer.lookahead_depth} if args.observer.lookahead else {}
+    )
     out = dataclasses.replace(
         source,
         model={k: v.detach().clone() for k, v in policy.net.state_dict().items()},
         net_config=dataclasses.asdict(policy.net.cfg),
         obs_shapes={k: list(spec.shape) for k, spec in read.items()},
         obs_layout=layout_to_dict(read),
-        args={**source.args, **extra, "imitation": {k: _plain(v) for k, v in dataclasses.asdict(args).items()}},
+        args={**source.args, **extra, "imitation": {k: _plain(v) for k, v in args.flat().items()}},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
     )  # fmt: skip

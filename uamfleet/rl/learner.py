@@ -20,8 +20,9 @@ import torch
 from uamfleet.config import ConfigError, EnvConfig
 from uamfleet.observe.spec import layout_differences, observation_layout
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, compute_gae
-from uamfleet.rl.checkpoint import ARCHITECTURE_FIELDS, Checkpoint, checkpoint_args, checkpoint_source
+from uamfleet.rl.checkpoint import ARCHITECTURE_FIELDS, Checkpoint, checkpoint_source
 from uamfleet.rl.collector import Run, _critic_input, _tensor, normalise
+from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs
 from uamfleet.rl.policy import GreedyPolicy, load_policy
@@ -42,22 +43,24 @@ class Learner:
 
 def make_learner(run: Run) -> Learner:
     args = run.args
-    np.random.seed(args.seed)
-    torch.manual_seed(args.seed)
-    if args.init_from is not None:
-        return _learner_from(run, checkpoint_source(args.init_from))
+    np.random.seed(args.ppo.seed)
+    torch.manual_seed(args.ppo.seed)
+    if args.net.init_from is not None:
+        return _learner_from(run, checkpoint_source(args.net.init_from))
+    options = args.net
     net_cfg = NetConfig(
-        variant=args.variant, d_model=args.d_model, num_heads=args.num_heads, local_window=args.local_window,
-        readout=args.readout, critic_state_dim=run.state_dim or None, action_head=args.action_head,
-        stop_free_move=args.stop_free_move, stop_prior=args.stop_prior, hover_logit=args.hover_logit,
-        **observed_inputs(run.layout, args.variant, args.action_head),  # from the env's spec
+        variant=options.variant, d_model=options.d_model, num_heads=options.num_heads,
+        local_window=options.local_window, readout=options.readout, critic_state_dim=run.state_dim or None,
+        action_head=options.action_head, stop_free_move=options.stop_free_move, stop_prior=options.stop_prior,
+        hover_logit=options.hover_logit,
+        **observed_inputs(run.layout, options.variant, options.action_head),  # from the env's spec
     )  # fmt: skip
     _check_hover_logit(net_cfg, run.cfg)
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
     return Learner(
-        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
-        normalizer=ObservationNormalizer(run.obs_shapes) if args.norm_obs else None,
-        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None,
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.ppo.learning_rate, eps=1e-5), net_cfg=net_cfg,
+        normalizer=ObservationNormalizer(run.obs_shapes) if args.ppo.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.ppo.gamma) if args.ppo.norm_reward else None,
     )  # fmt: skip
 
 
@@ -76,42 +79,49 @@ def _learner_from(run: Run, source: Path) -> Learner:
     if set(start.obs_shapes or {}) != set(run.obs_shapes):
         unread = sorted(set(run.obs_shapes) - set(start.obs_shapes or {}))
         raise ConfigError(
-            f"--init-from={args.init_from!r} reads {sorted(start.obs_shapes or {})}, but this run's env also observes "
-            f"{unread}, which its network has no weights for; train that policy from scratch, or use a scenario "
-            "without those fields."
+            f"--init-from={args.net.init_from!r} reads {sorted(start.obs_shapes or {})}, but this run's env also "
+            f"observes {unread}, which its network has no weights for; train that policy from scratch, or use a "
+            "scenario without those fields."
         )
-    hover_logit = start.net.cfg.hover_logit or args.hover_logit  # an untrained switch keeps every weight
+    hover_logit = start.net.cfg.hover_logit or args.net.hover_logit  # an untrained switch keeps every weight
     net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None, hover_logit=hover_logit)
     _check_hover_logit(net_cfg, run.cfg)
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
-    weights = start.net.state_dict()
-    critic_reads = _critic_input(start.net.cfg.critic_state_dim, trained_on)
-    if critic_reads == _critic_input(net_cfg.critic_state_dim, run.cfg) and not args.reinit_critic:
-        net.load_state_dict(weights)
-    elif not args.reinit_critic:
-        raise ConfigError(
-            f"--init-from={args.init_from!r}: its critic reads {critic_reads}, this run's would read "
-            f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}; add --reinit-critic to start the critic afresh "
-            "(the actor and its torso are still the start's), or train at the start's fleet size and load."
-        )
-    else:
-        missing, unexpected = net.load_state_dict(
-            {k: v for k, v in weights.items() if not k.startswith("critic.")}, strict=False
-        )
-        assert all(k.startswith("critic.") for k in missing) and not unexpected, (missing, unexpected)
-        if run.ranks.is_main:
-            print(f"--init-from={args.init_from!r}: actor and torso loaded; critic re-initialised (--reinit-critic): "
-                  f"the start's read {critic_reads}, this run's reads "
-                  f"{_critic_input(net_cfg.critic_state_dim, run.cfg)}")  # fmt: skip
+    _load_start(run, net, start.net, trained_on)
     net.train()
     reference = None
-    if args.kl_to_init > 0:
+    if args.net.kl_to_init > 0:
         reference = copy.deepcopy(net).eval().requires_grad_(False)
     return Learner(
-        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.learning_rate, eps=1e-5), net_cfg=net_cfg,
-        normalizer=start.normalizer if args.norm_obs else None,
-        scaler=RewardScaler(run.num_agents, args.gamma) if args.norm_reward else None, reference=reference,
+        net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.ppo.learning_rate, eps=1e-5), net_cfg=net_cfg,
+        normalizer=start.normalizer if args.ppo.norm_obs else None,
+        scaler=RewardScaler(run.num_agents, args.ppo.gamma) if args.ppo.norm_reward else None, reference=reference,
     )  # fmt: skip
+
+
+def _load_start(run: Run, net: MSHAActorCritic, start: MSHAActorCritic, trained_on: EnvConfig) -> None:
+    """Load the start's weights into ``net``: all of them when its critic reads this run's input, else (with
+    ``--reinit-critic``) all but the critic's, which start afresh; ConfigError without ``--reinit-critic``."""
+    init_from, reinit = run.args.net.init_from, run.args.net.reinit_critic
+    critic_reads = _critic_input(start.cfg.critic_state_dim, trained_on)
+    run_reads = _critic_input(net.cfg.critic_state_dim, run.cfg)
+    weights = start.state_dict()
+    if critic_reads == run_reads and not reinit:
+        net.load_state_dict(weights)
+        return
+    if not reinit:
+        raise ConfigError(
+            f"--init-from={init_from!r}: its critic reads {critic_reads}, this run's would read {run_reads}; add "
+            "--reinit-critic to start the critic afresh (the actor and its torso are still the start's), or train "
+            "at the start's fleet size and load."
+        )
+    missing, unexpected = net.load_state_dict(
+        {k: v for k, v in weights.items() if not k.startswith("critic.")}, strict=False
+    )
+    assert all(k.startswith("critic.") for k in missing) and not unexpected, (missing, unexpected)
+    if run.ranks.is_main:
+        print(f"--init-from={init_from!r}: actor and torso loaded; critic re-initialised (--reinit-critic): "
+              f"the start's read {critic_reads}, this run's reads {run_reads}")  # fmt: skip
 
 
 def with_init_architecture(args: TrainArgs) -> TrainArgs:
@@ -119,26 +129,28 @@ def with_init_architecture(args: TrainArgs) -> TrainArgs:
     run's checkpoints state what they hold; unchanged without ``init_from``. With ``--reinit-critic`` the critic
     starts afresh, so ``--centralised-critic`` stays the run's own. ConfigError when the start lies in the run's own
     folder (replacing the run would delete the file its checkpoints point at)."""
-    if args.init_from is None:
+    if args.net.init_from is None:
         return args
-    source = checkpoint_source(args.init_from)
-    folder = (args.run_dir / args.name).resolve()
+    source = checkpoint_source(args.net.init_from)
+    folder = (args.run.run_dir / args.name).resolve()
     if folder in source.resolve().parents:
         raise ConfigError(
-            f"--init-from={args.init_from!r} lies inside this run's own folder {folder}; copy it elsewhere or "
+            f"--init-from={args.net.init_from!r} lies inside this run's own folder {folder}; copy it elsewhere or "
             "choose another --run-name."
         )
     start = checkpoint_args(Checkpoint.load(source, map_location="cpu"))
-    if args.centralised_critic != start.centralised_critic and not args.reinit_critic:
-        reads = "the global state" if start.centralised_critic else "its own features"
+    if args.net.centralised_critic != start.net.centralised_critic and not args.net.reinit_critic:
+        reads = "the global state" if start.net.centralised_critic else "its own features"
         raise ConfigError(
-            f"--centralised-critic={args.centralised_critic} differs from the --init-from policy's "
-            f"({start.centralised_critic}): its critic reads {reads}; set --centralised-critic "
-            f"{start.centralised_critic}, or add --reinit-critic to start the critic afresh."
+            f"--centralised-critic={args.net.centralised_critic} differs from the --init-from policy's "
+            f"({start.net.centralised_critic}): its critic reads {reads}; set --centralised-critic "
+            f"{start.net.centralised_critic}, or add --reinit-critic to start the critic afresh."
         )
     # (the env's layout, look-ahead included, follows the start through run_config, not through these flags)
-    taken = [name for name in ARCHITECTURE_FIELDS if not (args.reinit_critic and name == "centralised_critic")]
-    return dataclasses.replace(args, **{name: getattr(start, name) for name in taken})
+    taken = [name for name in ARCHITECTURE_FIELDS if not (args.net.reinit_critic and name == "centralised_critic")]
+    return dataclasses.replace(
+        args, net=dataclasses.replace(args.net, **{name: getattr(start.net, name) for name in taken})
+    )
 
 
 def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
@@ -162,13 +174,13 @@ def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
     try:
         start = start.for_fleet(run.cfg.num_taxis, passenger_slots=slots, passenger_window=window)
     except ValueError as err:
-        raise ConfigError(f"--init-from={run.args.init_from!r} cannot fly this run's layout: {err}") from None
+        raise ConfigError(f"--init-from={run.args.net.init_from!r} cannot fly this run's layout: {err}") from None
     assert start.trained_on is not None
     read = observation_layout(start.trained_on)
     differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})
     if differences:
         raise ConfigError(
-            f"--init-from={run.args.init_from!r} reads another observation than this run's env (start vs run): "
+            f"--init-from={run.args.net.init_from!r} reads another observation than this run's env (start vs run): "
             + "; ".join(differences)
             + "; train that policy from scratch, or match its scenario's layout."
         )
@@ -178,14 +190,14 @@ def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
 def set_schedules(run: Run, learner: Learner, iteration: int) -> float:
     """Linear learning-rate decay and the shaping weight's anneal; returns the shaping weight."""
     args, n = run.args, run.num_iterations
-    if args.anneal_lr:
-        learner.optimizer.param_groups[0]["lr"] = args.learning_rate * (1.0 - iteration / n)
-    if args.shaping <= 0 or args.shaping_anneal_frac <= 0:
-        return args.shaping
+    if args.ppo.anneal_lr:
+        learner.optimizer.param_groups[0]["lr"] = args.ppo.learning_rate * (1.0 - iteration / n)
+    if args.env.shaping <= 0 or args.env.shaping_anneal_frac <= 0:
+        return args.env.shaping
     # keep a sliver of shaping so the env's shaping machinery stays on (its metric is fixed)
-    begin = (1.0 - args.shaping_anneal_frac) * n
-    decay = min(1.0, max(0.0, 1.0 - (iteration - begin) / (args.shaping_anneal_frac * n)))
-    weight = max(args.shaping * decay, 1e-6)
+    begin = (1.0 - args.env.shaping_anneal_frac) * n
+    decay = min(1.0, max(0.0, 1.0 - (iteration - begin) / (args.env.shaping_anneal_frac * n)))
+    weight = max(args.env.shaping * decay, 1e-6)
     run.venv.set_reward_weights(dataclasses.replace(run.cfg.reward, shaping=weight))
     return weight
 
@@ -198,7 +210,7 @@ def compute_advantages(run: Run, learner: Learner) -> tuple[np.ndarray, np.ndarr
         _, next_value = learner.net(obs_to_torch(norm_obs, run.device), state=_tensor(run.global_state(), run.device))
     return compute_gae(
         buf.rewards, buf.values, buf.terminated, buf.truncated, buf.final_values, next_value.cpu().numpy(),
-        run.args.gamma, run.args.gae_lambda,
+        run.args.ppo.gamma, run.args.ppo.gae_lambda,
     )  # fmt: skip
 
 
@@ -208,7 +220,8 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
     The permutation is of the GLOBAL flat batch [T * N_global] (the same on every rank: the NumPy generator
     is); each rank takes its own samples of each global minibatch (see uamfleet.rl.distributed)."""
     args, buf, dev, ranks = run.args, run.buffer, run.device, run.ranks
-    minibatch_size = run.batch_size // args.num_minibatches
+    ppo = args.ppo
+    minibatch_size = run.batch_size // ppo.num_minibatches
     adv = torch.as_tensor(advantages.reshape(-1), dtype=torch.float32, device=dev)
     ret = torch.as_tensor(returns.reshape(-1), dtype=torch.float32, device=dev)
     val = torch.as_tensor(buf.values.reshape(-1), dtype=torch.float32, device=dev)
@@ -220,7 +233,7 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
     params = list(learner.net.parameters())
     order = np.arange(run.batch_size)
     infos: list[PPOLossInfo] = []
-    for _epoch in range(args.update_epochs):
+    for _epoch in range(args.ppo.update_epochs):
         np.random.shuffle(order)
         for begin in range(0, run.batch_size, minibatch_size):
             idx = order[begin : begin + minibatch_size]  # global flat indices t * N_global + n
@@ -232,23 +245,23 @@ def ppo_update(run: Run, learner: Learner, advantages: np.ndarray, returns: np.n
             if ranks.active:
                 stats, denominator = (global_adv[idx].mean(), global_adv[idx].std()), len(idx)
             loss, info = ppo_loss(
-                new_logprob, mb_logprobs, entropy, new_value, val[local], adv[local], ret[local], args.clip_coef,
-                args.vf_coef, args.ent_coef, args.clip_vloss, args.norm_adv, stats, denominator,
+                new_logprob, mb_logprobs, entropy, new_value, val[local], adv[local], ret[local], ppo.clip_coef,
+                ppo.vf_coef, ppo.ent_coef, ppo.clip_vloss, ppo.norm_adv, stats, denominator,
             )  # fmt: skip
             if learner.reference is not None:
                 with torch.no_grad():
                     reference_logits = learner.reference.masked_logits(mb_obs)  # [B, 16]
                 kl = categorical_kl(dist.logits, reference_logits)  # [B]
                 kl_mean = kl.mean() if denominator is None else kl.sum() / denominator
-                loss = loss + args.kl_to_init * kl_mean
+                loss = loss + args.net.kl_to_init * kl_mean
                 info = dataclasses.replace(info, kl_to_init=float(kl_mean.detach()))
             learner.optimizer.zero_grad()
             (loss * share).backward()
             summed = ranks.all_reduce_grads(params, share * np.array(dataclasses.astuple(info)))
             infos.append(PPOLossInfo(*(float(x) for x in summed)))
-            torch.nn.utils.clip_grad_norm_(params, args.max_grad_norm)
+            torch.nn.utils.clip_grad_norm_(params, args.ppo.max_grad_norm)
             learner.optimizer.step()
-        if args.target_kl is not None and infos[-1].approx_kl > args.target_kl:
+        if args.ppo.target_kl is not None and infos[-1].approx_kl > args.ppo.target_kl:
             break
     return infos
 

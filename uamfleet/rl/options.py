@@ -1,6 +1,7 @@
-"""The training options: :class:`TrainArgs` (every flag of ``train/ppo.py``, checked on construction) and the env
+"""The training options: :class:`TrainArgs` (every flag of ``train/ppo.py``, checked on construction), in groups
+(env, observer, net, ppo, eval, run: frozen dataclasses, flags flat, ``--help`` in those sections), and the env
 config a run trains and evaluates on (:func:`make_env_config`). A checkpoint's options are read back by
-:func:`uamfleet.rl.checkpoint.checkpoint_args`, without importing the training loop.
+:func:`uamfleet.rl.legacy.checkpoint_args`, without importing the training loop.
 """
 
 from __future__ import annotations
@@ -8,14 +9,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeVar
+
+import tyro
 
 from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import VALIDATION_SEEDS
 from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.rl.networks import VARIANTS
+
+G = TypeVar("G")
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
 if TYPE_CHECKING:
@@ -26,11 +32,10 @@ else:
     ScenarioName, FeasibilityRule, VariantName = Literal[SCENARIOS], Literal[FEASIBILITY_RULES], Literal[VARIANTS]
 
 
-@dataclass
-class TrainArgs:
-    """PPO training of the shared MSHA policy (every option is a command-line flag of ``train/ppo.py``)."""
+@dataclass(frozen=True)
+class EnvOptions:
+    """The world a run trains on: scenario, threshold(s), fleet and demand, rules, shaping, and its envs."""
 
-    # environment
     scenario: ScenarioName = "berlin_p4"
     """scenario name"""
     sinr_min_db: float | None = None
@@ -53,16 +58,6 @@ class TrainArgs:
     """move rule: endpoint block SINR (the paper) or every raster cell along the step"""
     time_limit_steps: int = 200
     """episode time limit while training (steps)"""
-    passenger_window: int | None = None
-    """each taxi observes at most this many passenger rows: its riders, then the nearest waiting requests
-    (EnvConfig.passenger_window, docs/rules.md "Passenger window"), so the policy flies any number of requests and
-    any shift length; None: a row per request of the episode"""
-    heading_lookahead: bool = False
-    """observe each heading's move plus the shortest tour after it (EnvConfig.heading_lookahead; needs a scenario
-    with stop features); a stop-head network then reads it as a learned correction of its flight"""
-    lookahead_depth: int = 1
-    """the look-ahead's depth (EnvConfig.lookahead_depth): 2 costs each heading by its move, the best second move
-    and the tour after both"""
     shaping: float = 50.0
     """weight of the potential-based shaping term (0 = the authors' reward only). Strong on purpose: one step of
     progress along the feasible path is then worth 50, a quarter of a pick-up, so the heading that makes progress
@@ -76,7 +71,37 @@ class TrainArgs:
     """decay the shaping weight linearly to 0 over the LAST this fraction of training (0: constant). Shaping is
     potential-based, so the optimum is unchanged: it helps find every passenger early, and annealing it leaves
     the end of training to the true reward (shorter tours)"""
-    # network
+    num_envs: int = 32
+    """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
+    split evenly among the ranks"""
+    env_workers: int = 0
+    """step this rank's training envs in this many worker processes, one core each (uamfleet.env.workers), while
+    the network runs here (e.g. on a GPU); 0: in this process. Same episodes either way; configs of one fleet size"""
+    fill_tables: bool = True
+    """with stop features on random demand: compute the feasible-path distance tables before training (or load
+    them from the disk cache, uamfleet.paths.distance_table), ~30 s per threshold on Berlin the first time"""
+
+
+@dataclass(frozen=True)
+class ObserverOptions:
+    """What the policy reads beyond the scenario's own observation."""
+
+    passenger_window: int | None = None
+    """each taxi observes at most this many passenger rows: its riders, then the nearest waiting requests
+    (EnvConfig.passenger_window, docs/rules.md "Passenger window"), so the policy flies any number of requests and
+    any shift length; None: a row per request of the episode"""
+    heading_lookahead: bool = False
+    """observe each heading's move plus the shortest tour after it (EnvConfig.heading_lookahead; needs a scenario
+    with stop features); a stop-head network then reads it as a learned correction of its flight"""
+    lookahead_depth: int = 1
+    """the look-ahead's depth (EnvConfig.lookahead_depth): 2 costs each heading by its move, the best second move
+    and the tour after both"""
+
+
+@dataclass(frozen=True)
+class NetOptions:
+    """The network, and the policy a fine-tuning run starts from."""
+
     variant: VariantName = "de_msfea"
     """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
     Default de_msfea: on Berlin P4 it came within 5 % of raster_opt (a raster planner, not an optimum of the env's
@@ -104,7 +129,6 @@ class TrainArgs:
     """with --action-head stops and a hover component (a *_fleet scenario: EnvConfig.hover_action): the hover
     component is the logit of the hover action (16, stay in place) instead of mass on the heading back to where the
     taxi was (NetConfig.hover_logit); also switches it on for an --init-from policy, whose weights are kept"""
-    # fine-tuning
     init_from: str | None = None
     """start from this policy's weights and observation statistics: a shipped name (e.g. berlin, see
     uamfleet.zoo.PRETRAINED) or a checkpoint file. Its network options replace --variant, --d-model and the other
@@ -121,15 +145,15 @@ class TrainArgs:
     """weight of KL(pi || pi_init), the new policy's divergence from the --init-from policy averaged over each
     minibatch, in the loss: PPO may leave the start where the return pays for it, not drift where it does not
     (0: no such term)"""
-    # PPO
-    seed: int = 1
-    """seed of torch, numpy and the envs (env e gets seed + e)"""
+
+
+@dataclass(frozen=True)
+class PPOOptions:
+    """The PPO update: budget, batch, optimiser, losses, normalisation and the seed."""
+
     total_timesteps: int = 200_000
     """agent-steps (env steps x taxis) to train for (under torchrun: of all ranks together); rounded down to whole
     iterations of num_steps x num_envs x taxis, at least one"""
-    num_envs: int = 32
-    """parallel envs of the batched core (agents per step = num_envs x taxis); under torchrun the global count,
-    split evenly among the ranks"""
     num_steps: int = 64
     """rollout length per env and iteration"""
     num_minibatches: int = 16
@@ -166,12 +190,16 @@ class TrainArgs:
     """normalise continuous observation fields with running statistics"""
     norm_reward: bool = True
     """scale rewards by the running std of the discounted return"""
-    # evaluation, logging, checkpoints
+    seed: int = 1
+    """seed of torch, numpy and the envs (env e gets seed + e)"""
+
+
+@dataclass(frozen=True)
+class EvalOptions:
+    """Greedy evaluations during training, and when training stops."""
+
     eval_every: int = 5
     """greedy evaluation every this many iterations (0: only at the end)"""
-    fill_tables: bool = True
-    """with stop features on random demand: compute the feasible-path distance tables before training (or load
-    them from the disk cache, uamfleet.paths.distance_table), ~30 s per threshold on Berlin the first time"""
     eval_instances: int = 0
     """evaluate on this many held-out validation instances of the scenario's family (uamfleet.instances;
     *_instances scenarios), flown in one batch, and keep the best on them; 0: one episode of the training
@@ -179,12 +207,18 @@ class TrainArgs:
     eval_time_limit_steps: int | None = None
     """time limit of the greedy evaluation episodes; None: the training one (the observation's time
     features are fractions of the time limit, so a different one shifts them)"""
-    checkpoint_every: int = 5
-    """iterations between checkpoints"""
     stop_at_td_m: float | None = None
     """stop once a greedy evaluation delivers everyone with TD at or below this (measures time-to-target)"""
     max_wall_s: float | None = None
     """stop (after a final evaluation and checkpoint) once training has run this many seconds"""
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """The run folder, resuming, device, threads and logs."""
+
+    checkpoint_every: int = 5
+    """iterations between checkpoints"""
     run_dir: Path = Path("runs")
     """folder of all runs (relative to the current folder)"""
     run_name: str | None = None
@@ -200,56 +234,115 @@ class TrainArgs:
     gloo)"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
-    env_workers: int = 0
-    """step this rank's training envs in this many worker processes, one core each (uamfleet.env.workers), while
-    the network runs here (e.g. on a GPU); 0: in this process. Same episodes either way; configs of one fleet size"""
     progress: bool = True
     """show a progress bar"""
     tensorboard: bool = True
     """write TensorBoard events to run_dir/name/tb"""
 
+
+GROUPS: dict[str, type] = {
+    "env": EnvOptions, "observer": ObserverOptions, "net": NetOptions, "ppo": PPOOptions, "eval": EvalOptions,
+    "run": RunOptions,
+}  # fmt: skip
+"""The option groups of :class:`TrainArgs`, by attribute: each option belongs to exactly one."""
+Flat = tyro.conf.OmitArgPrefixes
+"""A group's flags keep their own names (``--learning-rate``, not ``--ppo.learning-rate``); ``--help`` shows the
+group as a section."""
+GROUP_OF: dict[str, str] = {f.name: group for group, cls in GROUPS.items() for f in dataclasses.fields(cls)}
+"""The group of each option, by its name (the key of the flat dict a checkpoint stores)."""
+
+
+@dataclass(frozen=True)
+class TrainArgs:
+    """PPO training of the shared MSHA policy (every option is a command-line flag of ``train/ppo.py``), in groups.
+
+    A checkpoint stores the options flat (:meth:`flat`, one key per option, plain values), and
+    :meth:`from_flat` reads such a dict back; ``args.ppo.learning_rate`` is ``args.flat()["learning_rate"]``."""
+
+    env: Annotated[EnvOptions, Flat] = field(default_factory=EnvOptions)
+    observer: Annotated[ObserverOptions, Flat] = field(default_factory=ObserverOptions)
+    net: Annotated[NetOptions, Flat] = field(default_factory=NetOptions)
+    ppo: Annotated[PPOOptions, Flat] = field(default_factory=PPOOptions)
+    eval: Annotated[EvalOptions, Flat] = field(default_factory=EvalOptions)
+    run: Annotated[RunOptions, Flat] = field(default_factory=RunOptions)
+
+    @classmethod
+    def from_flat(cls, flat: Mapping[str, Any]) -> TrainArgs:
+        """The options of a flat dict (as :meth:`flat` gives and a checkpoint stores; options it lacks take their
+        defaults); ConfigError naming any key that is no option."""
+        return grouped_from_flat(cls, flat)
+
+    @classmethod
+    def from_saved(cls, saved: Mapping[str, Any]) -> TrainArgs:
+        """The options of a checkpoint's flat ``args``: keys that are no option (an imitation run's ``imitation``)
+        are left out, options added since the checkpoint was written take their defaults."""
+        return cls.from_flat({name: value for name, value in saved.items() if name in GROUP_OF})
+
+    def flat(self) -> dict[str, Any]:
+        """Every option by name, as plain values (paths as strings): what a checkpoint stores as its ``args``."""
+        return {name: (str(v) if isinstance(v, Path) else v) for name, v in self._values().items()}
+
+    def with_options(self, **options: Any) -> TrainArgs:
+        """These options with ``options`` (flat names, e.g. ``num_taxis=4``) replaced; checked like any."""
+        return TrainArgs.from_flat({**self._values(), **options})
+
+    def _values(self) -> dict[str, Any]:
+        return flat_options(self)
+
+    def _get(self, name: str) -> Any:
+        return getattr(getattr(self, GROUP_OF[name]), name)
+
+    def _set(self, name: str, value: Any) -> None:
+        """Store an option's normalised value (a tuple for a list) in its frozen group."""
+        object.__setattr__(getattr(self, GROUP_OF[name]), name, value)
+
     def __post_init__(self) -> None:
         """Every numeric option in its range (:class:`~uamfleet.config.ConfigError` naming the flag otherwise),
         so a typo fails before any env is built, not after training (``checkpoint_every=0``)."""
+        for group, cls in GROUPS.items():
+            if not isinstance(getattr(self, group), cls):
+                raise ConfigError(f"TrainArgs.{group}={getattr(self, group)!r} must be a {cls.__name__}.")
         self._check_numbers()
         self._check_thresholds()
-        if self.eval_instances > len(VALIDATION_SEEDS):
+        env, net, evaluation = self.env, self.net, self.eval
+        if evaluation.eval_instances > len(VALIDATION_SEEDS):
             raise ConfigError(
-                f"--eval-instances={self.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
+                f"--eval-instances={evaluation.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
                 f"validation split; give at most {len(VALIDATION_SEEDS):,} (e.g. 50)."
             )
-        if self.eval_instances and not self.scenario.endswith(("_instances", "_fleet")):
+        if evaluation.eval_instances and not env.scenario.endswith(("_instances", "_fleet")):
             raise ConfigError(
-                f"--eval-instances={self.eval_instances} flies held-out instances of a family; it needs a "
-                f"*_instances or *_fleet scenario (not {self.scenario!r}), e.g. --scenario berlin_instances."
+                f"--eval-instances={evaluation.eval_instances} flies held-out instances of a family; it needs a "
+                f"*_instances or *_fleet scenario (not {env.scenario!r}), e.g. --scenario berlin_instances."
             )
-        if self.kl_to_init > 0 and self.init_from is None:
+        if net.kl_to_init > 0 and net.init_from is None:
             raise ConfigError(
-                f"--kl-to-init={self.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
+                f"--kl-to-init={net.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
                 "with --init-from (a shipped name such as berlin, or a checkpoint file), or drop --kl-to-init."
             )
         self._check_fleet_mixture()
-        if self.reinit_critic and self.init_from is None:
+        if net.reinit_critic and net.init_from is None:
             raise ConfigError(
                 "--reinit-critic starts the critic of an --init-from policy afresh; give that policy with "
                 "--init-from, or drop --reinit-critic (a run from scratch starts every weight afresh)."
             )
         for name in ("scenario", "run_name", "init_from"):
-            value = getattr(self, name)
+            value = self._get(name)
             if value is not None and not isinstance(value, str):
                 raise ConfigError(f"{_flag(name)}={value!r} must be a string.")
+        self._set("run_dir", Path(self.run.run_dir))
 
     def _check_numbers(self) -> None:
         """The integer options against their lower bounds, the float options against their intervals."""
         for name, minimum in _COUNTS.items():
-            check_integer(_flag(name), getattr(self, name), minimum)
+            check_integer(_flag(name), self._get(name), minimum)
         most = 4 * (os.cpu_count() or 1)
-        check_integer("--threads", self.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
+        check_integer("--threads", self.run.threads, 0, most, fix=" (4 per CPU core at most; 0: torch's default)")
         for name in ("num_taxis", "eval_time_limit_steps", "passenger_window"):
-            if getattr(self, name) is not None:
-                check_integer(_flag(name), getattr(self, name), 1)
+            if self._get(name) is not None:
+                check_integer(_flag(name), self._get(name), 1)
         for name, (low, high, low_open) in _RANGES.items():
-            value = getattr(self, name)
+            value = self._get(name)
             if value is None:
                 continue
             check_number(_flag(name), value)
@@ -259,50 +352,54 @@ class TrainArgs:
 
     def _check_thresholds(self) -> None:
         """--thresholds: a list of distinct dB values, not given together with --sinr-min-db (stored as a tuple)."""
-        if isinstance(self.thresholds, str | bytes) or not hasattr(self.thresholds, "__iter__"):
-            raise ConfigError(f"--thresholds={self.thresholds!r} must be a list of dB values, e.g. -7 -6 -5.")
-        self.thresholds = tuple(check_number("--thresholds", t) for t in self.thresholds)
-        repeated = sorted({t for t in self.thresholds if self.thresholds.count(t) > 1})
+        given = self.env.thresholds
+        if isinstance(given, str | bytes) or not hasattr(given, "__iter__"):
+            raise ConfigError(f"--thresholds={given!r} must be a list of dB values, e.g. -7 -6 -5.")
+        thresholds = tuple(check_number("--thresholds", t) for t in given)
+        self._set("thresholds", thresholds)
+        repeated = sorted({t for t in thresholds if thresholds.count(t) > 1})
         if repeated:
             raise ConfigError(
-                f"--thresholds={list(self.thresholds)} repeats {repeated}: each threshold is one share of the envs; "
+                f"--thresholds={list(thresholds)} repeats {repeated}: each threshold is one share of the envs; "
                 "give each once."
             )
-        if self.thresholds and self.sinr_min_db is not None:
+        if thresholds and self.env.sinr_min_db is not None:
             raise ConfigError(
-                f"--sinr-min-db={self.sinr_min_db} and --thresholds={list(self.thresholds)} both set the threshold; "
+                f"--sinr-min-db={self.env.sinr_min_db} and --thresholds={list(thresholds)} both set the threshold; "
                 "give one of them."
             )
 
     def _check_fleet_mixture(self) -> None:
         """--num-requests and --fleet-mixture: a *_fleet scenario, settings <taxis>x<requests>, each given once,
         --num-taxis the largest fleet (stored as a tuple of strings)."""
-        fleet = self.scenario.endswith("_fleet") if isinstance(self.scenario, str) else False
-        if self.num_requests is not None:
-            check_integer("--num-requests", self.num_requests, 1)
+        env = self.env
+        fleet = env.scenario.endswith("_fleet") if isinstance(env.scenario, str) else False
+        if env.num_requests is not None:
+            check_integer("--num-requests", env.num_requests, 1)
             if not fleet:
                 raise ConfigError(
-                    f"--num-requests={self.num_requests} sets a fleet scenario's demand; it needs a *_fleet scenario "
-                    f"(not {self.scenario!r}), e.g. --scenario berlin_fleet."
+                    f"--num-requests={env.num_requests} sets a fleet scenario's demand; it needs a *_fleet scenario "
+                    f"(not {env.scenario!r}), e.g. --scenario berlin_fleet."
                 )
-        if isinstance(self.fleet_mixture, str | bytes) or not hasattr(self.fleet_mixture, "__iter__"):
-            raise ConfigError(f"--fleet-mixture={self.fleet_mixture!r} must be a list of settings, e.g. 2x12 4x48.")
-        self.fleet_mixture = tuple(str(s) for s in self.fleet_mixture)
-        if not self.fleet_mixture:
+        if isinstance(env.fleet_mixture, str | bytes) or not hasattr(env.fleet_mixture, "__iter__"):
+            raise ConfigError(f"--fleet-mixture={env.fleet_mixture!r} must be a list of settings, e.g. 2x12 4x48.")
+        mixture = tuple(str(s) for s in env.fleet_mixture)
+        self._set("fleet_mixture", mixture)
+        if not mixture:
             return
         if not fleet:
             raise ConfigError(
-                f"--fleet-mixture={list(self.fleet_mixture)} mixes fleet settings; it needs a *_fleet scenario "
-                f"(not {self.scenario!r}), e.g. --scenario berlin_fleet."
+                f"--fleet-mixture={list(mixture)} mixes fleet settings; it needs a *_fleet scenario "
+                f"(not {env.scenario!r}), e.g. --scenario berlin_fleet."
             )
         settings = self.fleet_settings()
-        repeated = sorted({s for s in self.fleet_mixture if self.fleet_mixture.count(s) > 1})
+        repeated = sorted({s for s in mixture if mixture.count(s) > 1})
         if repeated:
-            raise ConfigError(f"--fleet-mixture={list(self.fleet_mixture)} repeats {repeated}; give each setting once.")
+            raise ConfigError(f"--fleet-mixture={list(mixture)} repeats {repeated}; give each setting once.")
         largest = max(taxis for taxis, _ in settings)
-        if self.num_taxis is not None and self.num_taxis != largest:
+        if env.num_taxis is not None and env.num_taxis != largest:
             raise ConfigError(
-                f"--num-taxis={self.num_taxis} is not the largest fleet of --fleet-mixture={list(self.fleet_mixture)} "
+                f"--num-taxis={env.num_taxis} is not the largest fleet of --fleet-mixture={list(mixture)} "
                 f"({largest}): the run's observation holds the largest fleet's other taxis; set --num-taxis {largest} "
                 "or leave it out."
             )
@@ -310,7 +407,7 @@ class TrainArgs:
     def fleet_settings(self) -> list[tuple[int, int]]:
         """(taxis, requests) of each --fleet-mixture setting, in the order given (ConfigError for a malformed one)."""
         out = []
-        for setting in self.fleet_mixture:
+        for setting in self.env.fleet_mixture:
             taxis, sep, requests = setting.partition("x")
             if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
                 raise ConfigError(
@@ -321,29 +418,60 @@ class TrainArgs:
 
     @property
     def name(self) -> str:
-        if self.run_name:
-            return self.run_name
-        sinr = "default" if self.sinr_min_db is None else f"{self.sinr_min_db:g}"
-        return f"{self.scenario}_{sinr}dB_{self.variant}_s{self.seed}"
+        if self.run.run_name:
+            return self.run.run_name
+        sinr = "default" if self.env.sinr_min_db is None else f"{self.env.sinr_min_db:g}"
+        return f"{self.env.scenario}_{sinr}dB_{self.net.variant}_s{self.ppo.seed}"
 
     def env_overrides(self, training: bool = True) -> dict[str, Any]:
-        overrides: dict[str, Any] = {"feasibility": self.feasibility}
-        if self.sinr_min_db is not None:
-            overrides["sinr_min_db"] = self.sinr_min_db
-        taxis = self.num_taxis
-        if taxis is None and self.fleet_mixture:
+        env, observer = self.env, self.observer
+        overrides: dict[str, Any] = {"feasibility": env.feasibility}
+        if env.sinr_min_db is not None:
+            overrides["sinr_min_db"] = env.sinr_min_db
+        taxis = env.num_taxis
+        if taxis is None and env.fleet_mixture:
             taxis = max(n for n, _ in self.fleet_settings())
         if taxis is not None:
             overrides["num_taxis"] = taxis
-        limit = self.time_limit_steps if training or self.eval_time_limit_steps is None else self.eval_time_limit_steps
-        overrides["time_limit_steps"] = limit
-        if self.heading_lookahead:
+        evaluation_limit = self.eval.eval_time_limit_steps
+        overrides["time_limit_steps"] = (
+            env.time_limit_steps if training or evaluation_limit is None else evaluation_limit
+        )
+        if observer.heading_lookahead:
             overrides["heading_lookahead"] = True
-        if self.lookahead_depth != 1:
-            overrides["lookahead_depth"] = self.lookahead_depth
-        if self.passenger_window is not None:
-            overrides["passenger_window"] = self.passenger_window
+        if observer.lookahead_depth != 1:
+            overrides["lookahead_depth"] = observer.lookahead_depth
+        if observer.passenger_window is not None:
+            overrides["passenger_window"] = observer.passenger_window
         return overrides
+
+
+def flat_options(grouped: Any) -> dict[str, Any]:
+    """Every option of a dataclass of option groups (each a dataclass), by name, in the groups' order."""
+    return {
+        f.name: getattr(group, f.name)
+        for group in (getattr(grouped, g.name) for g in dataclasses.fields(grouped))
+        for f in dataclasses.fields(group)
+    }
+
+
+def option_groups(cls: type) -> dict[str, type]:
+    """The group classes of a dataclass of option groups, by attribute (each group's default factory)."""
+    return {g.name: g.default_factory for g in dataclasses.fields(cls)}  # type: ignore[misc]
+
+
+def grouped_from_flat(cls: type[G], flat: Mapping[str, Any]) -> G:
+    """A dataclass of option groups built from the flat dict ``flat`` (option name -> value; options it lacks take
+    their defaults); ConfigError naming any key that is no option of ``cls``."""
+    groups = option_groups(cls)
+    group_of = {f.name: name for name, group in groups.items() for f in dataclasses.fields(group)}
+    unknown = sorted(set(flat) - set(group_of))
+    if unknown:
+        raise ConfigError(f"{unknown} are no options of {cls.__name__}; give only its options (e.g. seed), by name.")
+    grouped: dict[str, dict[str, Any]] = {name: {} for name in groups}
+    for name, value in flat.items():
+        grouped[group_of[name]][name] = value
+    return cls(**{name: groups[name](**values) for name, values in grouped.items()})
 
 
 # Lower bounds of TrainArgs' integer options.
@@ -369,17 +497,18 @@ def _flag(name: str) -> str:
 def make_env_config(scenario: str | EnvConfig, args: TrainArgs, training: bool = True) -> EnvConfig:
     """The env config a run trains (or evaluates) on: the scenario with the run's overrides and shaping.
 
-    The shaping term uses the trainer's discount unless ``args.shaping_gamma`` is set, so by default it stays
+    The shaping term uses the trainer's discount unless ``args.env.shaping_gamma`` is set, so by default it stays
     potential-based for the return PPO maximises (Ng et al. 1999: F = gamma * Phi(s') - Phi(s) with the MDP's own
     gamma)."""
     cfg = make_config(scenario, **args.env_overrides(training=training))
-    if args.num_requests is not None:
-        cfg = with_num_requests(cfg, args.num_requests)
+    env = args.env
+    if env.num_requests is not None:
+        cfg = with_num_requests(cfg, env.num_requests)
     reward = dataclasses.replace(
         cfg.reward,
-        shaping=args.shaping,
-        shaping_metric=args.shaping_metric,
-        shaping_gamma=args.gamma if args.shaping_gamma is None else args.shaping_gamma,
+        shaping=env.shaping,
+        shaping_metric=env.shaping_metric,
+        shaping_gamma=args.ppo.gamma if env.shaping_gamma is None else env.shaping_gamma,
     )
     return cfg.replace(reward=reward)
 
@@ -391,8 +520,3 @@ def with_num_requests(cfg: EnvConfig, requests: int) -> EnvConfig:
         cfg.demand, min_requests=requests, max_requests=requests, num_initial=min(cfg.demand.num_initial, requests)
     )
     return cfg.replace(demand=demand, max_passengers=requests)
-
-
-def plain_args(args: TrainArgs) -> dict[str, Any]:
-    """The options as plain values (paths as strings), as a checkpoint stores them."""
-    return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(args).items()}

@@ -27,7 +27,8 @@ from uamfleet.observe.spec import (
 )
 from uamfleet.presets import PRESETS
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.checkpoint import Checkpoint, check_network, checkpoint_args, run_config
+from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config
+from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
@@ -312,7 +313,7 @@ def load_policy(
         normalizer = ObservationNormalizer(shapes)
         normalizer.load_state_dict(ckpt.obs_normalizer)
     trained_on = env_config if env_config is not None else cfg
-    if env_config is not None and args.scenario in PRESETS:
+    if env_config is not None and args.env.scenario in PRESETS:
         trained_on = run_config(args, training=False)
     return GreedyPolicy(
         net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.observed_passengers, trained_on
@@ -348,7 +349,7 @@ def _check_layout(ckpt: Checkpoint, layout: Layout, source: str, args: TrainArgs
     fields = ckpt.obs_shapes
     raise ValueError(
         f"{source}: {why} The policy flies any config of its observation layout (any threshold, instance or "
-        f"fewer passengers): num_taxis={args.num_taxis or 'as trained'}, max_passengers="
+        f"fewer passengers): num_taxis={args.env.num_taxis or 'as trained'}, max_passengers="
         f"{fields.get('passengers', ['?'])[0]}, stop_features={'stop_paths' in fields}, "
         f"stop_rivals={'stop_rivals' in fields}, stop_claims={'stop_claims' in fields}."
     ) from None

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import dataclasses
 import io
 import math
 import os
@@ -224,7 +223,7 @@ def _alive(pid: int) -> bool:
 def run_folder(args: TrainArgs) -> Path:
     """run_dir/<name>, checked (:func:`claim_run`) and, with ``overwrite``, emptied of the earlier run; the lock is
     released again (a command that writes the run holds its :class:`RunClaim` instead)."""
-    with claim_run(args.run_dir, args.name, resume=args.resume, overwrite=args.overwrite) as claim:
+    with claim_run(args.run.run_dir, args.name, resume=args.run.resume, overwrite=args.run.overwrite) as claim:
         claim.clear()
         claim.created = False  # the caller writes into it
     return claim.folder
@@ -258,14 +257,14 @@ class Logger:
         self, folder: Path, args: TrainArgs, num_iterations: int, done_iterations: int, resumed_at_step: int | None
     ) -> None:
         self.folder, self.writer = folder, None
-        if args.tensorboard:
+        if args.run.tensorboard:
             from torch.utils.tensorboard import SummaryWriter
 
             purge = None if resumed_at_step is None else resumed_at_step + 1
             self.writer = SummaryWriter(str(folder / "tb"), purge_step=purge)
             self.writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(
-                f"|{k}|{v}|" for k, v in dataclasses.asdict(args).items()))  # fmt: skip
-        self.bar = _progress(args.progress, num_iterations, done_iterations)
+                f"|{k}|{v}|" for k, v in args.flat().items()))  # fmt: skip
+        self.bar = _progress(args.run.progress, num_iterations, done_iterations)
 
     def write(self, rows: list[dict[str, float]], best: dict[str, float]) -> None:
         row = rows[-1]

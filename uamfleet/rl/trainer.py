@@ -40,13 +40,12 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     check_state_dict,
-    checkpoint_args,
     numpy_rng_state,
     set_numpy_rng_state,
-    upgrade_checkpoint,
 )
 from uamfleet.rl.collector import Counters, RolloutStats, Run, collect_rollout, make_run, restore_counters
 from uamfleet.rl.distributed import RankZeroError, Ranks
+from uamfleet.rl.legacy import checkpoint_args, upgrade_checkpoint
 from uamfleet.rl.learner import (
     Learner,
     compute_advantages,
@@ -55,7 +54,7 @@ from uamfleet.rl.learner import (
     set_schedules,
     with_init_architecture,
 )
-from uamfleet.rl.options import TrainArgs, make_env_config, plain_args
+from uamfleet.rl.options import TrainArgs, make_env_config
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo
 from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, RunClaim, TrainResult, claim_run, read_progress, run_folder
@@ -79,7 +78,7 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
     cuda = torch.cuda.get_rng_state(run.device) if run.device.type == "cuda" else None
     return Checkpoint(
         model=copy.deepcopy(learner.net.state_dict()), optimizer=copy.deepcopy(learner.optimizer.state_dict()),
-        net_config=dataclasses.asdict(learner.net_cfg), args=plain_args(run.args),
+        net_config=dataclasses.asdict(learner.net_cfg), args=run.args.flat(),
         obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, obs_layout=layout_to_dict(run.layout),
         iteration=counters.iteration,
         global_step=counters.global_step, wall_s=counters.wall_offset + time.time() - run.start_time,
@@ -93,7 +92,7 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
 def restore(ckpt: Checkpoint, run: Run, learner: Learner) -> Counters:
     ckpt.check_matches(run.args, run.obs_shapes, layout=run.layout)
     shapes = {k: tuple(v.shape) for k, v in learner.net.state_dict().items()}
-    check_state_dict(ckpt.model, shapes, str(run.folder / "last.pt"), run.args.variant)
+    check_state_dict(ckpt.model, shapes, str(run.folder / "last.pt"), run.args.net.variant)
     learner.net.load_state_dict(ckpt.model)
     learner.optimizer.load_state_dict(ckpt.optimizer)
     if learner.normalizer is not None and ckpt.obs_normalizer is not None:
@@ -115,7 +114,7 @@ def start(run: Run, learner: Learner, claim: RunClaim | None) -> tuple[Counters,
         try:
             if claim is not None:
                 claim.clear()
-            data = (run.folder / "last.pt").read_bytes() if run.args.resume else None
+            data = (run.folder / "last.pt").read_bytes() if run.args.run.resume else None
         except Exception as err:
             error = err
     if not ranks.broadcast_flag(error is None):
@@ -131,7 +130,7 @@ def start(run: Run, learner: Learner, claim: RunClaim | None) -> tuple[Counters,
             progress = read_progress(run.folder / "progress.csv", required=("iteration",))
             rows = [r for r in progress if r["iteration"] <= counters.iteration]
     ranks.broadcast_module(learner.net)
-    obs, _ = run.venv.reset(seed=run.args.seed + run.env_offset)  # global env e gets seed + e
+    obs, _ = run.venv.reset(seed=run.args.ppo.seed + run.env_offset)  # global env e gets seed + e
     run.obs = run.flat(obs)
     return counters, rows
 
@@ -176,12 +175,12 @@ def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[st
     """Rank 0: fly the greedy policy (one episode, or the validation instances), add eval/* to the row, keep the
     best; True when it is a new best."""
     policy = GreedyPolicy(learner.net, learner.normalizer, run.device)
-    if run.args.eval_instances:
-        m = validation_metrics(policy, family_of(run.args.scenario), run.args.eval_instances, run.eval_cfg)
+    if run.args.eval.eval_instances:
+        m = validation_metrics(policy, family_of(run.args.env.scenario), run.args.eval.eval_instances, run.eval_cfg)
     else:
         m = evaluate(policy, run.eval_cfg).as_dict()
     row.update({f"eval/{k}": v for k, v in m.items()})
-    target = run.args.stop_at_td_m
+    target = run.args.eval.stop_at_td_m
     if counters.target_step is None and target is not None and m["pr_pct"] >= 100.0 and m["td_m"] <= target:
         counters.target_step, counters.target_s = counters.global_step, row["wall_s"]
     if counters.best_eval and _score(m) >= _score(counters.best_eval):
@@ -210,9 +209,9 @@ def train(
 ) -> TrainResult:
     """Train; ``env_config`` replaces the named scenario (e.g. a user's own map or instance). Under torchrun
     every rank calls this; ``on_iteration(iteration, net)`` runs on every rank after each update (tests)."""
-    if args.threads:
-        torch.set_num_threads(args.threads)
-    ranks, device = Ranks.from_env(args.device, args.backend)
+    if args.run.threads:
+        torch.set_num_threads(args.run.threads)
+    ranks, device = Ranks.from_env(args.run.device, args.run.backend)
     args = with_init_architecture(args)
     claim = claim_folder(args, ranks)  # before any env or table is built: a second run of the name fails at once
     try:
@@ -234,8 +233,8 @@ def claim_folder(args: TrainArgs, ranks: Ranks) -> RunClaim | None:
     claim, error = None, None
     if ranks.is_main:
         try:
-            claim = claim_run(args.run_dir, args.name, resume=args.resume, overwrite=args.overwrite)
-            if args.resume:
+            claim = claim_run(args.run.run_dir, args.name, resume=args.run.resume, overwrite=args.run.overwrite)
+            if args.run.resume:
                 read_progress(claim.folder / "progress.csv", required=("iteration",))
         except Exception as err:
             if claim is not None:
@@ -244,7 +243,9 @@ def claim_folder(args: TrainArgs, ranks: Ranks) -> RunClaim | None:
     if not ranks.broadcast_flag(error is None):
         if error is not None:
             raise error
-        raise RankZeroError(f"rank 0 could not claim the run folder {args.run_dir / args.name}; its error says why.")
+        raise RankZeroError(
+            f"rank 0 could not claim the run folder {args.run.run_dir / args.name}; its error says why."
+        )
     return claim
 
 
@@ -254,7 +255,7 @@ def _train(
     args, ranks = run.args, run.ranks
     learner = make_learner(run)
     counters, rows = start(run, learner, claim)
-    if args.init_from is not None and counters.iteration == 0 and ranks.is_main:
+    if args.net.init_from is not None and counters.iteration == 0 and ranks.is_main:
         rows.append(evaluate_start(run, learner, counters))
     if counters.iteration >= run.num_iterations:
         _say_finished(run, counters)
@@ -296,7 +297,7 @@ def open_log(run: Run, counters: Counters) -> Logger | None:
     """Rank 0's logger (None on the other ranks); a resumed run says where it goes on."""
     if not run.ranks.is_main:
         return None
-    resumed_at = counters.global_step if run.args.resume else None
+    resumed_at = counters.global_step if run.args.run.resume else None
     if resumed_at is not None:
         print(f"resumed {run.folder} at iteration {counters.iteration}, step {counters.global_step:,} "
               "(envs restart their episodes)")  # fmt: skip
@@ -309,13 +310,13 @@ def evaluate_and_decide(
     """End of an iteration on every rank: rank 0 evaluates when it is due (every ``eval_every`` iterations and at
     the last), the counters move on, and all ranks agree whether to stop. Returns (stop, new best)."""
     args, ranks = run.args, run.ranks
-    out_of_time = args.max_wall_s is not None and time.time() - run.start_time >= args.max_wall_s
+    out_of_time = args.eval.max_wall_s is not None and time.time() - run.start_time >= args.eval.max_wall_s
     last = ranks.broadcast_flag(iteration == run.num_iterations - 1 or out_of_time)
     new_best = False
-    if ranks.is_main and ((args.eval_every and (iteration + 1) % args.eval_every == 0) or last):
+    if ranks.is_main and ((args.eval.eval_every and (iteration + 1) % args.eval.eval_every == 0) or last):
         new_best = evaluate_greedy(run, learner, counters, row)
     counters.iteration = iteration + 1
-    stop = ranks.broadcast_flag(last or (counters.target_step is not None and args.stop_at_td_m is not None))
+    stop = ranks.broadcast_flag(last or (counters.target_step is not None and args.eval.stop_at_td_m is not None))
     return stop, new_best
 
 
@@ -329,7 +330,7 @@ def record(
     snapshot = capture(run, learner, counters)
     if new_best:
         snapshot.save(run.folder / "best.pt")
-    if stop or counters.iteration % run.args.checkpoint_every == 0:
+    if stop or counters.iteration % run.args.run.checkpoint_every == 0:
         snapshot.save(run.folder / "last.pt")
     return snapshot
 

@@ -1,0 +1,125 @@
+"""What reads a checkpoint's past: files of format 1 and the flat training arguments every checkpoint stores.
+
+:func:`upgrade_checkpoint` converts a checkpoint of format 1 (NumPy objects pickled inside) to the safe format,
+reading only NumPy arrays and scalars (:data:`NUMPY_GLOBALS`); unpickling anything else happens only with
+``trust=True``, which warns what it means. :func:`checkpoint_args` reads the options a checkpoint was trained with
+(stored flat, one key per option) as a :class:`~uamfleet.rl.options.TrainArgs`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from uamfleet.config import EnvConfig
+from uamfleet.observe.spec import layout_to_dict, observation_layout
+from uamfleet.presets import make_config
+from uamfleet.rl.checkpoint import Checkpoint, CheckpointError, _load_error, with_input_flags
+from uamfleet.rl.options import TrainArgs
+
+try:  # NumPy 2 renamed numpy.core to numpy._core
+    from numpy._core import multiarray as _multiarray
+except ImportError:  # pragma: no cover - NumPy 1
+    from numpy.core import multiarray as _multiarray  # type: ignore[no-redef]
+
+NUMPY_GLOBALS: list[Any] = [
+    np.ndarray, np.dtype, _multiarray._reconstruct, _multiarray.scalar,
+    *(type(np.dtype(kind)) for kind in "?bBhHiIlLqQefdg"),  # numeric dtypes only: never object arrays
+    *((getattr(_multiarray, f), f"numpy.{core}.multiarray.{f}")  # the names files of either NumPy use
+      for core in ("core", "_core") for f in ("_reconstruct", "scalar")),
+]  # fmt: skip
+"""What a format-1 checkpoint pickled besides tensors: NumPy arrays and scalars (the RNG state, the normaliser's
+statistics). Rebuilding them runs no code of the file; :func:`upgrade_checkpoint` allows these and nothing else."""
+
+
+TRUST_WARNING = (
+    "upgrade_checkpoint(trust=True) unpickles {path} with torch.load(weights_only=False): any code the file holds "
+    "runs now, with your permissions. Trust only a file you wrote yourself and kept where nobody else could "
+    "change it."
+)
+
+
+def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *, trust: bool = False) -> Path:
+    """Re-save a checkpoint of format 1 (NumPy RNG state and statistics pickled inside) in the safe format, in
+    place (pass the ``env_config`` it was trained on, if not its named scenario).
+
+    It reads the file with ``torch.load(weights_only=True)`` allowing NumPy arrays and scalars only
+    (:data:`NUMPY_GLOBALS`): no code of the file runs, and a file holding anything else is refused. ``trust=True``
+    unpickles the file fully instead, which runs any code in it (it warns): only for a file you wrote yourself.
+    The result is checked like every checkpoint before it is saved."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} does not exist.")
+    old = _read_format1(path, trust)
+    if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
+        raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
+    _to_plain_values(old)
+    layout = observation_layout(_evaluation_config(old["args"], env_config))  # the spec: no env is built
+    old["obs_shapes"] = {k: list(spec.shape) for k, spec in layout.items()}
+    old["obs_layout"] = layout_to_dict(layout)
+    names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
+    upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
+    upgraded.net_config = with_input_flags(upgraded.net_config, upgraded.obs_shapes)
+    upgraded.validate(str(path))
+    upgraded.save(path)
+    return path
+
+
+def _read_format1(path: Path, trust: bool) -> Any:
+    """A format-1 file: NumPy arrays and scalars allowed and nothing else, or fully unpickled with ``trust``."""
+    if trust:
+        warnings.warn(TRUST_WARNING.format(path=path), UserWarning, stacklevel=3)
+        return torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        with torch.serialization.safe_globals(NUMPY_GLOBALS):  # torch >= 2.5
+            return torch.load(path, map_location="cpu", weights_only=True)
+    except AttributeError:  # pragma: no cover - older torch
+        raise CheckpointError("upgrade_checkpoint needs torch >= 2.5 (torch.serialization.safe_globals).") from None
+    except Exception as err:
+        raise CheckpointError(
+            f"{path} holds more than tensors and NumPy arrays, so upgrade_checkpoint will not read it "
+            f"({_load_error(err)}): it is not a uamfleet checkpoint of format 1; train the run again."
+        ) from None
+
+
+def _to_plain_values(old: dict[str, Any]) -> None:
+    """In place: the NumPy RNG state as plain values, the normalisers' statistics as tensors and floats."""
+    if not isinstance(old["numpy_rng"], dict):
+        name, keys, pos, has_gauss, cached = old["numpy_rng"]
+        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
+                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
+    for key in ("obs_normalizer", "reward_scaler"):
+        if old.get(key) is not None:
+            fields = old[key] if key == "obs_normalizer" else {"_": old[key]}
+            for rms in fields.values():
+                rms["mean"], rms["var"] = (torch.as_tensor(np.asarray(rms[k], np.float64)) for k in ("mean", "var"))
+                rms["count"] = float(rms["count"])
+    old["best_eval"] = {k: float(v) for k, v in old.get("best_eval", {}).items()}
+
+
+def _evaluation_config(args: Mapping[str, Any], env_config: EnvConfig | None) -> EnvConfig:
+    """The config a run evaluated on, from its saved arguments (the observation layout is all that matters
+    here: the same overrides as ``TrainArgs.env_overrides(training=False)``)."""
+    overrides: dict[str, Any] = {"feasibility": args.get("feasibility", "endpoint_block")}
+    for key in ("sinr_min_db", "num_taxis"):
+        if args.get(key) is not None:
+            overrides[key] = args[key]
+    limit = args.get("eval_time_limit_steps") or args.get("time_limit_steps")
+    if limit is not None:
+        overrides["time_limit_steps"] = limit
+    return make_config(env_config if env_config is not None else str(args["scenario"]), **overrides)
+
+
+def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
+    """The training arguments a checkpoint was written with, from its flat ``args`` (options added since take their
+    defaults: :meth:`TrainArgs.from_saved`)."""
+    return TrainArgs.from_saved(ckpt.args)
+
+
+__all__ = ["NUMPY_GLOBALS", "TRUST_WARNING", "checkpoint_args", "upgrade_checkpoint"]
