@@ -281,14 +281,19 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     if args.note:
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
+    written = "" if args.from_csv is not None else f"{args.out_csv} and "
     if args.out_md is None:
-        print(body)
-        print(f"wrote {args.out_csv if args.from_csv is None else 'nothing'} ({minutes}){note}")
-        print(REFRESH_HINT)
+        _print_table(body, written.removesuffix(" and "), f"({minutes}){note}")
         return
     replace_section(args.out_md, args.section, body)
-    written = "" if args.from_csv is not None else f"{args.out_csv} and "
     print(f"wrote {written}the {args.section} section of {args.out_md} ({minutes}){note}")
+
+
+def _print_table(body: str, csv: str, tail: str) -> None:
+    """Without --out-md: the table, the CSV written (if any), and where the results pages come from."""
+    print(body)
+    print(f"wrote {csv or 'nothing'} {tail}")
+    print(REFRESH_HINT)
 
 
 def check_args(args: Args) -> list[Job]:
