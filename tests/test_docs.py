@@ -5,12 +5,15 @@ The pages are ``README.md`` and every ``docs/**/*.md``. Two kinds of fenced bloc
 - ```` ```python ```` blocks: the blocks of one page run in order in one namespace (so a later block uses the
   names of an earlier one), in a fresh temporary folder as the current folder (so the files a snippet writes land
   there), with the project's root importable. One test per page: ``test_python_blocks_run[<page>]``.
-- ```` ```bash ```` blocks: each command line of a block that starts with ``uamfleet `` or ``python -m `` runs
-  through :mod:`subprocess` (``uamfleet X`` as ``python -m uamfleet X``, ``python`` as this interpreter) and must
-  exit 0; other lines (``bash scripts/setup.sh``, ``.venv/bin/torchrun``, ``source ...``) are not run (CI runs
+- ```` ```bash ```` blocks: each command line of a block that starts with ``uamfleet `` or ``python -m `` (after
+  any ``NAME=value`` environment assignments, such as ``OMP_NUM_THREADS=1``, which it runs with) runs through
+  :mod:`subprocess` (``uamfleet X`` as ``python -m uamfleet X``, ``python`` as this interpreter) and must exit 0;
+  other lines (``bash scripts/setup.sh``, ``.venv/bin/torchrun``, ``source ...``) are not run (CI runs
   the set-up). Lines continued with ``\\`` are one command; ``#`` starts a comment. The blocks of one page run in
   order in one temporary folder (a later command reads what an earlier one wrote), with the project's root on
-  ``PYTHONPATH``. One test per page: ``test_bash_blocks_run[<page>]``.
+  ``PYTHONPATH`` and its ``uamfleet/data`` linked there (so a command names a shipped file, such as
+  ``uamfleet/data/pretrained/berlin.pt``, by its path in a checkout). One test per page:
+  ``test_bash_blocks_run[<page>]``.
 
 **The comment above a block.** An HTML comment ``<!-- test: ... -->`` on the line before the fence says how the
 block is tested; a bash block with a command to run must have one, so that no page documents a command of hours
@@ -54,6 +57,7 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 FENCE = re.compile(r"^```(\S*)\s*$")
 DIRECTIVE = re.compile(r"^<!--\s*test:(.*?)-->\s*$")
 RUNNABLE = ("uamfleet ", "python -m ")
+ASSIGNMENTS = re.compile(r"^(?:[A-Za-z_][A-Za-z0-9_]*=\S*\s+)*")  # NAME=value words before a command
 CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
 ENGINES_VENV = Path(os.environ.get("UAMFLEET_ENGINES_VENV", CACHE / "uamfleet-engines" / "venv"))
 TIMEOUT_S = 600
@@ -132,7 +136,7 @@ def commands(code: str) -> list[str]:
     out = []
     for line in joined.splitlines():
         line = line.split(" #", 1)[0].strip() if not line.lstrip().startswith("#") else ""
-        if line.startswith(RUNNABLE):
+        if line[ASSIGNMENTS.match(line).end() :].startswith(RUNNABLE):  # type: ignore[union-attr]
             out.append(line)
     return out
 
@@ -163,6 +167,14 @@ def sized(command: str, args: list[str]) -> list[str]:
         else:
             argv += [name, *values]
     return argv
+
+
+def assignments(argv: list[str]) -> tuple[dict[str, str], list[str]]:
+    """The ``NAME=value`` words that start ``argv``, as environment variables, and the command after them."""
+    at = 0
+    while at < len(argv) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*=.*", argv[at]):
+        at += 1
+    return dict(word.split("=", 1) for word in argv[:at]), argv[at:]
 
 
 def interpreter_argv(argv: list[str], python: str = sys.executable) -> list[str]:
@@ -227,6 +239,8 @@ def test_python_blocks_run(page_blocks: list[Block], tmp_path: Path, monkeypatch
 @pytest.mark.parametrize("page_blocks", params("bash"))
 def test_bash_blocks_run(page_blocks: list[Block], tmp_path: Path) -> None:
     needs(page_blocks)
+    (tmp_path / "uamfleet").mkdir()  # no __init__.py: ``import uamfleet`` still finds the project's package
+    (tmp_path / "uamfleet" / "data").symlink_to(ROOT / "uamfleet" / "data", target_is_directory=True)
     for block in page_blocks:
         assert block.directive is not None, (
             f"{block.where}: a shell block with a command to run needs a `<!-- test: ... -->` comment above it "
@@ -235,8 +249,10 @@ def test_bash_blocks_run(page_blocks: list[Block], tmp_path: Path) -> None:
         if block.directive.skip:
             continue
         for command in commands(block.code):
-            argv = interpreter_argv(sized(command, block.directive.args))
-            run = subprocess.run(argv, cwd=tmp_path, env=child_env(), capture_output=True, text=True,
+            assert "$" not in command, f"{block.where}: {command!r} expands a shell variable; write the command out"
+            variables, argv = assignments(sized(command, block.directive.args))
+            argv = interpreter_argv(argv)
+            run = subprocess.run(argv, cwd=tmp_path, env={**child_env(), **variables}, capture_output=True, text=True,
                                  timeout=TIMEOUT_S, check=False)  # fmt: skip
             assert run.returncode == 0, f"{block.where}: {shlex.join(argv[1:])} exited {run.returncode}:\n" + (
                 run.stdout[-2000:] + run.stderr[-3000:]
@@ -278,6 +294,12 @@ def test_the_directive_rules() -> None:
         "uamfleet a --b 1",
         "python -m x",
     ]
+    assert commands('OMP_NUM_THREADS=1 A= uamfleet a\nL="--b 1"\nOMP_NUM_THREADS=1 .venv/bin/python x.py') == [
+        "OMP_NUM_THREADS=1 A= uamfleet a"
+    ]
+    assert assignments(sized("OMP_NUM_THREADS=1 uamfleet a --n 9", ["--n", "1"])) == (
+        {"OMP_NUM_THREADS": "1"}, ["uamfleet", "a", "--n", "1"]
+    )  # fmt: skip
     directive = parse_directive(" slow needs:sionna --cell-m 50 ", "here")
     assert (directive.slow, directive.needs, directive.args, directive.skip) == (True, ["sionna"], ["--cell-m", "50"],
                                                                                  None)  # fmt: skip

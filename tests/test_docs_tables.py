@@ -5,6 +5,7 @@ markers, and bad definitions fail in one line."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -54,6 +55,7 @@ TINY_TOML = """pages = ["page.md"]
 [tables.tiny]
 csv = "tiny.csv"
 command = "make tiny.csv"
+test = "--rows 1"
 where = "set == 's' and method != 'best'"
 group_by = ["method"]
 order = ["b", "a"]
@@ -107,6 +109,7 @@ def test_a_tiny_table_is_the_one_computed_by_hand(tmp_path: Path) -> None:
     # half = 1.96 * sqrt(108) / sqrt(3) = 1.96 * 6 = 11.76; ratios 1.2, 1.5, 1.0 -> 1.2333; ratio of means 72 / 60;
     # AWT median of 6, 8, 2 = 6; worst 30 - 20 = +10.
     assert render(tables["tiny"], root) == "\n".join([
+        "<!-- test: --rows 1 -->",  # how tests/test_docs.py runs the command
         "```bash",
         "make tiny.csv",
         "```",
@@ -127,6 +130,8 @@ def test_a_tiny_table_is_the_one_computed_by_hand(tmp_path: Path) -> None:
     ])  # fmt: skip
     assert render(tables["pivoted"], root) == pivoted
     assert render(tables["both"], root, tables) == pivoted + "\n\n" + render(tables["tiny"], root)
+    as_written = render(replace(tables["tiny"], test=""), root)  # test = "": the command runs as written
+    assert as_written.startswith("<!-- test: -->\n```bash\nmake tiny.csv\n```\n")
 
 
 def test_the_marker_writer_replaces_only_the_text_between_its_markers(tmp_path: Path) -> None:
@@ -189,6 +194,10 @@ def test_the_command_checks_writes_and_names_a_stale_page(tmp_path: Path, capsys
         (('value = "awt_s"', 'value = "awt"'), "name 'awt' is not defined"),
         (('format = "+.0f"', 'format = "q"'), "format 'q' of the column 'worst' is no number format"),
         (('parts = ["pivoted", "tiny"]', 'parts = ["pivoted", "nope"]'), "'nope' is not a table"),
+        # a command comes with the words that size it in tests/test_docs.py, and those words with a command
+        (('test = "--rows 1"\n', ""), 'tables.tiny: a command needs test = "<sizes'),
+        (('pivot = "method"', 'test = "slow"\npivot = "method"'), 'tables.pivoted: a command needs test = "<sizes'),
+        (('test = "--rows 1"', "test = 1"), 'tables.tiny: a command needs test = "<sizes'),
     ],
 )
 def test_a_bad_definition_is_one_line_naming_it(tmp_path: Path, capsys, change: tuple[str, str], message: str) -> None:

@@ -32,8 +32,10 @@ def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "docs").mkdir()
     shutil.copytree(ROOT / "docs" / "results", tmp_path / "docs" / "results")
     shutil.copy(ROOT / "docs" / "results.md", tmp_path / "docs" / "results.md")
-    # a Markdown file holding the marked sections an --out-md of paper-table and msha-table (re)writes
-    sections = [f"<!-- {name}:{end} -->" for name in ("paper_table", "msha_table") for end in ("begin", "end")]
+    # a Markdown file holding the marked sections an --out-md of paper-table, msha-table, benchmark and fleet-bench
+    # (re)writes
+    sections = [f"<!-- {name}:{end} -->" for name in ("paper_table", "msha_table", "benchmark", "fleet")
+                for end in ("begin", "end")]  # fmt: skip
     (tmp_path / "sections.md").write_text("\n".join(["# Results", *sections, ""]), encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     return tmp_path
@@ -70,8 +72,22 @@ EMPTY = [
         ["--out-md", "sections.md"],
         "docs/results/paper_table.csv and the 'paper_table' section of sections.md already hold results",
     ),
-    (benchmark.cli, ["--count", "1", "--out-csv", "docs/results/benchmark_fixed.csv"], "already hold results"),
-    (fleet_benchmark.cli, ["--count", "1"], "docs/results/fleet_benchmark.csv and the 'fleet' section"),
+    (
+        benchmark.cli,
+        ["--count", "1", "--out-csv", "docs/results/benchmark_fixed.csv"],
+        "docs/results/benchmark_fixed.csv already holds results; pass --overwrite",
+    ),
+    (
+        benchmark.cli,
+        ["--count", "1", "--out-csv", "docs/results/benchmark_fixed.csv", "--out-md", "sections.md"],
+        "docs/results/benchmark_fixed.csv and the 'benchmark' section of sections.md already hold results",
+    ),
+    (fleet_benchmark.cli, ["--count", "1"], "docs/results/fleet_benchmark.csv already holds results; pass --overwrite"),
+    (
+        fleet_benchmark.cli,
+        ["--count", "1", "--out-md", "sections.md"],
+        "docs/results/fleet_benchmark.csv and the 'fleet' section of sections.md already hold results",
+    ),
     (msha_table.cli, ["--no-train"], "docs/results/msha_table.csv already holds results; pass --overwrite"),
     (
         msha_table.cli,
@@ -111,11 +127,36 @@ def test_partial_rows_go_beside_the_committed_csv(scratch, monkeypatch):
         return real(path, rows, columns)
 
     monkeypatch.setattr(benchmark, "write_csv_atomic", recording)
-    rows = benchmark.main(benchmark.Args(count=3, methods=("straight",), jobs=1, out_csv=out, overwrite=True))
+    rows = benchmark.main(benchmark.Args(count=3, methods=("straight",), jobs=1, out_csv=out, overwrite=True,
+                                         out_md=Path("docs/results.md")))  # fmt: skip
     assert len(rows) == 3
     assert writes == [(partial_path(out), True), (partial_path(out), True), (out, True)]
     assert not partial_path(out).exists() and out.read_bytes() != committed
     assert "--overwrite" in Path("docs/results.md").read_text()  # the command printed above the table reproduces it
+
+
+HINT = "run `uamfleet docs-tables` to refresh the results pages (docs/results.md, README.md) from the CSVs"
+
+
+def test_a_default_benchmark_run_writes_the_csv_and_no_markdown(scratch, capsys):
+    before = {p: b for p, b in snapshot(scratch).items() if p.endswith(".md")}
+    rows = benchmark.main(benchmark.Args(count=1, methods=("straight",), jobs=1, out_csv=Path("out.csv")))
+    assert len(rows) == 1 and len(Path("out.csv").read_text().splitlines()) == 2  # the header and the row
+    assert {p: b for p, b in snapshot(scratch).items() if p.endswith(".md")} == before  # no Markdown written
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.startswith("| straight |") for line in lines)  # the table, printed
+    assert lines[-2].startswith("wrote out.csv (") and lines[-1] == HINT
+
+
+def test_a_default_fleet_benchmark_run_writes_the_csv_and_no_markdown(scratch, capsys):
+    before = {p: b for p, b in snapshot(scratch).items() if p.endswith(".md")}
+    rows = fleet_benchmark.main(fleet_benchmark.Args(settings=("2x6",), count=1, dispatchers=("greedy",), jobs=1,
+                                                     out_csv=Path("out.csv")))  # fmt: skip
+    assert len(rows) == 1 and len(Path("out.csv").read_text().splitlines()) == 2  # the header and the row
+    assert {p: b for p, b in snapshot(scratch).items() if p.endswith(".md")} == before  # no Markdown written
+    lines = capsys.readouterr().out.splitlines()
+    assert any("| greedy |" in line for line in lines)  # the table, printed
+    assert lines[-2].startswith("wrote out.csv (") and lines[-1] == HINT
 
 
 def test_paper_table_keeps_the_rows_it_did_not_produce():

@@ -10,9 +10,10 @@ Every policy is flown through the same env and scored by :mod:`uamfleet.metrics`
 ATT, AWT and connectivity as means with 95 % intervals (normal approximation, 1.96 standard errors), TD /
 best-known per instance (mean, p95, worst; instances where both delivered everyone), the mean lower bound
 (:func:`uamfleet.baselines.step_planner.lower_bound_m`) and ``replan``'s decision latency. Outputs: a CSV of
-every (instance, policy) row and the marked section ``benchmark`` (or ``--section``) of ``docs/results.md``,
-written once, at the end of a complete run, and replacing existing results only with ``--overwrite``; a long
-run keeps its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders them).
+every (instance, policy) row and the printed table (with ``--out-md FILE``, also the marked section ``benchmark``,
+or ``--section``, of FILE; the results pages are generated from the CSVs by ``uamfleet docs-tables``), written
+once, at the end of a complete run, and replacing existing results only with ``--overwrite``; a long run keeps
+its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders them).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from uamfleet.cli._common import (
     output_paths,
     run,
 )
+from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.baselines.planner_policy import PLANNERS, planner_env_overrides
 from uamfleet.baselines.step_planner import STEP_PLANNERS, instance_lower_bound_m
 from uamfleet.config import EnvConfig
@@ -133,9 +135,9 @@ class Args:
     """beam width of replan's search at each release"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/benchmark.csv")
-    out_md: Path = Path("docs/results.md")
-    """Markdown file whose marked section is (re)written (paths are relative to the current folder: run it from the
-    repository root to update the repository's docs)"""
+    out_md: Path | None = None
+    """Markdown file whose marked section is (re)written; without it no Markdown is written (the results pages are
+    generated from --out-csv by `uamfleet docs-tables`)"""
     section: str = "benchmark"
     from_csv: Path | None = None
     """re-render the table from the CSV of an earlier run (lower bounds recomputed), flying nothing"""
@@ -566,9 +568,14 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
-    replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
-    print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({minutes}){note}")
+    if args.out_md is None:
+        print(markdown(rows, command, wall, note))
+        print(f"wrote {args.out_csv} ({minutes}){note}")
+        print(REFRESH_HINT)
+    else:
+        replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
+        print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({minutes}){note}")
 
 
 def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet-benchmark") -> int:

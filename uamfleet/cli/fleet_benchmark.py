@@ -18,7 +18,8 @@ detour, TD per delivered passenger, occupancy, separation violations and connect
 taxi per step (policy wall time of a step ÷ taxis; median and maximum over all steps; the feasible-path distance
 field of every stop, which all dispatchers share, is computed once per instance before they fly and is not in it:
 ``fields_s`` in the CSV). Outputs: a CSV of every
-(episode, dispatcher) row and the marked section ``fleet`` (or ``--section``) of ``docs/results.md``, written
+(episode, dispatcher) row and the printed table (with ``--out-md FILE``, also the marked section ``fleet``, or
+``--section``, of FILE; the results pages are generated from the CSVs by ``uamfleet docs-tables``), written
 once, at the end of a complete run, and replacing existing results only with ``--overwrite``; a long run keeps
 its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders them).
 """
@@ -39,6 +40,7 @@ import numpy as np
 
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
 from uamfleet.cli.benchmark import _ci, command_header
+from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.checks import check_number
@@ -93,7 +95,9 @@ class Args:
     """requests are released over the first this many seconds of each episode (the episode's time limit follows)"""
     jobs: int = 2
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
-    out_md: Path = Path("docs/results.md")
+    out_md: Path | None = None
+    """Markdown file whose marked section is (re)written; without it no Markdown is written (the results pages are
+    generated from --out-csv by `uamfleet docs-tables`)"""
     section: str = "fleet"
     from_csv: Path | None = None
     """re-render the table from the CSV of an earlier run, flying nothing"""
@@ -276,10 +280,20 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     body = markdown(rows, command, wall, note)
     if args.note:
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
-    replace_section(args.out_md, args.section, body)
-    written = "" if args.from_csv is not None else f"{args.out_csv} and "
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
+    written = "" if args.from_csv is not None else f"{args.out_csv} and "
+    if args.out_md is None:
+        _print_table(body, written.removesuffix(" and "), f"({minutes}){note}")
+        return
+    replace_section(args.out_md, args.section, body)
     print(f"wrote {written}the {args.section} section of {args.out_md} ({minutes}){note}")
+
+
+def _print_table(body: str, csv: str, tail: str) -> None:
+    """Without --out-md: the table, the CSV written (if any), and where the results pages come from."""
+    print(body)
+    print(f"wrote {csv or 'nothing'} {tail}")
+    print(REFRESH_HINT)
 
 
 def check_args(args: Args) -> list[Job]:
