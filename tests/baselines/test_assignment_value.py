@@ -154,7 +154,7 @@ def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
     weights = np.asarray(weights, dtype=float)
     value = _value(weights, price_s)
     policy = BatchAssignmentPolicy(value=value)
-    policy.reset(env)
+    policy.reset(env.sim)
     waiting = [p for p in range(4)]  # the four requests released at step 0
     trips, routes, free_s = policy.candidate_trips(waiting)
     policy(None)  # the first decision: the policy's own choice
@@ -195,7 +195,7 @@ def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
 
 
 def _first_routes(policy, env):
-    policy.reset(env)
+    policy.reset(env.sim)
     policy(None)
     return [list(r) for r in policy.routes]
 

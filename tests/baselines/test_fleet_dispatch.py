@@ -29,7 +29,7 @@ def _env(**overrides):
 
 
 def _first_decision(policy, env):
-    policy.reset(env)
+    policy.reset(env.sim)
     policy(None)
     return policy.routes
 
@@ -72,8 +72,8 @@ class _Checked:
         self.inner = inner
         self.steps = 0
 
-    def reset(self, env):
-        self.inner.reset(env)
+    def reset(self, sim):
+        self.inner.reset(sim)
 
     def __call__(self, obs):
         actions = self.inner(obs)
@@ -208,13 +208,13 @@ def test_a_price_per_unassigned_request_adds_the_wait_so_far():
     )
     policy = make_policy("batch_assignment+wait=2+price=500", num_taxis=2)
     assert policy.unassigned_price_s == 500.0
-    policy.reset(env)
+    policy.reset(env.sim)
     for _ in range(4):  # to step 4: the requests have waited 12 s and 6 s (3 s steps)
         env.step(policy(None))
     assert policy.unassigned_prices([0, 1]) == [500.0 + 3 * 12.0, 500.0 + 3 * 6.0]
     assert make_policy("batch_assignment", num_taxis=2).unassigned_prices([0, 1]) == 1e6
     guarded = make_policy("batch_assignment+wait=2+price=500+guard=10", num_taxis=2)
-    guarded.reset(env)  # the same clock (step 4): request 0 has waited 12 s > 10 s, request 1 6 s
+    guarded.reset(env.sim)  # the same clock (step 4): request 0 has waited 12 s > 10 s, request 1 6 s
     assert guarded.unassigned_prices([0, 1]) == [1e6, 500.0 + 3 * 6.0]
 
 
@@ -227,7 +227,7 @@ def test_a_price_can_starve_a_request_and_the_guard_serves_it():
     for name in ("batch_assignment+price=0", "batch_assignment+price=0+guard=30"):
         env = _env(starts_m=((150.0, 150.0),), requests=requests)
         policy = make_policy(name, num_taxis=1)
-        policy.reset(env)
+        policy.reset(env.sim)
         for _ in range(60):
             if env.step(policy(None))[2][0]:  # everyone delivered: the episode is over
                 break
@@ -260,7 +260,7 @@ def test_a_taxi_that_boards_passengers_early_or_unplanned_drops_them_before_its_
         ),
     )
     policy = InsertionPolicy(exact_limit=exact_limit)
-    policy.reset(env)
+    policy.reset(env.sim)
     policy._seen[:] = True  # nothing left to dispatch: the schedules below are the plan
     both = [(0, "pickup"), (0, "dropoff"), (1, "pickup"), (1, "dropoff")]
     policy.routes = (
@@ -317,7 +317,7 @@ def test_a_wait_weight_pools_where_ride_time_alone_does_not(cls):
 def test_release_triggers_a_batch_assignment(on_release):
     env = _env(starts_m=((150.0, 150.0), (850.0, 850.0)), requests=(Request(1, (450.0, 150.0), (450.0, 650.0)),))
     policy = BatchAssignmentPolicy(period=3, assign_on_release=on_release)
-    policy.reset(env)
+    policy.reset(env.sim)
     routed_at = None
     for _ in range(4):
         t = int(env.state.t[0])

@@ -56,7 +56,7 @@ def test_planners_carry_the_benchmarks_search_settings() -> None:
     best = make("best_known", beams=(256, 128, 64))
     assert best.settings == (SearchSettings(256, rank_slack=1.0), SearchSettings(128, rank_slack=0.0),
                              SearchSettings(64, rank_slack=1.0))  # fmt: skip
-    assert isinstance(make("replan_futures", family="berlin"), FamilyReplan)
+    assert isinstance(make("replan_futures"), FamilyReplan)
     assert make("random", seed=3).rng.integers(1 << 30) == make_policy("random", seed=3).rng.integers(1 << 30)
 
 

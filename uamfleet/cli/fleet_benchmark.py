@@ -30,25 +30,25 @@ import functools
 import math
 import multiprocessing as mp
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
-from collections.abc import Sequence
 
 import numpy as np
 
-from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
-from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
-from uamfleet.checks import check_number
 from uamfleet.baselines.fleet_dispatch import shared_fields
-from uamfleet.policies import PolicyNameError, available, make, parse
-from uamfleet.policies.learned import learned_policy
+from uamfleet.checks import check_number
+from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
+from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import PolicyNameError, available, make, parse
+from uamfleet.policies.learned import learned_policy
 from uamfleet.rollout import fly
 
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
@@ -181,7 +181,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
     if dispatchers:  # every dispatcher steers by the same per-stop fields: computed once, untimed
-        shared_fields(env, warm=True)  # (a learned policy reads the env's distance table instead)
+        shared_fields(env.sim, warm=True)  # (a learned policy reads the env's distance table instead)
     fields_s = time.perf_counter() - start
     rows = []
     flights = [

@@ -36,9 +36,9 @@ from uamfleet.metrics import episode_metrics
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
+from uamfleet.viz.colours import TAXI_HEX
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
-from uamfleet.viz.colours import TAXI_HEX
 from uamfleet.viz.strip import plot_sinr_strip
 
 

@@ -13,15 +13,16 @@ from pathlib import Path
 from typing import Any
 
 from uamfleet.baselines import FLEET_DISPATCHERS, PLANNERS, STEP_PLANNERS, GreedyFleetPolicy, PlannerPolicy
-from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
+from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
 from uamfleet.baselines.assignment_value import MAX_SECONDS, VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.fleet_dispatch import check_wait_weight
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
 from uamfleet.checks import MAX_SEED, ConfigError, check_integer, check_number
-from uamfleet.instances import check_family
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.policies.registry import NoOptions, register
+from uamfleet.sim.core import Simulator
 
 REFIT_VALUES = Path("docs/results/assignment_value_refit")
 """Where a valued dispatcher's ``value=<stem>`` file lies (``<stem>.json``, from the repository root)."""
@@ -62,16 +63,6 @@ class BestKnownOptions:
         for i, beam in enumerate(self.beams):
             check_integer("beams", beam, 1, fix=" (e.g. 256)")
             SearchSettings(beam, rank_slack=self.rank_slack[i % len(self.rank_slack)])
-
-
-@dataclass(frozen=True)
-class FuturesOptions:
-    """``replan_futures``: replan scored on futures sampled from ``family``'s demand model."""
-
-    family: str = "berlin"
-
-    def __post_init__(self) -> None:
-        check_family(self.family)
 
 
 @dataclass(frozen=True)
@@ -145,22 +136,23 @@ def value_path(value: str | None) -> Path | None:
     return stem
 
 
-class FamilyReplan:
-    """``replan_futures`` for ``family``'s instances: the demand model is made on each episode's map and threshold
-    (:meth:`reset`), then :class:`~uamfleet.baselines.anticipation.AnticipatingReplan` flies."""
+class FamilyReplan(PolicyBase):
+    """``replan_futures`` on the demand model of the simulator's world: at each :meth:`reset` the family is read
+    from the world (:func:`~uamfleet.baselines.anticipation.world_family`; a fixed scenario is refused in one line)
+    and its model made on the episode's map and threshold, then
+    :class:`~uamfleet.baselines.anticipation.AnticipatingReplan` flies."""
 
-    def __init__(self, family: str) -> None:
-        check_family(family)
-        self.family = family
+    def __init__(self) -> None:
         self.inner: AnticipatingReplan | None = None
 
-    def reset(self, env: Any) -> None:
-        self.inner = AnticipatingReplan(DemandPrior.of_family(self.family, env.cfg))
-        self.inner.reset(env)
+    def reset(self, sim: Simulator) -> None:
+        family = world_family(sim.cfg, "replan_futures")
+        self.inner = AnticipatingReplan(DemandPrior.of_family(family, sim.cfg))
+        self.inner.reset(sim)
 
-    def __call__(self, obs: Any) -> Any:
-        assert self.inner is not None, "reset(env) first"
-        return self.inner(obs)
+    def act(self, obs: Any) -> Any:
+        assert self.inner is not None, "reset(sim) first"
+        return self.inner.act(obs)
 
 
 def _batch(options: BatchOptions, value: Any = None) -> BatchAssignmentPolicy:
@@ -195,7 +187,7 @@ def _register() -> None:
     register("replan", "planner", ReplanOptions,
              lambda o, _b: StepPlannerPolicy("replan", [SearchSettings(o.beam, rank_slack=o.rank_slack)]))  # fmt: skip
     register("best_known", "planner", BestKnownOptions, lambda o, _b: _best_known(o))
-    register("replan_futures", "planner", FuturesOptions, lambda o, _b: FamilyReplan(o.family))
+    register("replan_futures", "planner", NoOptions, lambda _o, _b: FamilyReplan())
     register("random", "planner", RandomOptions, lambda o, _b: RandomPolicy(seed=o.seed))
     register("greedy", "dispatcher", NoOptions, lambda _o, _b: GreedyFleetPolicy())
     register("insertion", "dispatcher", InsertionOptions, lambda o, _b: InsertionPolicy(wait_weight=o.wait))
@@ -212,7 +204,6 @@ __all__ = [
     "BatchOptions",
     "BestKnownOptions",
     "FamilyReplan",
-    "FuturesOptions",
     "InsertionOptions",
     "RandomOptions",
     "ReplanOptions",
