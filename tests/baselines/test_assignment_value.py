@@ -9,9 +9,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import small_config
-from uamfleet.baselines import make_policy
+
 from uamfleet.baselines.assignment_value import (
     FEATURES,
     INCREASING,
@@ -27,6 +26,7 @@ from uamfleet.baselines.assignment_value import (
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 
 OPEN_10 = "\n".join(["." * 10] * 10)
@@ -210,7 +210,7 @@ def test_value_files_round_trip_and_refuse_what_they_cannot_read(tmp_path):
     assert value_for_dispatcher("batch_assignment", path) is None
     assert value_for_dispatcher("batch_assignment_value:75", path, 1800.0).price_s == 75.0
     assert value_for_dispatcher("batch_assignment_value", path, 1800.0).arrival_window_s == 1800.0
-    policy = make_policy("batch_assignment_value:12.5", num_taxis=2, assignment_value=path)
+    policy = make_flown("batch_assignment_value:12.5", num_taxis=2, assignment_value=path)
     assert isinstance(policy, BatchAssignmentPolicy) and policy.value.price_s == 12.5
     with pytest.raises(ValueError, match="batch_assignment_value:<price_s>"):
         value_for_dispatcher("batch_assignment_value:cheap", path)

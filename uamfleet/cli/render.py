@@ -21,7 +21,7 @@ import matplotlib
 from cycler import cycler
 
 import uamfleet
-from uamfleet.baselines import make_policy, planner_configs
+from uamfleet.baselines import planner_configs
 from uamfleet.cli._common import (
     SCENARIO_DEFAULT,
     Policy,
@@ -33,6 +33,7 @@ from uamfleet.cli._common import (
     run,
 )
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
@@ -81,7 +82,7 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
         shown = uamfleet.make_config(trained.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides)
         return fly_episode(shown, policy, seed=args.seed), shown
     flown, shown = planner_configs(args.scenario, args.policy, **overrides)
-    policy = make_policy(args.policy, args.seed, shown.num_taxis)
+    policy = make_flown(args.policy, args.seed, shown.num_taxis)
     return fly_episode(flown, policy, seed=args.seed), shown
 
 

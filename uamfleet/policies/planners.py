@@ -8,20 +8,29 @@ slack 1 then 0: ``--best-known-beams``).
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from uamfleet.baselines import FLEET_DISPATCHERS, PLANNERS, STEP_PLANNERS, GreedyFleetPolicy, PlannerPolicy
+from uamfleet.baselines import (
+    FLEET_DISPATCHERS,
+    PLANNERS,
+    POLICIES,
+    STEP_PLANNERS,
+    GreedyFleetPolicy,
+    PlannerPolicy,
+)
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
 from uamfleet.baselines.assignment_value import MAX_SECONDS, VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.fleet_dispatch import check_wait_weight
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
-from uamfleet.checks import MAX_SEED, ConfigError, check_integer, check_number
+from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
 from uamfleet.env.protocol import PolicyBase
-from uamfleet.policies.registry import NoOptions, register
+from uamfleet.policies.names import parse
+from uamfleet.policies.registry import NoOptions, available, make, register
 from uamfleet.sim.core import Simulator
 
 REFIT_VALUES = Path("docs/results/assignment_value_refit")
@@ -155,6 +164,64 @@ class FamilyReplan(PolicyBase):
         return self.inner.act(obs)
 
 
+ONE_FLIGHT_OPTIONS: dict[str, dict[str, Any]] = {
+    "replan": {"beam": 128, "rank_slack": 0.5},
+    "best_known": {"beams": (256, 256, 1024), "rank_slack": (1.0, 0.0, 0.5)},
+}
+"""The options :func:`make_flown` gives a bare step-planner name: the wider searches one flight affords
+(``uamfleet rollout`` / ``render``, a planner in the fleet benchmark), where the benchmarks' defaults (the
+registry's) are sized for hundreds of instances. An option the name gives replaces the whole entry."""
+
+
+def make_flown(
+    name: str, seed: int = 0, num_taxis: int = 1, assignment_value: Path | None = None,
+    arrival_window_s: float | None = None,
+) -> Any:  # fmt: skip
+    """The planner or dispatcher ``name`` (the grammar or a recorded alias) for one flight of ``num_taxis`` taxis,
+    built by the registry: a bare step planner with :data:`ONE_FLIGHT_OPTIONS`, ``random`` drawn from ``seed``,
+    ``batch_assignment_value`` with the value of ``assignment_value`` (None: the shipped one) for a service of
+    ``arrival_window_s``. ValueError for another kind of policy, an unknown name, or a single-taxi planner for a
+    fleet."""
+    if not isinstance(name, str):
+        raise ConfigError(f"--policy {name!r} is a {type(name).__name__}; name a policy, one of {POLICIES}.")
+    seed = check_integer("seed", seed, 0, MAX_SEED)
+    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
+    if arrival_window_s is not None:
+        arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
+    call, options = _flown_call(name)
+    if available()[call][0] == "planner" and call != "random" and num_taxis != 1:
+        raise ConfigError(
+            f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
+            f"dispatcher ({', '.join(FLEET_DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
+        )
+    if not options:
+        options = dict(ONE_FLIGHT_OPTIONS.get(call, {}))
+    if call == "random":
+        options.setdefault("seed", seed)
+    if call == VALUE_DISPATCHER:
+        if assignment_value is not None:
+            options.setdefault("value", str(assignment_value))
+        if arrival_window_s is not None:
+            options.setdefault("arrival_window_s", arrival_window_s)
+    return make(call, **options)
+
+
+def _flown_call(name: str) -> tuple[str, dict[str, Any]]:
+    """``(call, options)`` of ``name`` for :func:`make_flown`: a planner or a dispatcher; a name the registry
+    does not know, or another kind, is refused naming the policies a flight takes."""
+    head = re.split(r"[:+@(]", name, maxsplit=1)[0]
+    if head not in available():
+        raise ConfigError(
+            f"unknown --policy {name!r}; choose one of {POLICIES} (options after ':', e.g. replan:beam=64)."
+        )
+    kind = available()[head][0]
+    if kind not in ("planner", "dispatcher"):
+        raise ConfigError(f"--policy {name!r} is a {kind} policy; a flight by name takes a planner or a dispatcher, "
+                          f"one of {POLICIES}.")  # fmt: skip
+    call, options = parse(name)
+    return call, dict(options)
+
+
 def _batch(options: BatchOptions, value: Any = None) -> BatchAssignmentPolicy:
     return BatchAssignmentPolicy(
         value=value,
@@ -200,6 +267,7 @@ assert set(STEP_PLANNERS) == {"replan", "best_known"} and FLEET_DISPATCHERS == (
                                                                                  "batch_assignment")  # fmt: skip
 
 __all__ = [
+    "ONE_FLIGHT_OPTIONS",
     "REFIT_VALUES",
     "BatchOptions",
     "BestKnownOptions",
@@ -208,5 +276,6 @@ __all__ = [
     "RandomOptions",
     "ReplanOptions",
     "ValueBatchOptions",
+    "make_flown",
     "value_path",
 ]
