@@ -1,5 +1,5 @@
 """One factory: a flight by name (``uamfleet rollout`` / ``render``, a planner in the fleet benchmark) is built by the
-registry, with the searches those commands have always flown passed as options, and the benchmarks' defaults stay
+registry, with the wider searches one flight affords passed as options, and the benchmarks' defaults stay
 the registry's own."""
 
 from __future__ import annotations
