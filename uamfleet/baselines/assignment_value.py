@@ -34,9 +34,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from importlib import resources
 from collections.abc import Sequence
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np

@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 import tyro
 
 from uamfleet.baselines import POLICIES
-from uamfleet.config import FEASIBILITY_RULES
-from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.io import PathError, has_section, os_error_message, shown_path
+from uamfleet.config import FEASIBILITY_RULES
 from uamfleet.presets import SCENARIOS
+from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.rl.distributed import RankZeroError
 from uamfleet.rl.networks import VARIANTS
 

@@ -21,21 +21,23 @@ the Markdown file FILE.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import math
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+
 import uamfleet
-from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.cli._common import UsageError, Variant, check_jobs, check_outputs, output_paths, run
 from uamfleet.cli._common import fmt as fmt_value
 from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
+from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.networks import VARIANTS

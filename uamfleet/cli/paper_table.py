@@ -16,15 +16,20 @@ replaced only with ``--overwrite``, and figures are byte-stable.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import csv
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 import uamfleet
+from uamfleet.cli._common import fmt as fmt_value
+from uamfleet.cli._common import check_outputs, output_paths, run
+from uamfleet.cli.docs_tables import REFRESH_HINT
+from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import (
     PLANNERS,
     PlannerPolicy,
@@ -32,10 +37,6 @@ from uamfleet.baselines.planner_policy import (
     planner_configs,
     service_order,
 )
-from uamfleet.cli._common import check_outputs, output_paths, run
-from uamfleet.cli._common import fmt as fmt_value
-from uamfleet.cli.docs_tables import REFRESH_HINT
-from uamfleet.cli.paper_numbers import PAPER_STRAIGHT_LINE_CONNECTIVITY_PCT, PAPER_TABLE_II
 from uamfleet.io import replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.policy import load_policy

@@ -25,19 +25,22 @@ import csv
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+
 from uamfleet.cli._common import Feasibility, Variant, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
-from uamfleet.metrics import EpisodeMetrics, episode_metrics
+from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.presets import make_config
+from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_args, checkpoint_source
 from uamfleet.rl.trainer import GreedyPolicy, TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
+
 
 DEFAULT_RUN = "quickstart"
 

@@ -24,7 +24,6 @@ import numpy as np
 import tyro
 
 from uamfleet.cli._common import UsageError, check_outputs, output_path, run
-from uamfleet.radio.channel_3gpp import DEFAULT_BANDWIDTH_MHZ, DEFAULT_NOISE_FIGURE_DB
 from uamfleet.radio.radio_map import BaseStation, RadioMap
 from uamfleet.radio.raytrace import (
     ANTENNA_PATTERNS,
@@ -40,6 +39,7 @@ from uamfleet.radio.raytrace import (
     ray_traced_radio_map,
     save_radio_map_npz,
 )
+from uamfleet.radio.channel_3gpp import DEFAULT_BANDWIDTH_MHZ, DEFAULT_NOISE_FIGURE_DB
 from uamfleet.viz.figures import _draw_sinr, _new_figure, save_figure
 
 if TYPE_CHECKING:

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, RewardConfig

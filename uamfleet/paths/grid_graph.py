@@ -30,8 +30,8 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from uamfleet.paths.bucket_dijkstra import Lattice, lattice_distances
 from uamfleet.radio.radio_map import BlockMap, RadioMap
+from uamfleet.paths.bucket_dijkstra import Lattice, lattice_distances
 
 CONNECTIVITIES: tuple[int, ...] = (8, 16)
 _CACHE_DECIMALS = 6  # stops equal to the micrometre share one cached result

@@ -34,8 +34,8 @@ import torch
 from gymnasium import spaces
 
 from uamfleet.config import EnvConfig
-from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
 from uamfleet.observe.spec import Layout, layout_differences, layout_from_dict, layout_to_dict, observation_layout
+from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
 from uamfleet.presets import make_config
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config

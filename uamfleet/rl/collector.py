@@ -19,10 +19,10 @@ import torch
 from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
+from uamfleet.observe.spec import Layout, layout_shapes, observation_layout
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
-from uamfleet.observe.spec import Layout, layout_shapes, observation_layout
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import cache_dir
 from uamfleet.rl.buffer import EpisodeSums, ObservationNormalizer, RewardScaler, RolloutBuffer

@@ -38,14 +38,14 @@ from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.io import write_csv_atomic
-from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.paths import table_for
-from uamfleet.rl.checkpoint import PRETRAINED, pretrained_path, run_config
-from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.heads import PRIOR_FLOOR
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
+from uamfleet.rl.checkpoint import PRETRAINED, pretrained_path, run_config
+from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
+from uamfleet.observe.spec import layout_to_dict, observation_layout
 from uamfleet.types import NUM_HEADINGS
 
 

@@ -44,27 +44,28 @@ from torch.distributions import Categorical
 
 from uamfleet.observe.observer import ObservationShapeError
 from uamfleet.rl.encoders import (
-    GridReadout,
-    HybridAttention,
-    MapEncoder,
-    MultiSourceFusion,
-    PassengerEncoder,
-    PointerPool,
-    SetEncoder,
-    TaxiEncoder,
-    as_bool,
-    global_attention,
     layer_init,
-    local_attention,
-    mask_logits,
-    masked_mean,
     mlp3,
+    masked_mean,
+    mask_logits,
+    as_bool,
+    TaxiEncoder,
+    PassengerEncoder,
+    MapEncoder,
+    SetEncoder,
+    PointerPool,
+    GridReadout,
     multi_source_features,
     paired_map_features,
+    MultiSourceFusion,
     window_order,
+    local_attention,
+    global_attention,
+    HybridAttention,
 )
 from uamfleet.rl.heads import CLAIMED_BY_OTHER, LOOKAHEAD_RULE, PATH_TO_STOP, TOUR_VIA_STOP, StopHead
 from uamfleet.types import NUM_HEADINGS
+
 
 VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
 ACTION_HEADS: tuple[str, ...] = ("headings", "stops")

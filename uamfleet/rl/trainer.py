@@ -29,10 +29,10 @@ import numpy as np
 import torch
 
 from uamfleet.config import REWARD_TERMS, EnvConfig
+from uamfleet.observe.spec import layout_to_dict
 from uamfleet.env.workers import ShardedVectorEnv
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
-from uamfleet.observe.spec import layout_to_dict
 from uamfleet.rl.checkpoint import (
     ARCHITECTURE_FIELDS,
     CHECKPOINT_FORMAT,
@@ -46,7 +46,7 @@ from uamfleet.rl.checkpoint import (
     upgrade_checkpoint,
 )
 from uamfleet.rl.collector import Counters, RolloutStats, Run, collect_rollout, make_run, restore_counters
-from uamfleet.rl.distributed import Ranks, RankZeroError
+from uamfleet.rl.distributed import RankZeroError, Ranks
 from uamfleet.rl.learner import (
     Learner,
     compute_advantages,
