@@ -18,11 +18,13 @@ import time
 import numpy as np
 
 from uamfleet.baselines.fleet_dispatch import shared_fields
-from uamfleet.cli.fleet_benchmark import make_policy, setting_size
+from uamfleet.cli.fleet_benchmark import setting_size
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.rollout import fly
+from uamfleet.sim.core import Simulator
 
 
 class Timed:
@@ -31,8 +33,8 @@ class Timed:
     def __init__(self, policy) -> None:  # type: ignore[no-untyped-def]
         self.policy, self.cpu_s = policy, []
 
-    def reset(self, env: VectorEnv) -> None:
-        self.policy.reset(env)
+    def reset(self, sim: Simulator) -> None:
+        self.policy.reset(sim)
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         start = time.thread_time()
@@ -54,8 +56,8 @@ def main() -> None:
         cfg = make_fleet_instance(args.family, seed, taxis, requests, separation="shield", hover_action=True)
         env = VectorEnv(cfg, num_envs=1, autoreset=False)
         env.reset(seed=0)
-        shared_fields(env, warm=True)
-        timed = Timed(make_policy(args.dispatcher, num_taxis=taxis))
+        shared_fields(env.sim, warm=True)
+        timed = Timed(make_flown(args.dispatcher, num_taxis=taxis))
         m = episode_metrics(fly(cfg, timed), cfg.radio)
         ms = np.asarray(timed.cpu_s) * 1000.0 / taxis
         per_taxi_ms.append(ms)

@@ -5,23 +5,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from uamfleet.config import EnvConfig
+from uamfleet.env.protocol import Policy
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import StepEvents
-
-
-class Policy(Protocol):
-    """Maps a batch of observations ``{name: [E, A, ...]}`` to headings [E, A].
-
-    A policy may also define ``reset(env)``, called at the start of every episode with the core it acts in
-    (planners read the instance and the positions from ``env.state``).
-    """
-
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray: ...
 
 
 @dataclass
@@ -75,7 +66,9 @@ def run_episode(
     policy: Policy | Callable[[dict[str, np.ndarray]], np.ndarray],
     seed: int | None = None,
 ) -> Trajectory:
-    """Play one episode of a one-env core (``num_envs == 1``, ``autoreset=False``) and record it."""
+    """Play one episode of a one-env core (``num_envs == 1``, ``autoreset=False``) and record it: ``policy.reset``
+    with the simulator (:class:`~uamfleet.env.protocol.Policy`; a plain function of the observation has none), then
+    ``policy.act`` at every step."""
     if env.num_envs != 1 or env.autoreset:
         raise ValueError(
             f"run_episode needs VectorEnv(cfg, num_envs=1, autoreset=False); got num_envs={env.num_envs}, "
@@ -84,7 +77,8 @@ def run_episode(
     obs, _ = env.reset(seed=seed)
     reset = getattr(policy, "reset", None)
     if callable(reset):
-        reset(env)
+        reset(env.sim)
+    act = getattr(policy, "act", policy)
     cfg, s = env.cfg, env.state
     traj = Trajectory(
         scenario=cfg.scenario,
@@ -101,7 +95,7 @@ def run_episode(
     )
     while True:
         start = time.perf_counter()
-        actions = policy(obs)
+        actions = act(obs)
         traj.decision_s.append(time.perf_counter() - start)
         obs, rewards, terminated, truncated, info = env.step(actions)
         traj.events.append(info["events"])

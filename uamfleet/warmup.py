@@ -56,10 +56,10 @@ def warm(steps: int = WARM_STEPS, verbose: bool = True) -> float:
 
 def _warm(steps: int, verbose: bool) -> float:
     start = time.perf_counter()
-    from uamfleet.baselines import make_policy
     from uamfleet.config import Request, RewardConfig
     from uamfleet.env.vector_env import VectorEnv
     from uamfleet.instances import make_fleet_instance, make_instance
+    from uamfleet.policies import make_flown
     from uamfleet.presets import make_config
 
     def done(what: str) -> None:
@@ -82,8 +82,8 @@ def _warm(steps: int, verbose: bool) -> float:
     at_once = tuple(Request(0, r.origin_m, r.destination_m) for r in dispatched.requests or ())
     env = VectorEnv(dispatched.replace(requests=at_once), num_envs=1, autoreset=False)
     env.reset(seed=0)
-    policy = make_policy("batch_assignment+wait=1+release", num_taxis=2)
-    policy.reset(env)
+    policy = make_flown("batch_assignment+wait=1+release", num_taxis=2)
+    policy.reset(env.sim)
     for _ in range(steps):
         env.step(policy(None))
     done("a schedule dispatcher")

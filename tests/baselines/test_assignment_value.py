@@ -9,9 +9,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import small_config
-from uamfleet.baselines import make_policy
+
 from uamfleet.baselines.assignment_value import (
     FEATURES,
     INCREASING,
@@ -27,6 +26,7 @@ from uamfleet.baselines.assignment_value import (
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 
 OPEN_10 = "\n".join(["." * 10] * 10)
@@ -154,7 +154,7 @@ def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
     weights = np.asarray(weights, dtype=float)
     value = _value(weights, price_s)
     policy = BatchAssignmentPolicy(value=value)
-    policy.reset(env)
+    policy.reset(env.sim)
     waiting = [p for p in range(4)]  # the four requests released at step 0
     trips, routes, free_s = policy.candidate_trips(waiting)
     policy(None)  # the first decision: the policy's own choice
@@ -195,7 +195,7 @@ def test_the_valued_assignment_is_the_brute_force_optimum(weights, price_s):
 
 
 def _first_routes(policy, env):
-    policy.reset(env)
+    policy.reset(env.sim)
     policy(None)
     return [list(r) for r in policy.routes]
 
@@ -210,7 +210,7 @@ def test_value_files_round_trip_and_refuse_what_they_cannot_read(tmp_path):
     assert value_for_dispatcher("batch_assignment", path) is None
     assert value_for_dispatcher("batch_assignment_value:75", path, 1800.0).price_s == 75.0
     assert value_for_dispatcher("batch_assignment_value", path, 1800.0).arrival_window_s == 1800.0
-    policy = make_policy("batch_assignment_value:12.5", num_taxis=2, assignment_value=path)
+    policy = make_flown("batch_assignment_value:12.5", num_taxis=2, assignment_value=path)
     assert isinstance(policy, BatchAssignmentPolicy) and policy.value.price_s == 12.5
     with pytest.raises(ValueError, match="batch_assignment_value:<price_s>"):
         value_for_dispatcher("batch_assignment_value:cheap", path)

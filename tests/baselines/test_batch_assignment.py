@@ -1,6 +1,6 @@
 """Where the fleet dispatchers live and how their names are grouped: policies in ``uamfleet.baselines`` (none in a
 command line module), every baselines module under 600 lines, and one definition of the dispatcher names that the
-fleet benchmark's default and ``make_policy``'s option rules both read."""
+fleet benchmark's default and ``make_flown``'s option rules both read."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 
 import uamfleet
-from uamfleet.baselines import FLEET_DISPATCHERS, SCHEDULE_DISPATCHERS, make_policy
+from uamfleet.baselines import FLEET_DISPATCHERS, SCHEDULE_DISPATCHERS
 from uamfleet.cli import fleet_benchmark
+from uamfleet.policies import make_flown
 
 PACKAGE = Path(uamfleet.__file__).resolve().parent
 
@@ -25,10 +26,10 @@ def test_the_fleet_benchmark_flies_every_dispatcher_that_needs_no_value_by_defau
 @pytest.mark.parametrize("name", FLEET_DISPATCHERS)
 def test_options_belong_to_the_schedule_dispatchers_only(name):
     if name in SCHEDULE_DISPATCHERS:
-        assert make_policy(f"{name}+wait=1", num_taxis=2).wait_weight == 1.0
+        assert make_flown(f"{name}+wait=1", num_taxis=2).wait_weight == 1.0
     else:
-        with pytest.raises(ValueError, match=r"options after '\+' belong to the schedule dispatchers \(insertion, "):
-            make_policy(f"{name}+wait=1", num_taxis=2)
+        with pytest.raises(ValueError, match=rf"\+options belong to the schedule dispatchers, not to '{name}'"):
+            make_flown(f"{name}+wait=1", num_taxis=2)
 
 
 def _methods(node: ast.ClassDef) -> set[str]:

@@ -130,7 +130,7 @@ def test_stop_reachable_only_through_a_corner_is_named_with_the_threshold():
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
     with pytest.raises(UnreachableStopError, match=r"origin of passenger 0 \(P1\).*sinr_min_db=-4 dB"):
-        PlannerPolicy("raster_opt").reset(env)
+        PlannerPolicy("raster_opt").reset(env.sim)
 
 
 def test_greedy_fleet_serves_a_random_berlin_demand():

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from conftest import small_config
 
-from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
+from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 from uamfleet.sim.motion import passes_within
 from uamfleet.types import HOVER_ACTION
@@ -34,7 +35,7 @@ def test_dispatchers_deliver_everyone_without_losing_separation_under_the_shield
         cfg = small_config(
             OPEN_10, starts_m=CORNERS, requests=CENTRE_REQUESTS, separation=separation, time_limit_steps=200
         )
-        traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_policy(name, num_taxis=4), seed=0)
+        traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_flown(name, num_taxis=4), seed=0)
         metrics[separation] = episode_metrics(traj, cfg.radio)
     assert metrics["none"].separation_violations > 0 and metrics["none"].shield_interventions == 0
     shielded = metrics["shield"]
@@ -49,7 +50,7 @@ def test_dispatchers_with_the_hover_action_deliver_everyone_under_the_shield(nam
         OPEN_10, starts_m=CORNERS, requests=CENTRE_REQUESTS, separation="shield", hover_action=True,
         time_limit_steps=200,
     )  # fmt: skip
-    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_policy(name, num_taxis=4), seed=0)
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_flown(name, num_taxis=4), seed=0)
     m = episode_metrics(traj, cfg.radio)
     assert (m.separation_violations, m.delivered) == (0, 4)
     assert m.hovers >= m.hover_actions
@@ -64,7 +65,7 @@ def test_the_8_taxi_episode_that_deadlocked_under_the_first_shield_delivers_ever
     from uamfleet.rollout import fly
 
     cfg = make_fleet_instance("berlin", 2000005, 8, 48, separation="shield")
-    m = episode_metrics(fly(cfg, make_policy("batch_assignment", num_taxis=8)), cfg.radio)
+    m = episode_metrics(fly(cfg, make_flown("batch_assignment", num_taxis=8)), cfg.radio)
     assert (m.delivered, m.separation_violations) == (48, 0)
 
 
@@ -90,7 +91,7 @@ def _fly_passage(name, separation):
         PASSAGE, starts_m=((150.0, 450.0), (450.0, 450.0)), requests=RIDER_THROUGH_PASSAGE, separation=separation,
         hover_action=True, time_limit_steps=60,
     )  # fmt: skip
-    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_policy(name, num_taxis=2), seed=0)
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), make_flown(name, num_taxis=2), seed=0)
     return traj, episode_metrics(traj, cfg.radio)
 
 
@@ -134,5 +135,5 @@ def test_the_8x96_episode_held_back_by_an_idle_taxi_delivers_everyone():
     from uamfleet.rollout import fly
 
     cfg = make_fleet_instance("berlin", 2000056, 8, 96, separation="shield", hover_action=True)
-    m = episode_metrics(fly(cfg, make_policy("batch_assignment", num_taxis=8)), cfg.radio)
+    m = episode_metrics(fly(cfg, make_flown("batch_assignment", num_taxis=8)), cfg.radio)
     assert (m.delivered, m.separation_violations) == (96, 0)

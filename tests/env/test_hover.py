@@ -9,11 +9,11 @@ import pytest
 from conftest import small_config
 
 import uamfleet
-from uamfleet.baselines import make_policy
 from uamfleet.config import Request, RewardConfig
 from uamfleet.env.parallel_env import UAMFleetParallelEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.presets import make_config
 from uamfleet.rollout import fly
 from uamfleet.sim.dynamics import InvalidActionError
@@ -93,7 +93,7 @@ def test_an_idle_dispatcher_taxi_hovers_instead_of_zig_zagging(name):
     flown = {}
     for hover in (True, False):
         cfg = small_config(OPEN_10, requests=request, hover_action=hover, separation="shield")
-        traj = fly(cfg, make_policy(name, num_taxis=1))
+        traj = fly(cfg, make_flown(name, num_taxis=1))
         m = episode_metrics(traj, cfg.radio)
         flown[hover] = (m, traj.stacked("actions")[:3, 0].tolist())
     m, first = flown[True]

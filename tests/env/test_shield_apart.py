@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from conftest import small_config
 
-from uamfleet.baselines import make_policy
 from uamfleet.checks import ConfigError
 from uamfleet.config import Request
-from uamfleet.sim import motion
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.policies import make_flown
 from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
+from uamfleet.sim import motion
 from uamfleet.sim.generator import InfeasibleInstanceError
 from uamfleet.sim.world import World
 from uamfleet.types import HOVER_ACTION
@@ -211,7 +211,7 @@ def _fly_fuzz_case(seed: int) -> None:
             small_config(OPEN_10, **kwargs)
         return
     env = VectorEnv(small_config(OPEN_10, **kwargs), num_envs=1, autoreset=False)
-    traj = run_episode(env, make_policy(policy, num_taxis=n), seed=0)
+    traj = run_episode(env, make_flown(policy, num_taxis=n), seed=0)
     violating = traj.stacked("separation_violation").reshape(len(traj.events), -1).any(axis=-1)  # per step
     parted = int(np.argmin(violating)) if not violating.all() else len(violating)
     label = f"seed {seed}: {n} taxis, {sep:g} m, {policy}, violations per step {violating.astype(int).tolist()}"

@@ -25,3 +25,12 @@ def test_the_pages_snippet_runs() -> None:
     with contextlib.redirect_stdout(out):
         exec(compile(snippet, str(PAGE), "exec"), {})
     assert out.getvalue() == "replan {'beam': 16} 100 % delivered\n"
+
+
+def test_the_protocol_snippet_flies_a_dispatcher_through_reset_and_act() -> None:
+    snippet = PAGE.read_text(encoding="utf-8").split("```python\n")[2].split("```")[0]
+    assert "dispatcher.reset(env.sim)" in snippet and "dispatcher.act(obs)" in snippet
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(snippet, str(PAGE), "exec"), {})
+    assert out.getvalue() == "20 steps flown\n"

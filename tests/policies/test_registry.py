@@ -1,21 +1,20 @@
 """The registry builds the baselines' and the learned policies' classes with the settings their options name: the
-same objects the benchmarks and ``make_policy`` build from the recorded names."""
+same objects the benchmarks built from the recorded names (their classes constructed here by hand)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-
 import pytest
 
 from uamfleet import policies
-from uamfleet.baselines import make_policy
-from uamfleet.baselines.assignment_value import LinearValue
+from uamfleet.baselines.assignment_value import LinearValue, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.baselines.greedy_fleet import GreedyFleetPolicy
 from uamfleet.baselines.planner_policy import PlannerPolicy
+from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
 from uamfleet.policies import PolicyNameError, make, make_named
 from uamfleet.policies.planners import FamilyReplan
@@ -56,19 +55,23 @@ def test_planners_carry_the_benchmarks_search_settings() -> None:
     best = make("best_known", beams=(256, 128, 64))
     assert best.settings == (SearchSettings(256, rank_slack=1.0), SearchSettings(128, rank_slack=0.0),
                              SearchSettings(64, rank_slack=1.0))  # fmt: skip
-    assert isinstance(make("replan_futures", family="berlin"), FamilyReplan)
-    assert make("random", seed=3).rng.integers(1 << 30) == make_policy("random", seed=3).rng.integers(1 << 30)
+    assert isinstance(make("replan_futures"), FamilyReplan)
+    assert make("random", seed=3).rng.integers(1 << 30) == RandomPolicy(seed=3).rng.integers(1 << 30)
 
 
-def test_dispatchers_are_the_ones_make_policy_builds_from_the_recorded_names() -> None:
+def test_dispatchers_are_the_ones_the_recorded_names_built() -> None:
     assert isinstance(make("greedy"), GreedyFleetPolicy)
     assert isinstance(make("insertion", wait=2), InsertionPolicy) and make("insertion", wait=2).wait_weight == 2.0
-    for recorded in (
-        "batch_assignment+wait=1+release",
-        f"{V}:100+wait=1.5+release+price=1000+guard=600",
-        f"{V}:30",
-    ):
-        new, old = make_named(recorded), make_policy(recorded, num_taxis=2)
+    for recorded, (wait, release, price, guard, value) in {
+        "batch_assignment+wait=1+release": (1.0, True, None, None, None),
+        f"{V}:100+wait=1.5+release+price=1000+guard=600": (1.5, True, 1000.0, 600.0, f"{V}:100"),
+        f"{V}:30": (0.0, False, None, None, f"{V}:30"),
+    }.items():
+        new = make_named(recorded)
+        old = BatchAssignmentPolicy(
+            value=None if value is None else value_for_dispatcher(value, None, None), wait_weight=wait,
+            assign_on_release=release, unassigned_price_s=price, unassigned_guard_s=guard,
+        )  # fmt: skip
         assert isinstance(new, BatchAssignmentPolicy)
         for attr in ("wait_weight", "assign_on_release", "unassigned_price_s", "unassigned_guard_s", "period"):
             assert getattr(new, attr) == getattr(old, attr), (recorded, attr)
@@ -79,10 +82,9 @@ def test_dispatchers_are_the_ones_make_policy_builds_from_the_recorded_names() -
 
 def test_a_refit_value_stem_reads_its_file_and_a_missing_one_is_named() -> None:
     refit = make_named(f"{V}:100+wait=1+release@refit_both")
-    assert same_value(refit.value, make_policy(
-        f"{V}:100+wait=1+release", num_taxis=2,
-        assignment_value=ROOT / "docs/results/assignment_value_refit/refit_both.json",
-    ).value)  # fmt: skip
+    assert same_value(refit.value, value_for_dispatcher(
+        f"{V}:100", ROOT / "docs/results/assignment_value_refit/refit_both.json", None,
+    ))  # fmt: skip
     assert not same_value(refit.value, make_named(f"{V}:100+wait=1+release").value)
     with pytest.raises(FileNotFoundError, match="value='no_such_fit' is neither a file nor a stem"):
         make(V, value="no_such_fit")

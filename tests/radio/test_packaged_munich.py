@@ -10,9 +10,8 @@ import hashlib
 import numpy as np
 
 import uamfleet
-from uamfleet.baselines import make_policy
-from uamfleet.radio import load_radio_map, raytrace
-from uamfleet.radio import packaged
+from uamfleet.policies import make_flown
+from uamfleet.radio import load_radio_map, packaged, raytrace
 from uamfleet.rollout import fly
 
 # sha256 of the C-ordered float64 bytes of the command's output arrays (sinr_db [148, 121], bs_values [4, 6]).
@@ -88,7 +87,7 @@ def test_munich_presets_are_berlins_on_the_munich_map() -> None:
 
 def test_greedy_delivers_everyone_on_munich_random() -> None:
     cfg = uamfleet.make_config("munich_random", num_taxis=2)
-    traj = fly(cfg, make_policy("greedy", seed=0, num_taxis=2), seed=0)
+    traj = fly(cfg, make_flown("greedy", seed=0, num_taxis=2), seed=0)
     requests = int(traj.pax_exists.sum())
     assert requests >= 2
     assert traj.terminated and not traj.truncated

@@ -133,7 +133,7 @@ def _open_search(policy_seed: int, top_k: int):
     guided = GuidedSearchPolicy(_policy(cfg, policy_seed), top_k=top_k, samples=0, horizon=1)
     env = VectorEnv(guided.layout(cfg), 1)
     env.reset(seed=0)
-    guided.reset(env)
+    guided.reset(env.sim)
     return cfg, guided, env
 
 
@@ -244,7 +244,7 @@ def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> N
     hedge = AnticipatingGuidedSearch(policy, prior, first_headings=3, futures=4, tail=None, seed=5)
     env = VectorEnv(hedge.layout(cfg), 1, autoreset=False)
     env.reset(seed=0)
-    hedge.reset(env)
+    hedge.reset(env.sim)
     first, means = hedge.scores[0]
     rng = np.random.default_rng(5)
     known = released_only(env.state)

@@ -26,6 +26,7 @@ future (seconds on one core). Where the prior says no request can come any more,
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,11 +43,35 @@ from uamfleet.baselines.step_planner import (
     released_only,
 )
 from uamfleet.config import EnvConfig
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, check_family, draw_trip
+from uamfleet.sim.core import Simulator
 from uamfleet.sim.generator import allocate_state, flyable_sites
 from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN, FleetState
+
+
+class NoDemandModelError(ValueError):
+    """A policy that reads an instance family's demand model was reset in a world no family draws (a fixed
+    scenario)."""
+
+
+def world_family(cfg: EnvConfig, policy: str) -> str:
+    """The instance family whose demand model draws ``cfg``'s requests, read from its scenario: a family's instances
+    (``berlin_seed3``, ``berlin_fleet4x48_seed3``, :func:`uamfleet.instances.make_instance`) and its training
+    scenarios (``berlin_instances``, ``berlin_fleet``, ``berlin_random``). :class:`NoDemandModelError`, naming
+    ``policy``, for any other world (the paper's fixed scenarios have none)."""
+    scenario = cfg.scenario
+    for family, fam in FAMILIES.items():
+        if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
+            return family
+        if re.fullmatch(rf"{re.escape(family)}_(fleet\d+x\d+_)?seed\d+", scenario):
+            return family
+    raise NoDemandModelError(
+        f"{policy} reads an instance family's demand model, and scenario {scenario!r} is none of "
+        f"{tuple(FAMILIES)}'s: fly it on an instance (uamfleet.instances.make_instance), not a fixed scenario."
+    )
 
 
 @dataclass(frozen=True)
@@ -128,7 +153,7 @@ REPLAN_FUTURES_SEARCH = SearchSettings(beam=64, rank_slack=0.5)
 """The search over the known requests: beam 64, rank slack 0.5 (the benchmark's ``replan`` uses rank slack 1.0)."""
 
 
-class AnticipatingReplan:
+class AnticipatingReplan(PolicyBase):
     """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (step,
     number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, actions committed to,
     wall seconds) of every decision. The defaults are those of the first try (docs/results.md), not tuned."""
@@ -159,18 +184,18 @@ class AnticipatingReplan:
         # own stay as allocated, empty, for the sampled requests of each future's copy
         self.known = allocate_state(self.scratch.world, 1)
 
-    def reset(self, env: VectorEnv) -> None:
-        require_one_taxi_env(env, "replan_futures", type(self).__name__)
-        self.env = env
-        self.prepare(env.cfg)
+    def reset(self, sim: Simulator) -> None:
+        require_one_taxi_env(sim, "replan_futures", type(self).__name__)
+        self.sim = sim
+        self.prepare(sim.cfg)
         self.rng = np.random.default_rng(self.seed)
         self.plans = []
-        self._seen = env.state.pax_status[0] != HIDDEN
+        self._seen = sim.state.pax_status[0] != HIDDEN
         self.redecide = False  # whether the queue is a future's plan cut at that future's next release
         self.queue = self._decide()
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        s = self.sim.state
         newly = (s.pax_status[0] != HIDDEN) & ~self._seen
         if newly.any():
             self._seen |= newly
@@ -194,7 +219,7 @@ class AnticipatingReplan:
         return self.known.copy()
 
     def _decide(self) -> list[int]:
-        decision = self.decide(self.known_state(self.env.state), self.rng)
+        decision = self.decide(self.known_state(self.sim.state), self.rng)
         self.redecide = decision.cut
         return decision.actions
 
@@ -262,4 +287,4 @@ def _next_release(future: FleetState) -> int:
     return int(future.pax_release[0, coming].min()) if coming.any() else -1
 
 
-__all__ = ["AnticipatingReplan", "Decision", "DemandPrior"]
+__all__ = ["AnticipatingReplan", "Decision", "DemandPrior", "NoDemandModelError", "world_family"]

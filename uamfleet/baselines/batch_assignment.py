@@ -38,8 +38,8 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 from uamfleet.baselines.assignment_value import MAX_SECONDS, LinearValue, SiteRemoteness
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, Stop
 from uamfleet.checks import MAX_TIME_LIMIT_STEPS, ConfigError, check_flag, check_integer, check_number
+from uamfleet.sim.core import Simulator
 from uamfleet.sim.generator import flyable_sites
-from uamfleet.env.vector_env import VectorEnv
 from uamfleet.types import ON_BOARD, WAITING
 
 MAX_REQUESTS_PER_TAXI = 32
@@ -170,14 +170,14 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
     def batch_due(self, released: list[int]) -> bool:
         """Whether a batch runs at this step: every ``period`` steps, and with ``assign_on_release`` at every step
         where a request is ``released``."""
-        assert self.env is not None
-        return int(self.env.state.t[0]) % self.period == 0 or (self.assign_on_release and bool(released))
+        assert self.sim is not None
+        return int(self.sim.state.t[0]) % self.period == 0 or (self.assign_on_release and bool(released))
 
     def dispatch(self, released: list[int]) -> None:
-        assert self.env is not None
+        assert self.sim is not None
         if not self.batch_due(released):
             return
-        s = self.env.state
+        s = self.sim.state
         waiting = [int(p) for p in self.pax if s.pax_status[0, p] == WAITING]
         trips, routes, free_s = self.candidate_trips(waiting)
         idle_free_s = [0.0] * self.num_taxis  # when each taxi is free if it takes no new trip
@@ -234,16 +234,16 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         return trips, routes, free_s
 
     def now_s(self) -> float:
-        assert self.env is not None
-        return float(self.env.state.t[0]) * self.env.cfg.slot_s
+        assert self.sim is not None
+        return float(self.sim.state.t[0]) * self.sim.cfg.slot_s
 
     def remoteness_after(self, taxi: int, route: Sequence[Stop]) -> float:
         """:class:`~uamfleet.baselines.assignment_value.SiteRemoteness` of where ``route`` leaves the taxi: its last
         stop (a drop-off), or where the taxi is when the route is empty."""
-        assert self.env is not None
+        assert self.sim is not None
         if route:
             return float(self._dest_remoteness[route[-1][0]])
-        return float(self._remoteness(self.env.state.pos_m[0, taxi])[0])
+        return float(self._remoteness(self.sim.state.pos_m[0, taxi])[0])
 
     def valued_trips(
         self,
@@ -261,16 +261,16 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         price = self.value.price_s
         return [(a, reqs, cost - price * float(after[k] - idle[a])) for k, (a, reqs, cost) in enumerate(trips)]
 
-    def reset(self, env: VectorEnv) -> None:
-        super().reset(env)
+    def reset(self, sim: Simulator) -> None:
+        super().reset(sim)
         if self.value is not None:
             self.prepare_remoteness()
 
     def prepare_remoteness(self) -> None:
         """The site remoteness :meth:`remoteness_after` reads (the map's flyable sites; every destination's), for
         this episode: made at reset where a value prices the trips, or by a subclass that records it."""
-        assert self.env is not None
-        self._remoteness = SiteRemoteness(flyable_sites(self.env.world))
+        assert self.sim is not None
+        self._remoteness = SiteRemoteness(flyable_sites(self.sim.world))
         self._dest_remoteness = self._remoteness(self.dest_m)
 
 
@@ -279,21 +279,21 @@ class RecordingAssignment(BatchAssignmentPolicy):
     (:meth:`BatchAssignmentPolicy.batch_due`), each taxi's post-decision state and plan, and every pick-up
     (passenger, taxi, time)."""
 
-    def reset(self, env: VectorEnv) -> None:
-        super().reset(env)
+    def reset(self, sim: Simulator) -> None:
+        super().reset(sim)
         self.prepare_remoteness()  # recorded with or without a value
         self.decisions: list[tuple[int, float, float, float, tuple[int, ...]]] = []  # taxi, now, free, far, plan
         self.pickups: list[tuple[int, int, float]] = []  # passenger, taxi, time
-        self._was_on_board = np.zeros(len(env.state.pax_status[0]), dtype=bool)
+        self._was_on_board = np.zeros(len(sim.state.pax_status[0]), dtype=bool)
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None
+        s = self.sim.state
         on_board = s.pax_status[0] == ON_BOARD
         for p in np.flatnonzero(on_board & ~self._was_on_board):
             self.pickups.append((int(p), int(s.pax_taxi[0, p]), self.now_s()))
         self._was_on_board |= on_board
-        return super().__call__(obs)
+        return super().act(obs)
 
     def dispatch(self, released: list[int]) -> None:
         due = self.batch_due(released)  # asked before the batch: it reads the step, which the batch leaves alone

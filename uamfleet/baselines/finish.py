@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from uamfleet.baselines.anticipation import world_family
 from uamfleet.baselines.planner_policy import require_one_taxi_env
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
 from uamfleet.config import EnvConfig
-from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.instances import FAMILIES, check_family
+from uamfleet.sim.core import Simulator
 from uamfleet.types import HIDDEN
 
 FINISH_RANK_SLACK = 0.5
@@ -37,7 +39,7 @@ def no_request_can_come(released: int, t: int, window_steps: int, max_requests: 
     return t >= window_steps or released >= max_requests
 
 
-class FinishWithSearch:
+class FinishWithSearch(PolicyBase):
     """``policy`` (any one-taxi policy: :class:`~uamfleet.rl.policy.GreedyPolicy`, guided search, a planner) until
     :func:`no_request_can_come`, then the plan of one step-level search of width ``beam`` over the requests, all
     known by then, flown to the end (module docstring). If the search finds no plan (none within the time limit),
@@ -51,9 +53,15 @@ class FinishWithSearch:
                 "'berlin', cfg.slot_s, beam=16))."
             )
         self.policy, self.window_steps, self.max_requests, self.beam = policy, window_steps, max_requests, beam
-        self.env: VectorEnv | None = None
+        self.sim: Simulator | None = None
         self.plan: list[int] | None = None  # None: the policy still flies
         self.solves: list[tuple[int, int, float, float]] = []
+        self.from_world = False  # True (of_world): window_steps and max_requests are read from each world at reset
+
+    @property
+    def spec(self) -> Any:
+        """What it reads: its base policy's ``spec`` (None for a planner or a plain function)."""
+        return getattr(self.policy, "spec", None)
 
     @classmethod
     def of_family(cls, policy: Any, family: str, slot_s: float, beam: int = 16) -> FinishWithSearch:
@@ -62,6 +70,15 @@ class FinishWithSearch:
         check_family(family)
         fam = FAMILIES[family]
         return cls(policy, fam.window_steps(slot_s), fam.max_passengers, beam)
+
+    @classmethod
+    def of_world(cls, policy: Any, beam: int = 16) -> FinishWithSearch:
+        """The finisher that reads, at each :meth:`reset`, the family of the simulator's world
+        (:func:`~uamfleet.baselines.anticipation.world_family`) and its slot; a world no family draws (a fixed
+        scenario) is refused there in one line."""
+        finisher = cls(policy, 0, 1, beam)
+        finisher.from_world = True
+        return finisher
 
     @property
     def passenger_slots(self) -> int | None:
@@ -73,14 +90,17 @@ class FinishWithSearch:
         layout = getattr(self.policy, "layout", None)
         return layout(cfg) if layout is not None else cfg
 
-    def reset(self, env: VectorEnv) -> None:
-        require_one_taxi_env(env, "a policy finished by search", type(self).__name__)
-        self.env, self.plan, self.solves = env, None, []
-        self.policy.reset(env)
+    def reset(self, sim: Simulator) -> None:
+        require_one_taxi_env(sim, "a policy finished by search", type(self).__name__)
+        if self.from_world:
+            fam = FAMILIES[world_family(sim.cfg, "finish")]
+            self.window_steps, self.max_requests = fam.window_steps(sim.cfg.slot_s), fam.max_passengers
+        self.sim, self.plan, self.solves = sim, None, []
+        self.policy.reset(sim)
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None, "call reset(sim) first (uamfleet.rollout.fly does)"
+        s = self.sim.state
         if self.plan is None:
             released = int(((s.pax_status[0] != HIDDEN) & s.pax_exists[0]).sum())
             if no_request_can_come(released, int(s.t[0]), self.window_steps, self.max_requests):
@@ -90,14 +110,14 @@ class FinishWithSearch:
         return self.policy(obs)  # before the switch, or after a search that found nothing
 
     def _solve(self) -> list[int]:
-        assert self.env is not None
+        assert self.sim is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
-        found = StepSearch(self.env.cfg).solve(
-            released_only(self.env.state), [SearchSettings(beam=self.beam, rank_slack=FINISH_RANK_SLACK)]
+        found = StepSearch(self.sim.cfg).solve(
+            released_only(self.sim.state), [SearchSettings(beam=self.beam, rank_slack=FINISH_RANK_SLACK)]
         )
         moves = found.moves if found is not None else -1
         self.solves.append(
-            (int(self.env.state.t[0]), moves, time.thread_time() - start_cpu, time.perf_counter() - start)
+            (int(self.sim.state.t[0]), moves, time.thread_time() - start_cpu, time.perf_counter() - start)
         )
         return list(found.actions) if found is not None else []
 

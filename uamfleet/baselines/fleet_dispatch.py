@@ -41,8 +41,9 @@ from uamfleet.baselines.assignment_value import MAX_SECONDS
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import heading_vectors
-from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.paths import DistanceFields
+from uamfleet.sim.core import Simulator
 from uamfleet.sim.motion import passes_within
 from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
@@ -143,11 +144,11 @@ def split_options(name: str) -> tuple[str, DispatchOptions]:
 _LAST_FIELDS: dict[tuple[int, bytes], DistanceFields] = {}
 
 
-def shared_fields(env: VectorEnv, warm: bool = False) -> DistanceFields:
-    """The :class:`DistanceFields` of the env's world, shared with the previous dispatcher on the same instance;
+def shared_fields(sim: Simulator, warm: bool = False) -> DistanceFields:
+    """The :class:`DistanceFields` of the simulator's world, shared with the previous dispatcher on the same instance;
     ``warm`` computes the field of every stop now (so that policies' decision times leave it out)."""
-    s = env.state
-    fields = DistanceFields(env.world)
+    s = sim.state
+    fields = DistanceFields(sim.world)
     stops = np.concatenate([s.pos_m[0], s.pax_origin_m[0], s.pax_dest_m[0]])
     key = (id(fields.graph), stops.tobytes())
     if key not in _LAST_FIELDS:
@@ -155,13 +156,13 @@ def shared_fields(env: VectorEnv, warm: bool = False) -> DistanceFields:
         _LAST_FIELDS[key] = fields
     fields = _LAST_FIELDS[key]
     if warm:
-        for stop in stops[env.num_taxis :]:
+        for stop in stops[sim.num_taxis :]:
             fields.remaining_m(stop, stop[None])
     return fields
 
 
 def fleet_action(
-    env: VectorEnv, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None
+    env: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None
 ) -> int:
     """Taxi ``taxi``'s action in env 0: the heading toward ``target`` along feasible paths; with nothing to do, the
     hover (:data:`~uamfleet.types.HOVER_ACTION`: no distance flown) where the env has it (``hover_action``), else
@@ -183,18 +184,18 @@ def fleet_action(
 
 
 def fleet_actions(
-    env: VectorEnv, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None]
+    sim: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None]
 ) -> np.ndarray:
     """[1, A] every taxi's action in env 0: :func:`fleet_action` toward its target (None: nothing to do), then,
     under the separation shield, the idle taxis in the way of a busy taxi's next move step aside
     (:func:`make_way`)."""
-    actions = np.array([[fleet_action(env, fields, idle_at, a, t) for a, t in enumerate(targets)]], dtype=np.int64)
-    if env.cfg.separation == "shield":
-        make_way(env, actions[0], [t is None for t in targets], idle_at)
+    actions = np.array([[fleet_action(sim, fields, idle_at, a, t) for a, t in enumerate(targets)]], dtype=np.int64)
+    if sim.cfg.separation == "shield":
+        make_way(sim, actions[0], [t is None for t in targets], idle_at)
     return actions
 
 
-def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at: list[np.ndarray | None]) -> None:
+def make_way(sim: Simulator, actions: np.ndarray, idle: Sequence[bool], idle_at: list[np.ndarray | None]) -> None:
     """Idle taxis step out of the way of busy ones (env 0, ``actions`` [A] changed in place).
 
     The shield keeps a hover and turns the other taxi aside (docs/rules.md "Separation shield"), so an idle taxi
@@ -206,10 +207,10 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
     where it ends up.
     Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without
     shield interventions flies as before."""
-    s = env.state
+    s = sim.state
     pos, allowed = s.pos_m[0], s.action_mask[0]
-    moves = env.cfg.step_m * heading_vectors()
-    radius = env.cfg.min_separation_m
+    moves = sim.cfg.step_m * heading_vectors()
+    radius = sim.cfg.min_separation_m
     busy_moves = [
         (pos[b], pos[b] + moves[k]) for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]
     ]
@@ -227,7 +228,7 @@ def make_way(env: VectorEnv, actions: np.ndarray, idle: Sequence[bool], idle_at:
 _SetKey = tuple[int, tuple[int, ...]]  # (taxi, waiting passengers): one set of ScheduleFleetPolicy.sequence_each
 
 
-class ScheduleFleetPolicy:
+class ScheduleFleetPolicy(PolicyBase):
     """Base of the dispatchers: per-taxi schedules, repaired every step and flown along feasible paths.
 
     Subclasses implement :meth:`dispatch` (called every step with the passengers released since the last call):
@@ -239,21 +240,21 @@ class ScheduleFleetPolicy:
         self.exact_limit = check_integer("exact_limit", exact_limit, 1, MAX_PASSENGERS, fix=" (solve_pdp's limit)")
         # β: a schedule costs its total ride time + β · its total wait
         self.wait_weight = check_wait_weight("wait_weight", wait_weight)
-        self.env: VectorEnv | None = None
+        self.sim: Simulator | None = None
 
     # ---- episode start -------------------------------------------------------------------------------
-    def reset(self, env: VectorEnv) -> None:
-        if env.num_envs != 1:
-            raise ValueError(f"{type(self).__name__} drives a one-env core, got num_envs={env.num_envs}")
-        self.env = env
-        self.fields = shared_fields(env)
-        s = env.state
-        self.num_taxis = env.num_taxis
-        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis  # where an idle taxi zig-zags (no hover action)
+    def reset(self, sim: Simulator) -> None:
+        if sim.num_envs != 1:
+            raise ValueError(f"{type(self).__name__} drives a one-env core, got num_envs={sim.num_envs}")
+        self.sim = sim
+        self.fields = shared_fields(sim)
+        s = sim.state
+        self.num_taxis = sim.num_taxis
+        self._idle_at: list[np.ndarray | None] = [None] * sim.num_taxis  # where an idle taxi zig-zags (no hover action)
         self.pax = np.flatnonzero(s.pax_exists[0])
-        self.release_s = s.pax_release[0].astype(float) * env.cfg.slot_s
-        self.speed_mps = env.cfg.step_m / env.cfg.slot_s
-        self.seats = env.cfg.seats
+        self.release_s = s.pax_release[0].astype(float) * sim.cfg.slot_s
+        self.speed_mps = sim.cfg.step_m / sim.cfg.slot_s
+        self.seats = sim.cfg.seats
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
         # feasible-path distances, looked up once: [2P, 2P] stop to stop (row 2p: origin of p, 2p + 1: its
         # destination; a column is filled the first time its stop is asked for), and [A, 2P] from each taxi's
@@ -262,9 +263,9 @@ class ScheduleFleetPolicy:
         self._stop_to_stop = np.zeros((len(self._every_stop), len(self._every_stop)))
         self._column_known = np.zeros(len(self._every_stop), dtype=bool)
         self._taxi_key: tuple[int, bytes] | None = None
-        self._taxi_to_stop = np.zeros((env.num_taxis, len(self._every_stop)))
+        self._taxi_to_stop = np.zeros((sim.num_taxis, len(self._every_stop)))
         self._taxi_known = np.zeros(len(self._every_stop), dtype=bool)
-        self._riding: list[list[int] | None] = [None] * env.num_taxis  # on_board(taxi), for the same decision
+        self._riding: list[list[int] | None] = [None] * sim.num_taxis  # on_board(taxi), for the same decision
         self._sequenced: dict[tuple[int, tuple[int, ...]], tuple[Plan, list[Stop]]] = {}  # sequence(), the same
         self.routes: list[list[Stop]] = [[] for _ in range(self.num_taxis)]
         self._seen = np.zeros(len(s.pax_status[0]), dtype=bool)  # the first call dispatches step-0 requests
@@ -275,8 +276,8 @@ class ScheduleFleetPolicy:
         """Forget the per-decision look-ups (taxi to stop distances, who rides with whom) once the env has changed:
         they hold while the step, the taxis' positions and the passengers' statuses and carriers are those they
         were made for."""
-        assert self.env is not None
-        s = self.env.state
+        assert self.sim is not None
+        s = self.sim.state
         key = (int(s.t[0]), s.pos_m[0].tobytes() + s.pax_status[0].tobytes() + s.pax_taxi[0].tobytes())
         if key != self._taxi_key:
             self._taxi_key = key
@@ -293,10 +294,10 @@ class ScheduleFleetPolicy:
         """[A, len(rows)] feasible-path distance from every taxi's position now to the stops ``rows``. A miss looks
         up every active (waiting or riding) passenger's stops for every taxi in one compiled pass: a batch asks for
         them all, and each entry is the same number :meth:`DistanceFields.remaining_m` gives alone."""
-        assert self.env is not None
+        assert self.sim is not None
         self._this_decision()
         if not self._taxi_known[rows].all():
-            s = self.env.state
+            s = self.sim.state
             active = (s.pax_status[0] == WAITING) | (s.pax_status[0] == ON_BOARD)
             need = np.union1d(self._stop_rows(np.flatnonzero(active)), rows)
             need = need[~self._taxi_known[need]]
@@ -316,7 +317,7 @@ class ScheduleFleetPolicy:
     def stop_matrix(self, taxi: int, passengers: Sequence[int]) -> np.ndarray:
         """[1 + 2N, 1 + 2N] distances in :mod:`~uamfleet.baselines.sequencing`'s node order: the taxi's position,
         then origin / destination of each passenger."""
-        assert self.env is not None
+        assert self.sim is not None
         rows = self._stop_rows(passengers)
         dist = np.zeros((1 + len(rows), 1 + len(rows)))  # column 0 (back to the taxi) stays 0: no stop leads there
         dist[0, 1:] = self._from_taxis(rows)[taxi]
@@ -327,11 +328,11 @@ class ScheduleFleetPolicy:
     # ---- schedules -------------------------------------------------------------------------------------
     def on_board(self, taxi: int) -> list[int]:
         """The taxi's riders, ascending (a new list; looked up once a decision)."""
-        assert self.env is not None
+        assert self.sim is not None
         self._this_decision()
         riding = self._riding[taxi]
         if riding is None:
-            s = self.env.state
+            s = self.sim.state
             on = (s.pax_status[0, self.pax] == ON_BOARD) & (s.pax_taxi[0, self.pax] == taxi)
             riding = self._riding[taxi] = self.pax[on].tolist()  # ascending, as self.pax
         return list(riding)
@@ -353,7 +354,7 @@ class ScheduleFleetPolicy:
         """:meth:`sequence` of each set of waiting passengers. The sets not yet solved this decision are solved over
         one stop matrix of the taxi's riders and all their passengers (:func:`solve_pdp_each`: the same plans as
         one matrix per set), all but a set not in ascending order, which is solved alone as it is given."""
-        assert self.env is not None
+        assert self.sim is not None
         self._this_decision()
         keys = [(taxi, tuple(int(p) for p in waiting)) for waiting in waiting_sets]
         todo = [key for key in dict.fromkeys(keys) if key not in self._sequenced]
@@ -388,7 +389,7 @@ class ScheduleFleetPolicy:
         self, taxi: int, riding: list[int], passengers: list[int], subsets: list[list[int]]
     ) -> list[tuple[Plan, list[Stop]]]:
         """(plan, route) of each subset of ``passengers`` (riders first; indices, ascending, each with every rider)."""
-        assert self.env is not None
+        assert self.sim is not None
         plans = solve_pdp_each(
             self.stop_matrix(taxi, passengers),
             self.speed_mps,
@@ -396,7 +397,7 @@ class ScheduleFleetPolicy:
             subsets,
             capacity=self.seats,
             on_board=[p in riding for p in passengers],
-            start_s=float(self.env.state.t[0]) * self.env.cfg.slot_s,
+            start_s=float(self.sim.state.t[0]) * self.sim.cfg.slot_s,
             objective="ride",
             wait_weight=self.wait_weight,
         )
@@ -408,7 +409,7 @@ class ScheduleFleetPolicy:
 
     def schedule_cost(self, taxi: int, route: Sequence[Stop]) -> float:
         """:meth:`plan_cost` (s) of the taxi's passengers when it flies ``route`` from now."""
-        assert self.env is not None
+        assert self.sim is not None
         riding = self.on_board(taxi)
         passengers = riding + [p for p, kind in route if kind == PICKUP]
         index = {p: i for i, p in enumerate(passengers)}
@@ -417,7 +418,7 @@ class ScheduleFleetPolicy:
             self.speed_mps,
             [float(self.release_s[p]) for p in passengers],
             [(index[p], kind) for p, kind in route],
-            start_s=float(self.env.state.t[0]) * self.env.cfg.slot_s,
+            start_s=float(self.sim.state.t[0]) * self.sim.cfg.slot_s,
             on_board=[p in riding for p in passengers],
             capacity=self.seats,
         )
@@ -443,8 +444,8 @@ class ScheduleFleetPolicy:
 
     def _repair(self) -> None:
         """Drop served stops; a taxi that boarded someone not on its schedule re-sequences with the drop-off."""
-        assert self.env is not None
-        s = self.env.state
+        assert self.sim is not None
+        s = self.sim.state
         status, carrier = s.pax_status[0], s.pax_taxi[0]
         for a in range(self.num_taxis):
             kept = self._open_stops(a, status, carrier)
@@ -489,19 +490,19 @@ class ScheduleFleetPolicy:
     def dispatch(self, released: list[int]) -> None:
         raise NotImplementedError
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (run_episode does)"
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None, "call reset(sim) first (run_episode does)"
+        s = self.sim.state
         newly = (s.pax_status[0] != HIDDEN) & ~self._seen
         self._seen |= newly
         self._repair()
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
-        return fleet_actions(self.env, self.fields, self._idle_at, [self.target(a) for a in range(self.num_taxis)])
+        return fleet_actions(self.sim, self.fields, self._idle_at, [self.target(a) for a in range(self.num_taxis)])
 
     def target(self, taxi: int) -> np.ndarray | None:
         """The first stop of the taxi's schedule it can act on now."""
-        assert self.env is not None
-        s = self.env.state
+        assert self.sim is not None
+        s = self.sim.state
         free = int(s.free_seats[0, taxi])
         for p, kind in self.routes[taxi]:
             if kind == PICKUP and s.pax_status[0, p] == WAITING and free > 0:
@@ -512,7 +513,7 @@ class ScheduleFleetPolicy:
 
     def check_schedules(self) -> None:
         """Raise AssertionError if a schedule breaks precedence or capacity or two taxis share a request."""
-        assert self.env is not None
+        assert self.sim is not None
         owners: dict[int, int] = {}
         for a, route in enumerate(self.routes):
             riding = set(self.on_board(a))

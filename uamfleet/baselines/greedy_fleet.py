@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from uamfleet.baselines.fleet_dispatch import fleet_actions, shared_fields
-from uamfleet.env.vector_env import VectorEnv
+from uamfleet.env.protocol import PolicyBase
+from uamfleet.sim.core import Simulator
 from uamfleet.types import ON_BOARD, WAITING
 
 
-class GreedyFleetPolicy:
+class GreedyFleetPolicy(PolicyBase):
     """A simple fleet dispatcher (not one of the paper's baselines): nearest stop first.
 
     Each taxi heads for its nearest stop: a drop-off of a passenger it carries, or, while it has a free seat, the
@@ -21,18 +22,18 @@ class GreedyFleetPolicy:
     one's way under the shield), instead of chasing its own position.
     """
 
-    def reset(self, env: VectorEnv) -> None:
-        if env.num_envs != 1:
-            raise ValueError(f"GreedyFleetPolicy drives a one-env core, got num_envs={env.num_envs}")
-        self.env = env
-        self.fields = shared_fields(env)
-        self._idle_at: list[np.ndarray | None] = [None] * env.num_taxis
+    def reset(self, sim: Simulator) -> None:
+        if sim.num_envs != 1:
+            raise ValueError(f"GreedyFleetPolicy drives a one-env core, got num_envs={sim.num_envs}")
+        self.sim = sim
+        self.fields = shared_fields(sim)
+        self._idle_at: list[np.ndarray | None] = [None] * sim.num_taxis
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        return fleet_actions(self.env, self.fields, self._idle_at, self._targets())
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return fleet_actions(self.sim, self.fields, self._idle_at, self._targets())
 
     def _targets(self) -> list[np.ndarray | None]:
-        s = self.env.state
+        s = self.sim.state
         pos, status, carrier, free = s.pos_m[0], s.pax_status[0], s.pax_taxi[0], s.free_seats[0]
         waiting = np.flatnonzero((status == WAITING) & s.pax_exists[0])
         d_wait = np.linalg.norm(pos[:, None] - s.pax_origin_m[0][waiting][None], axis=-1)  # [A, W]

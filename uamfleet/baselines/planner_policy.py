@@ -34,9 +34,10 @@ import numpy as np
 
 from uamfleet.baselines.sequencing import Plan, solve_pdp
 from uamfleet.config import EnvConfig
-from uamfleet.presets import make_config
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.paths import DistanceFields, StopPaths
-from uamfleet.env.vector_env import VectorEnv
+from uamfleet.presets import make_config
+from uamfleet.sim.core import Simulator
 from uamfleet.types import HIDDEN, ON_BOARD, WAITING
 
 PLANNERS: tuple[str, ...] = ("cptsp", "pdpcc", "raster_replan", "raster_opt", "straight")
@@ -53,15 +54,15 @@ def planner_env_overrides(planner: str) -> dict[str, Any]:
     return overrides.get(planner, {})
 
 
-def require_one_taxi_env(env: VectorEnv, planner: str, policy_class: str) -> None:
-    """What every single-taxi planner checks at ``reset(env)``: one env of one taxi, already reset."""
-    if env.num_envs != 1 or env.num_taxis != 1:
+def require_one_taxi_env(sim: Simulator, planner: str, policy_class: str) -> None:
+    """What every single-taxi planner checks at ``reset(sim)``: one env of one taxi, already reset."""
+    if sim.num_envs != 1 or sim.num_taxis != 1:
         raise ValueError(
-            f"planner {planner!r} flies one taxi in one env; got num_envs={env.num_envs}, "
-            f"num_taxis={env.num_taxis}. (Fleet dispatch is not one of these single-taxi baselines.)"
+            f"planner {planner!r} flies one taxi in one env; got num_envs={sim.num_envs}, "
+            f"num_taxis={sim.num_taxis}. (Fleet dispatch is not one of these single-taxi baselines.)"
         )
-    if env.needs_reset:
-        raise RuntimeError(f"reset the env before the planner: {policy_class}.reset(env) reads its instance.")
+    if sim.needs_reset:
+        raise RuntimeError(f"reset the simulator before the planner: {policy_class}.reset(sim) reads its instance.")
 
 
 class FlightConfigs(NamedTuple):
@@ -119,7 +120,7 @@ class _TaxiPlan:
     stops: list[tuple[int, str]] = field(default_factory=list)
 
 
-class PlannerPolicy:
+class PlannerPolicy(PolicyBase):
     """One of :data:`PLANNERS` as a policy for a one-taxi, one-env core (``VectorEnv(cfg, 1, autoreset=False)``).
 
     After an episode, ``planned`` holds every plan made (for reports) and ``stop_paths`` the shortest paths
@@ -131,22 +132,22 @@ class PlannerPolicy:
             raise ValueError(f"unknown planner {planner!r}; choose one of {PLANNERS}.")
         self.planner = planner
         self.order = order
-        self.env: VectorEnv | None = None
+        self.sim: Simulator | None = None
         self.planned: list[Plan] = []
         self.plan = _TaxiPlan()
 
     # ---- episode start -------------------------------------------------------------------------------
-    def reset(self, env: VectorEnv) -> None:
-        require_one_taxi_env(env, self.planner, type(self).__name__)
-        self.env = env
-        self.world = env.world
-        self.fields = DistanceFields(env.world) if self.planner != "straight" else None
+    def reset(self, sim: Simulator) -> None:
+        require_one_taxi_env(sim, self.planner, type(self).__name__)
+        self.sim = sim
+        self.world = sim.world
+        self.fields = DistanceFields(sim.world) if self.planner != "straight" else None
         self.graph = self.fields.graph if self.fields is not None else None
         self.planned = []
-        s = env.state
+        s = sim.state
         self.num_pax = int(s.pax_exists[0].sum())
-        self.release_s = s.pax_release[0, : self.num_pax] * env.cfg.slot_s
-        self.speed_mps = env.cfg.step_m / env.cfg.slot_s
+        self.release_s = s.pax_release[0, : self.num_pax] * sim.cfg.slot_s
+        self.speed_mps = sim.cfg.step_m / sim.cfg.slot_s
         self.stops_m = np.concatenate(
             [s.pos_m[0, :1], np.stack([s.pax_origin_m[0], s.pax_dest_m[0]], axis=1)[: self.num_pax].reshape(-1, 2)]
         )  # node 0 = start, 1 + 2i = origin of i, 2 + 2i = destination of i
@@ -174,9 +175,9 @@ class PlannerPolicy:
         return stops
 
     # ---- acting ----------------------------------------------------------------------------------------
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (run_episode does)"
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None, "call reset(sim) first (run_episode does)"
+        s = self.sim.state
         status = s.pax_status[0, : self.num_pax]
         newly = (status != HIDDEN) & ~self._seen
         if newly.any():
@@ -200,8 +201,8 @@ class PlannerPolicy:
 
     def _replan(self) -> list[tuple[int, str]]:
         """Exact re-optimisation from the current position with who is on board and who waits."""
-        assert self.env is not None and self.graph is not None
-        s = self.env.state
+        assert self.sim is not None and self.graph is not None
+        s = self.sim.state
         status = s.pax_status[0, : self.num_pax]
         active = [i for i in range(self.num_pax) if status[i] in (WAITING, ON_BOARD)]
         points = np.concatenate([s.pos_m[0, :1], self.stops_m[1:][np.ravel([[2 * i, 2 * i + 1] for i in active])]])
@@ -209,14 +210,14 @@ class PlannerPolicy:
             return []
         paths = self.graph.shortest_paths(points)
         on_board = [bool(status[i] == ON_BOARD) for i in active]
-        plan = solve_pdp(paths.distance_m, self.speed_mps, [0.0] * len(active), capacity=self.env.cfg.seats,
-                         on_board=on_board, start_s=float(s.t[0]) * self.env.cfg.slot_s)  # fmt: skip
+        plan = solve_pdp(paths.distance_m, self.speed_mps, [0.0] * len(active), capacity=self.sim.cfg.seats,
+                         on_board=on_board, start_s=float(s.t[0]) * self.sim.cfg.slot_s)  # fmt: skip
         self.planned.append(plan)
         return [(active[p], kind) for p, kind in plan.stops]
 
     def _target(self) -> np.ndarray | None:
-        assert self.env is not None
-        s = self.env.state
+        assert self.sim is not None
+        s = self.sim.state
         status, carrier = s.pax_status[0], s.pax_taxi[0]
         free = int(s.free_seats[0, 0])
         for passenger, kind in self.plan.stops:

@@ -44,8 +44,10 @@ from numba import njit
 
 from uamfleet.baselines.planner_policy import PlannerPolicy, require_one_taxi_env
 from uamfleet.config import NUM_HEADINGS, EnvConfig, RewardConfig
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.paths import DistanceFields
+from uamfleet.sim.core import Simulator
 from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, FleetState
 
 STEP_PLANNERS: tuple[str, ...] = ("replan", "best_known")
@@ -392,7 +394,7 @@ def raster_opt_actions(cfg: EnvConfig) -> list[int]:
     # Flown here rather than with uamfleet.rollout.fly, which sits a layer above the baselines.
     env, policy = VectorEnv(cfg, num_envs=1, autoreset=False), PlannerPolicy("raster_opt")
     obs, _ = env.reset(seed=0)
-    policy.reset(env)
+    policy.reset(env.sim)
     actions: list[int] = []
     while True:
         chosen = np.asarray(policy(obs)).reshape(1, 1)
@@ -402,7 +404,7 @@ def raster_opt_actions(cfg: EnvConfig) -> list[int]:
             return actions if terminated[0] else []
 
 
-class StepPlannerPolicy:
+class StepPlannerPolicy(PolicyBase):
     """``best_known`` or ``replan`` (:data:`STEP_PLANNERS`) as a policy for a one-taxi, one-env core.
 
     After an episode, ``plans`` holds every plan made (with its solve time) and, for ``best_known``,
@@ -414,21 +416,21 @@ class StepPlannerPolicy:
         self.planner = planner
         default = CLAIRVOYANT_SETTINGS if planner == "best_known" else REPLAN_SETTINGS
         self.settings = tuple(settings) if settings is not None else default
-        self.env: VectorEnv | None = None
+        self.sim: Simulator | None = None
         self.plans: list[StepPlan] = []
         self.queue: list[int] = []
         self.lower_bound_m = math.nan
 
-    def reset(self, env: VectorEnv) -> None:
-        require_one_taxi_env(env, self.planner, type(self).__name__)
-        self.env = env
-        self.search = StepSearch(env.cfg)
+    def reset(self, sim: Simulator) -> None:
+        require_one_taxi_env(sim, self.planner, type(self).__name__)
+        self.sim = sim
+        self.search = StepSearch(sim.cfg)
         self.plans = []
-        s = env.state
+        s = sim.state
         self._seen = s.pax_status[0] != HIDDEN
         exists = s.pax_exists[0]
         stops = np.stack([s.pax_origin_m[0, exists], s.pax_dest_m[0, exists]], axis=1).reshape(-1, 2)
-        cfg = env.cfg
+        cfg = sim.cfg
         self.lower_bound_m = lower_bound_m(s.pos_m[0, 0], stops, cfg.seats, cfg.radius_m, cfg.step_m)
         if self.planner == "best_known":
             self.queue = self._clairvoyant()
@@ -436,12 +438,12 @@ class StepPlannerPolicy:
             self.queue = self._replan()
 
     def _clairvoyant(self) -> list[int]:
-        assert self.env is not None
+        assert self.sim is not None
         start = time.perf_counter()
-        plan = self.search.solve(self.env.state, self.settings)
+        plan = self.search.solve(self.sim.state, self.settings)
         candidates = [plan] if plan is not None else []
-        if self.env.cfg.starts_m is not None and self.env.cfg.requests is not None:
-            raster = raster_opt_actions(self.env.cfg)
+        if self.sim.cfg.starts_m is not None and self.sim.cfg.requests is not None:
+            raster = raster_opt_actions(self.sim.cfg)
             if raster:
                 moves = self._count_moves(raster)
                 candidates.append(StepPlan(raster, moves, len(raster), 0.0, "raster_opt"))
@@ -454,7 +456,7 @@ class StepPlannerPolicy:
 
     def _count_moves(self, actions: list[int]) -> int:
         """Moves a fixed action sequence flies from this episode's start (replayed in a scratch core)."""
-        assert self.env is not None
+        assert self.sim is not None
         env = VectorEnv(self.search.scratch_cfg, 1, autoreset=False)
         env.reset(seed=0)
         moves = 0
@@ -467,8 +469,8 @@ class StepPlannerPolicy:
 
     def _replan(self) -> list[int]:
         """The step-level search from the current state over the requests released so far."""
-        assert self.env is not None
-        known = released_only(self.env.state)
+        assert self.sim is not None
+        known = released_only(self.sim.state)
         plan = self.search.solve(known, self.settings)
         if plan is None:  # a wider, slack-free search before giving up
             wider = [SearchSettings(4 * s.beam, s.cell_m, 0.0) for s in self.settings]
@@ -478,9 +480,9 @@ class StepPlannerPolicy:
         self.plans.append(plan)
         return list(plan.actions)
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (run_episode does)"
-        s = self.env.state
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None, "call reset(sim) first (run_episode does)"
+        s = self.sim.state
         newly = (s.pax_status[0] != HIDDEN) & ~self._seen
         if newly.any():
             self._seen |= newly

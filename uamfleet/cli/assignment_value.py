@@ -114,7 +114,7 @@ def fly_recorded(
     cfg = make_fleet_instance(family, seed, taxis, requests, separation="shield", hover_action=True)
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
-    shared_fields(env, warm=True)
+    shared_fields(env.sim, warm=True)
     policy = RecordingAssignment(
         value=value,
         wait_weight=options.wait_weight,

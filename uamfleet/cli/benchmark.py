@@ -18,12 +18,11 @@ its partial rows beside the CSV (``<name>.partial.csv``; ``--from-csv`` renders 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import csv
 import math
 import multiprocessing as mp
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,8 @@ from typing import Any
 import numpy as np
 
 import uamfleet
+from uamfleet.baselines.planner_policy import PLANNERS, planner_env_overrides
+from uamfleet.baselines.step_planner import STEP_PLANNERS, instance_lower_bound_m
 from uamfleet.cli._common import (
     Family,
     Feasibility,
@@ -45,11 +46,7 @@ from uamfleet.cli._common import (
     run,
 )
 from uamfleet.cli.docs_tables import REFRESH_HINT
-from uamfleet.baselines.planner_policy import PLANNERS, planner_env_overrides
-from uamfleet.baselines.step_planner import STEP_PLANNERS, instance_lower_bound_m
 from uamfleet.config import EnvConfig
-from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
-from uamfleet.sim.world import World
 from uamfleet.instances import make_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
@@ -58,6 +55,8 @@ from uamfleet.policies.learned import learned_policy
 from uamfleet.policies.registry import BASE
 from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS
 from uamfleet.rollout import fly
+from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
+from uamfleet.sim.world import World
 from uamfleet.types import NUM_HEADINGS
 
 METHODS: tuple[str, ...] = (*PLANNERS, *STEP_PLANNERS)
@@ -190,20 +189,16 @@ def job_options(args: Args) -> dict[str, dict[str, Any]]:
     }  # fmt: skip
 
 
-def method_call(name: str, options: dict[str, Any], job: Job, cfg: EnvConfig) -> tuple[str, dict[str, Any]]:
-    """The call of a method on the job's instance: the job's options of ``name`` under the method's own, the
-    instance's family for a demand model, the checkpoint for a learned policy (bases filled alike)."""
+def method_call(name: str, options: dict[str, Any], job: Job) -> tuple[str, dict[str, Any]]:
+    """The call of a method on the job's instance: the job's options of ``name`` under the method's own and the
+    checkpoint for a learned policy (bases filled alike; a demand model's family is read from the world at reset)."""
     out = {**job.options.get(name, {}), **options}
-    if name in FAMILY_MODELS:
-        out["family"] = job.task[1]
-    if name == "finish":
-        out["slot_s"] = cfg.slot_s
     if name == "learned":
         assert job.checkpoint is not None
         out["source"] = str(job.checkpoint)
     if BASE in out:
         base_name, base_options = out[BASE]
-        out[BASE] = method_call(base_name, base_options, job, cfg)
+        out[BASE] = method_call(base_name, base_options, job)
     return name, out
 
 
@@ -220,7 +215,7 @@ def check_checkpoint(path: Path) -> None:
 def flown(method: str, job: Job, cfg: EnvConfig, name: str) -> tuple[EnvConfig, Any] | None:
     """(the config it flies, the policy) of ``method`` on the instance ``name``; None, after a line saying why,
     for one it cannot fly (a demand model on a fixed scenario, more passengers than a learned policy's slots)."""
-    call = method_call(*parse(method), job, cfg)
+    call = method_call(*parse(method), job)
     if job.task[0] == "fixed" and call[0] in FAMILY_MODELS:
         print(f"{method} skipped on {name}: a fixed scenario has no demand model", flush=True)
         return None

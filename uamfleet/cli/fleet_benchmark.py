@@ -31,26 +31,26 @@ import functools
 import math
 import multiprocessing as mp
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
-from collections.abc import Sequence
 
 import numpy as np
 
+from uamfleet.baselines import FLEET_DISPATCHERS
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
+from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
 from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.cli.docs_tables import REFRESH_HINT
-from uamfleet.baselines import FLEET_DISPATCHERS, make_policy
-from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
-from uamfleet.checks import check_number
-from uamfleet.baselines.fleet_dispatch import shared_fields
-from uamfleet.policies import PolicyNameError, available, make, parse
-from uamfleet.policies.learned import learned_policy
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import PolicyNameError, available, make, make_flown, parse
+from uamfleet.policies.learned import learned_policy
 from uamfleet.rollout import fly
 
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
@@ -161,10 +161,10 @@ def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int 
 def dispatcher(name: str, taxis: int, value_path: Path | None, arrival_window_s: float | None) -> Any:
     """The dispatcher ``name`` (a recorded name or the grammar of :mod:`uamfleet.policies.names`) for ``taxis``
     taxis: a valued one reads ``value_path`` (None: the shipped value) for a service of ``arrival_window_s``; a
-    single-taxi planner (``make_policy``'s, refused for a fleet) flies one taxi."""
+    single-taxi planner (:func:`~uamfleet.policies.make_flown`'s settings, refused for a fleet) flies one taxi."""
     call, options = parse(name)
     if available()[call][0] == "planner" and not options:
-        return make_policy(call, num_taxis=taxis)
+        return make_flown(call, num_taxis=taxis)
     if call == VALUE_DISPATCHER:
         if value_path is not None:
             options.setdefault("value", str(value_path))
@@ -185,7 +185,7 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     env = VectorEnv(cfg, num_envs=1, autoreset=False)
     env.reset(seed=0)
     if dispatchers:  # every dispatcher steers by the same per-stop fields: computed once, untimed
-        shared_fields(env, warm=True)  # (a learned policy reads the env's distance table instead)
+        shared_fields(env.sim, warm=True)  # (a learned policy reads the env's distance table instead)
     fields_s = time.perf_counter() - start
     rows = []
     flights = [

@@ -21,7 +21,7 @@ import matplotlib
 from cycler import cycler
 
 import uamfleet
-from uamfleet.baselines import make_policy, planner_configs
+from uamfleet.baselines import planner_configs
 from uamfleet.cli._common import (
     SCENARIO_DEFAULT,
     Policy,
@@ -33,12 +33,13 @@ from uamfleet.cli._common import (
     run,
 )
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
+from uamfleet.viz.colours import TAXI_HEX
 from uamfleet.viz.figures import plot_routes
 from uamfleet.viz.meshcat_view import FleetViewer
-from uamfleet.viz.colours import TAXI_HEX
 from uamfleet.viz.strip import plot_sinr_strip
 
 
@@ -83,7 +84,7 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
         )
         return fly_episode(shown, policy, seed=args.seed), shown
     flown, shown = planner_configs(args.scenario, args.policy, **overrides)
-    policy = make_policy(args.policy, args.seed, shown.num_taxis)
+    policy = make_flown(args.policy, args.seed, shown.num_taxis)
     return fly_episode(flown, policy, seed=args.seed), shown
 
 

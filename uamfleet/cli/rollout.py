@@ -18,9 +18,10 @@ from typing import Annotated
 import numpy as np
 
 import uamfleet
-from uamfleet.baselines import make_policy, planner_configs
+from uamfleet.baselines import planner_configs
 from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, fmt, run
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 
 
@@ -61,7 +62,7 @@ def main(args: Args) -> list[dict[str, float]]:
     }
     flown, cfg = planner_configs(args.scenario, args.policy, **overrides)  # cfg: the rules it is scored against
     env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
-    policy = make_policy(args.policy, args.seed, cfg.num_taxis)
+    policy = make_flown(args.policy, args.seed, cfg.num_taxis)
     print(
         f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
         f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"

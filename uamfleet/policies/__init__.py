@@ -17,6 +17,7 @@ from uamfleet.policies import learned as _learned
 from uamfleet.policies import planners as _planners
 from uamfleet.policies import search as _search
 from uamfleet.policies.names import format, is_recorded, parse
+from uamfleet.policies.planners import ONE_FLIGHT_OPTIONS, make_flown
 from uamfleet.policies.registry import KINDS, PolicyNameError, available, make, register
 
 
@@ -30,11 +31,13 @@ _REGISTERED = (_learned, _planners, _search)  # importing them registers their p
 
 __all__ = [
     "KINDS",
+    "ONE_FLIGHT_OPTIONS",
     "PolicyNameError",
     "available",
     "format",
     "is_recorded",
     "make",
+    "make_flown",
     "make_named",
     "parse",
     "register",

@@ -8,20 +8,30 @@ slack 1 then 0: ``--best-known-beams``).
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from uamfleet.baselines import FLEET_DISPATCHERS, PLANNERS, STEP_PLANNERS, GreedyFleetPolicy, PlannerPolicy
-from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
+from uamfleet.baselines import (
+    FLEET_DISPATCHERS,
+    PLANNERS,
+    POLICIES,
+    STEP_PLANNERS,
+    GreedyFleetPolicy,
+    PlannerPolicy,
+)
+from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
 from uamfleet.baselines.assignment_value import MAX_SECONDS, VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
 from uamfleet.baselines.fleet_dispatch import check_wait_weight
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
-from uamfleet.checks import MAX_SEED, ConfigError, check_integer, check_number
-from uamfleet.instances import check_family
-from uamfleet.policies.registry import NoOptions, register
+from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
+from uamfleet.env.protocol import PolicyBase
+from uamfleet.policies.names import parse
+from uamfleet.policies.registry import NoOptions, available, make, register
+from uamfleet.sim.core import Simulator
 
 REFIT_VALUES = Path("docs/results/assignment_value_refit")
 """Where a valued dispatcher's ``value=<stem>`` file lies (``<stem>.json``, from the repository root)."""
@@ -62,16 +72,6 @@ class BestKnownOptions:
         for i, beam in enumerate(self.beams):
             check_integer("beams", beam, 1, fix=" (e.g. 256)")
             SearchSettings(beam, rank_slack=self.rank_slack[i % len(self.rank_slack)])
-
-
-@dataclass(frozen=True)
-class FuturesOptions:
-    """``replan_futures``: replan scored on futures sampled from ``family``'s demand model."""
-
-    family: str = "berlin"
-
-    def __post_init__(self) -> None:
-        check_family(self.family)
 
 
 @dataclass(frozen=True)
@@ -145,22 +145,81 @@ def value_path(value: str | None) -> Path | None:
     return stem
 
 
-class FamilyReplan:
-    """``replan_futures`` for ``family``'s instances: the demand model is made on each episode's map and threshold
-    (:meth:`reset`), then :class:`~uamfleet.baselines.anticipation.AnticipatingReplan` flies."""
+class FamilyReplan(PolicyBase):
+    """``replan_futures`` on the demand model of the simulator's world: at each :meth:`reset` the family is read
+    from the world (:func:`~uamfleet.baselines.anticipation.world_family`; a fixed scenario is refused in one line)
+    and its model made on the episode's map and threshold, then
+    :class:`~uamfleet.baselines.anticipation.AnticipatingReplan` flies."""
 
-    def __init__(self, family: str) -> None:
-        check_family(family)
-        self.family = family
+    def __init__(self) -> None:
         self.inner: AnticipatingReplan | None = None
 
-    def reset(self, env: Any) -> None:
-        self.inner = AnticipatingReplan(DemandPrior.of_family(self.family, env.cfg))
-        self.inner.reset(env)
+    def reset(self, sim: Simulator) -> None:
+        family = world_family(sim.cfg, "replan_futures")
+        self.inner = AnticipatingReplan(DemandPrior.of_family(family, sim.cfg))
+        self.inner.reset(sim)
 
-    def __call__(self, obs: Any) -> Any:
-        assert self.inner is not None, "reset(env) first"
-        return self.inner(obs)
+    def act(self, obs: Any) -> Any:
+        assert self.inner is not None, "reset(sim) first"
+        return self.inner.act(obs)
+
+
+ONE_FLIGHT_OPTIONS: dict[str, dict[str, Any]] = {
+    "replan": {"beam": 128, "rank_slack": 0.5},
+    "best_known": {"beams": (256, 256, 1024), "rank_slack": (1.0, 0.0, 0.5)},
+}
+"""The options :func:`make_flown` gives a bare step-planner name: the wider searches one flight affords
+(``uamfleet rollout`` / ``render``, a planner in the fleet benchmark), where the benchmarks' defaults (the
+registry's) are sized for hundreds of instances. An option the name gives replaces the whole entry."""
+
+
+def make_flown(
+    name: str, seed: int = 0, num_taxis: int = 1, assignment_value: Path | None = None,
+    arrival_window_s: float | None = None,
+) -> Any:  # fmt: skip
+    """The planner or dispatcher ``name`` (the grammar or a recorded alias) for one flight of ``num_taxis`` taxis,
+    built by the registry: a bare step planner with :data:`ONE_FLIGHT_OPTIONS`, ``random`` drawn from ``seed``,
+    ``batch_assignment_value`` with the value of ``assignment_value`` (None: the shipped one) for a service of
+    ``arrival_window_s``. ValueError for another kind of policy, an unknown name, or a single-taxi planner for a
+    fleet."""
+    if not isinstance(name, str):
+        raise ConfigError(f"--policy {name!r} is a {type(name).__name__}; name a policy, one of {POLICIES}.")
+    seed = check_integer("seed", seed, 0, MAX_SEED)
+    num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS)
+    if arrival_window_s is not None:
+        arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
+    call, options = _flown_call(name)
+    if available()[call][0] == "planner" and call != "random" and num_taxis != 1:
+        raise ConfigError(
+            f"--policy {name} is a single-taxi planner but the fleet has {num_taxis} taxis; use a fleet "
+            f"dispatcher ({', '.join(FLEET_DISPATCHERS)}) or random for a fleet, or --num-taxis 1."
+        )
+    if not options:
+        options = dict(ONE_FLIGHT_OPTIONS.get(call, {}))
+    if call == "random":
+        options.setdefault("seed", seed)
+    if call == VALUE_DISPATCHER:
+        if assignment_value is not None:
+            options.setdefault("value", str(assignment_value))
+        if arrival_window_s is not None:
+            options.setdefault("arrival_window_s", arrival_window_s)
+    return make(call, **options)
+
+
+def _flown_call(name: str) -> tuple[str, dict[str, Any]]:
+    """``(call, options)`` of ``name`` for :func:`make_flown`: a planner or a dispatcher; a name the registry
+    does not know, or another kind, is refused naming the policies a flight takes."""
+    head = re.split(r"[:+@(]", name, maxsplit=1)[0]
+    if head not in available():
+        raise ConfigError(
+            f"unknown --policy {name!r}; choose one of {POLICIES} (options after ':', e.g. replan:beam=64)."
+        )
+    kind = available()[head][0]
+    if kind not in ("planner", "dispatcher"):
+        raise ConfigError(f"--policy {name!r} is a {kind} policy; a flight by name takes a planner or a dispatcher, "
+                          f"one of {POLICIES}.")  # fmt: skip
+    call, options = parse(name)
+    return call, dict(options)
 
 
 def _batch(options: BatchOptions, value: Any = None) -> BatchAssignmentPolicy:
@@ -195,7 +254,7 @@ def _register() -> None:
     register("replan", "planner", ReplanOptions,
              lambda o, _b: StepPlannerPolicy("replan", [SearchSettings(o.beam, rank_slack=o.rank_slack)]))  # fmt: skip
     register("best_known", "planner", BestKnownOptions, lambda o, _b: _best_known(o))
-    register("replan_futures", "planner", FuturesOptions, lambda o, _b: FamilyReplan(o.family))
+    register("replan_futures", "planner", NoOptions, lambda _o, _b: FamilyReplan())
     register("random", "planner", RandomOptions, lambda o, _b: RandomPolicy(seed=o.seed))
     register("greedy", "dispatcher", NoOptions, lambda _o, _b: GreedyFleetPolicy())
     register("insertion", "dispatcher", InsertionOptions, lambda o, _b: InsertionPolicy(wait_weight=o.wait))
@@ -208,14 +267,15 @@ assert set(STEP_PLANNERS) == {"replan", "best_known"} and FLEET_DISPATCHERS == (
                                                                                  "batch_assignment")  # fmt: skip
 
 __all__ = [
+    "ONE_FLIGHT_OPTIONS",
     "REFIT_VALUES",
     "BatchOptions",
     "BestKnownOptions",
     "FamilyReplan",
-    "FuturesOptions",
     "InsertionOptions",
     "RandomOptions",
     "ReplanOptions",
     "ValueBatchOptions",
+    "make_flown",
     "value_path",
 ]

@@ -1,10 +1,11 @@
 """Search at decision time as wrappers over a base policy: ``argmax`` (the base itself), ``guided``, ``hedge`` and
 ``finish``, built from :mod:`uamfleet.rl.guided` and :mod:`uamfleet.baselines.finish` (their constructors as they
 are). ``guided(BASE)``, ``hedge(BASE)`` need a learned base (a :class:`~uamfleet.rl.policy.GreedyPolicy`);
-``finish(BASE)`` takes any one-taxi policy.
+``finish(BASE)`` takes any one-taxi policy. ``hedge`` and ``finish`` read the instance family's demand model from
+the simulator's world at ``reset(sim)`` and refuse, in one line, a world no family draws (a fixed scenario).
 
     from uamfleet import policies
-    search = policies.make("hedge", base=("learned", {"traced": True}), family="berlin")
+    search = policies.make("hedge", base=("learned", {"traced": True}))
 """
 
 from __future__ import annotations
@@ -14,8 +15,6 @@ from typing import Any
 
 from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.checks import check_integer, check_number
-from uamfleet.config import EnvConfig
-from uamfleet.instances import check_family
 from uamfleet.policies.registry import NoOptions, PolicyNameError, register
 from uamfleet.rl.guided import (
     MAX_EXPERT_BEAM,
@@ -52,12 +51,11 @@ class GuidedOptions:
 
 @dataclass(frozen=True)
 class HedgeOptions:
-    """``hedge``: while a request of ``family``'s demand model may come, every ``commit`` steps and at each release,
-    the base's ``first_headings`` likeliest first headings flown in ``futures`` sampled futures (rollouts end
-    ``tail`` steps after the last possible release, -1: at the end); then guided search with ``top_k`` and
-    ``samples``."""
+    """``hedge``: while a request of the demand model of the world's instance family may come, every ``commit``
+    steps and at each release, the base's ``first_headings`` likeliest first headings flown in ``futures`` sampled
+    futures (rollouts end ``tail`` steps after the last possible release, -1: at the end); then guided search with
+    ``top_k`` and ``samples``."""
 
-    family: str = "berlin"
     first_headings: int = 4
     futures: int = 8
     commit: int = 4
@@ -69,7 +67,6 @@ class HedgeOptions:
     horizon: int | None = None
 
     def __post_init__(self) -> None:
-        check_family(self.family)
         check_integer("first_headings", self.first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
         check_integer("futures", self.futures, 1, MAX_FUTURES, fix=" (e.g. 8)")
         check_integer("commit", self.commit, 1, MAX_STEPS, fix=" (e.g. 4)")
@@ -79,17 +76,13 @@ class HedgeOptions:
 
 @dataclass(frozen=True)
 class FinishOptions:
-    """``finish``: the base until ``family``'s demand model (slots of ``slot_s`` seconds) says no request can
-    come, then one step-level search of width ``beam`` over the requests, flown to the end."""
+    """``finish``: the base until the demand model of the world's instance family says no request can come, then
+    one step-level search of width ``beam`` over the requests, flown to the end."""
 
-    family: str = "berlin"
     beam: int = 16
-    slot_s: float = EnvConfig.slot_s
 
     def __post_init__(self) -> None:
-        check_family(self.family)
         check_integer("beam", self.beam, 1, fix=" (e.g. 16)")
-        check_number("slot_s", self.slot_s, positive=True)
 
 
 def _learned_base(name: str, base: Any) -> GreedyPolicy:
@@ -107,7 +100,7 @@ def _guided(o: GuidedOptions, base: Any) -> GuidedSearchPolicy:
 
 def _hedge(o: HedgeOptions, base: Any) -> AnticipatingGuidedSearch:
     return AnticipatingGuidedSearch(
-        _learned_base("hedge", base), o.family, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
+        _learned_base("hedge", base), None, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
         tail=None if o.tail < 0 else o.tail, top_k=o.top_k, samples=o.samples, temperature=o.temperature,
         expert_beam=o.expert_beam, horizon=o.horizon,
     )  # fmt: skip
@@ -116,8 +109,6 @@ def _hedge(o: HedgeOptions, base: Any) -> AnticipatingGuidedSearch:
 register("argmax", "search", NoOptions, lambda _o, base: base)
 register("guided", "search", GuidedOptions, _guided)
 register("hedge", "search", HedgeOptions, _hedge)
-register(
-    "finish", "search", FinishOptions, lambda o, base: FinishWithSearch.of_family(base, o.family, o.slot_s, o.beam)
-)
+register("finish", "search", FinishOptions, lambda o, base: FinishWithSearch.of_world(base, o.beam))
 
 __all__ = ["FinishOptions", "GuidedOptions", "HedgeOptions"]

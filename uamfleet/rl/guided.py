@@ -32,15 +32,17 @@ from typing import Any
 import numpy as np
 import torch
 
-from uamfleet.baselines.anticipation import DemandPrior
+from uamfleet.baselines.anticipation import DemandPrior, world_family
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
 from uamfleet.checks import MAX_SEED, MAX_TIME_LIMIT_STEPS, check_flag, check_integer, check_number
 from uamfleet.config import EnvConfig
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import check_family
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
+from uamfleet.sim.core import Simulator
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
 
 MAX_SAMPLES = 1024
@@ -54,7 +56,7 @@ MAX_STEPS = MAX_TIME_LIMIT_STEPS
 """Upper bound of the step counts ``horizon``, ``commit`` and ``tail``: an episode's longest."""
 
 
-class GuidedSearchPolicy:
+class GuidedSearchPolicy(PolicyBase):
     """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
     (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock seconds, thread CPU
     seconds) of every search. The defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four
@@ -83,10 +85,15 @@ class GuidedSearchPolicy:
         self.search: StepSearch | None = None
         self.search_won: list[bool] = []  # per search: the step-level search's plan was shorter than every flight
         self.rng = np.random.default_rng(seed)
-        self.env: VectorEnv | None = None
+        self.sim: Simulator | None = None
         self.scratch: VectorEnv | None = None
         self.queue: list[int] = []
         self.plans: list[tuple[int, int, int, float, float]] = []
+
+    @property
+    def spec(self) -> dict[str, tuple[int, ...]] | None:
+        """What it reads: its base policy's observation (:attr:`GreedyPolicy.spec`)."""
+        return self.policy.spec
 
     @property
     def passenger_slots(self) -> int | None:
@@ -101,38 +108,38 @@ class GuidedSearchPolicy:
         """One recorded episode on ``cfg`` laid out for the policy."""
         return fly(self.layout(cfg), self, seed=seed)
 
-    def reset(self, env: VectorEnv) -> None:
-        if env.num_envs != 1 or env.num_taxis != 1:
+    def reset(self, sim: Simulator) -> None:
+        if sim.num_envs != 1 or sim.num_taxis != 1:
             raise ValueError(
-                f"GuidedSearchPolicy flies one taxi in one env; got {env.num_envs} env(s) x {env.num_taxis} taxi(s)."
+                f"GuidedSearchPolicy flies one taxi in one env; got {sim.num_envs} env(s) x {sim.num_taxis} taxi(s)."
             )
-        self.env = env
-        self.policy.reset(env)  # its loop guard, for the steps it flies after a plan
-        if self.scratch is None or self.scratch.cfg is not env.cfg:
-            self.scratch = VectorEnv(env.cfg, num_envs=self.top_k + self.samples, autoreset=True)
+        self.sim = sim
+        self.policy.reset(sim)  # its loop guard, for the steps it flies after a plan
+        if self.scratch is None or self.scratch.cfg is not sim.cfg:
+            self.scratch = VectorEnv(sim.cfg, num_envs=self.top_k + self.samples, autoreset=True)
             self.scratch.reset(seed=0)
-            self.search = StepSearch(env.cfg) if self.expert_beam else None
+            self.search = StepSearch(sim.cfg) if self.expert_beam else None
         self.queue, self.plans, self.search_won = [], [], []
         self._released = self._released_rows()
         self.queue = self._search()
 
     def _released_rows(self) -> np.ndarray:
-        assert self.env is not None
-        s = self.env.state
+        assert self.sim is not None
+        s = self.sim.state
         return (s.pax_status[0] != HIDDEN) & s.pax_exists[0]
 
     def _search(self) -> list[int]:
         """Roll the candidates forward from the env's state over the released requests; the best one's actions."""
-        assert self.env is not None and self.scratch is not None
+        assert self.sim is not None and self.scratch is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
         scratch = self.scratch
         self._replan_when_flown = False
-        root = released_only(self.env.state)  # the future is unknown
+        root = released_only(self.sim.state)  # the future is unknown
         if not root.pax_exists.any():
             return []
         for target, source in zip(scratch.state, root, strict=True):
             target[:] = source  # every scratch env starts as the env does, over the known requests
-        limit = int(self.env.cfg.time_limit_steps - self.env.state.t[0])
+        limit = int(self.sim.cfg.time_limit_steps - self.sim.state.t[0])
         span = limit if self.horizon is None else min(limit, self.horizon)
         chosen_plan, best_key = self._rollouts(span, cut=span < limit)  # uncut: every candidate runs to its end
         search_won = False
@@ -143,7 +150,7 @@ class GuidedSearchPolicy:
                 self._replan_when_flown = False  # the search's plan runs to the end
         self.search_won.append(search_won)
         wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
-        self.plans.append((int(self.env.state.t[0]), scratch.num_envs, best_key[0] if best_key else -1, wall, cpu))
+        self.plans.append((int(self.sim.state.t[0]), scratch.num_envs, best_key[0] if best_key else -1, wall, cpu))
         return chosen_plan
 
     def _headings(
@@ -165,7 +172,7 @@ class GuidedSearchPolicy:
         the one that delivers every known passenger in the fewest moves (then steps), and its (moves, steps). With
         ``cut`` (``limit`` is the horizon), a candidate still flying at ``limit`` counts its moves plus its tour
         bound (:meth:`_tour_moves`), rounded to whole moves in the returned key."""
-        assert self.scratch is not None and self.env is not None
+        assert self.scratch is not None and self.sim is not None
         scratch, K = self.scratch, self.scratch.num_envs
         obs = scratch.observer.observe(scratch.state)
         actions: list[list[int]] = [[] for _ in range(K)]
@@ -203,16 +210,16 @@ class GuidedSearchPolicy:
     def _tour_moves(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """[K] the shortest tour through every known stop left, from each scratch taxi's position, in moves: the
         least ``tour_via_stop`` over its actionable stops (0 where it has none)."""
-        assert self.env is not None
-        cfg = self.env.cfg
+        assert self.sim is not None
+        cfg = self.sim.cfg
         tours = obs["stop_paths"][:, 0, :, 2].astype(float)  # [K, P] map sides
         actionable = obs["stop_heading_mask"][:, 0].any(-1)  # [K, P]
         least = np.where(actionable, tours, np.inf).min(-1)
-        side_m = self.env.world.side_m
+        side_m = self.sim.world.side_m
         return np.where(np.isfinite(least), least * side_m / cfg.step_m, 0.0)
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        assert self.env is not None, "call reset(env) first (uamfleet.rollout.fly does)"
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        assert self.sim is not None, "call reset(sim) first (uamfleet.rollout.fly does)"
         released = self._released_rows()
         if (released & ~self._released).any():
             self._released = released
@@ -255,17 +262,19 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     all the requests; ``top_k`` 8 and ``samples`` 8 here, so that search too fits a second of one core) and flies
     that plan. The defaults are the settings tried on 60 validation instances whose every search took at most a
     second of one core (docs/results.md, "Hedging for the requests to come"). Like ``replan_futures`` it reads only
-    released requests, the clock and the family's demand model. ``plans`` keeps every search as
+    released requests, the clock and the family's demand model: ``demand`` (a family's name, a
+    :class:`~uamfleet.baselines.anticipation.DemandPrior`, or None: the family of the simulator's world at each
+    :meth:`reset`, refused there for a world no family draws). ``plans`` keeps every search as
     :class:`GuidedSearchPolicy`'s does (the chosen candidate's mean moves, rounded, in place of its moves)."""
 
     def __init__(
-        self, policy: GreedyPolicy, demand: str | DemandPrior, first_headings: int = 4, futures: int = 8,
+        self, policy: GreedyPolicy, demand: str | DemandPrior | None, first_headings: int = 4, futures: int = 8,
         commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, top_k: int = 8, samples: int = 8,
         **known_search: Any,
     ) -> None:  # fmt: skip
         if isinstance(demand, str):
             check_family(demand)
-        elif not isinstance(demand, DemandPrior):
+        elif demand is not None and not isinstance(demand, DemandPrior):
             raise ValueError(f"demand={demand!r} is no instance family's name or DemandPrior; pass one, e.g. 'berlin'.")
         first_headings = check_integer("first_headings", first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
         futures = check_integer("futures", futures, 1, MAX_FUTURES, fix=" (futures drawn per search, e.g. 8)")
@@ -286,15 +295,16 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.waited: list[bool] = []  # per search over futures: waiting in place won
         self.scores: list[tuple[np.ndarray, np.ndarray]] = []  # per search over futures: (first headings, mean moves)
 
-    def reset(self, env: VectorEnv) -> None:
+    def reset(self, sim: Simulator) -> None:
         if isinstance(self.demand, DemandPrior):
             self.prior = self.demand
         else:  # the family's model on this map and threshold (its flyable sites), made once per pair
-            key = (env.cfg.scenario, float(env.cfg.sinr_min_db), str(env.cfg.feasibility))
+            family = self.demand if self.demand is not None else world_family(sim.cfg, "hedge")
+            key = (sim.cfg.scenario, float(sim.cfg.sinr_min_db), str(sim.cfg.feasibility))
             if key not in self._priors:
-                self._priors[key] = DemandPrior.of_family(self.demand, env.cfg)
+                self._priors[key] = DemandPrior.of_family(family, sim.cfg)
             self.prior = self._priors[key]
-        rows = int(env.state.pax_exists.shape[1])
+        rows = int(sim.state.pax_exists.shape[1])
         if rows < self.prior.max_requests:
             raise ValueError(
                 f"AnticipatingGuidedSearch samples up to {self.prior.max_requests} requests of its demand model, "
@@ -305,32 +315,34 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.hedged, self.waited, self.scores = [], [], []
         self._next_search_t = 0  # the step of the next search over futures, between releases
         self._known_search_done = False
-        super().reset(env)  # its search at the start runs through _search below
+        super().reset(sim)  # its search at the start runs through _search below
 
     def _search(self) -> list[int]:
-        assert self.env is not None
-        known = released_only(self.env.state)
+        assert self.sim is not None
+        known = released_only(self.sim.state)
         if not known.pax_exists.any():
             return []
         samples = [self.prior.sample(known, self.rng_futures) for _ in range(self.futures)]
         if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
             self._known_search_done = True
             return super()._search()
-        self._next_search_t = int(self.env.state.t[0]) + self.commit
+        self._next_search_t = int(self.sim.state.t[0]) + self.commit
         return self._hedge([known if f is None else f for f in samples])
 
     def _hedge(self, futures: list[FleetState]) -> list[int]:
         """The candidate of least mean moves over ``futures`` (class docstring): its first heading, or with
         ``wait`` its ``commit`` steps in place."""
-        assert self.env is not None
+        assert self.sim is not None
         start, start_cpu = time.perf_counter(), time.thread_time()
         K, F = self.first_headings, self.futures
-        root_logits = self.policy.logits_of(self.policy.network_input(self.env.observer.observe(self.env.state)))[0]
+        assert self.scratch is not None  # its observer reads the simulator's world as the policy does (reset)
+        root_obs = self.scratch.observer.observe(self.sim.state)
+        root_logits = self.policy.logits_of(self.policy.network_input(root_obs))[0]
         finite = torch.isfinite(root_logits) & (root_logits > -1e8)
         order = torch.argsort(root_logits, descending=True)[: max(1, min(K, int(finite.sum())))].numpy()
         first = np.resize(order, K)  # fewer allowed headings than K: the last rows repeat candidates
         hold = np.ones(K, np.int64)  # steps a candidate keeps its first action before the policy flies
-        blocked = np.flatnonzero(~self.env.state.action_mask[0, 0, :NUM_HEADINGS])
+        blocked = np.flatnonzero(~self.sim.state.action_mask[0, 0, :NUM_HEADINGS])
         if self.wait and len(blocked):  # a heading the rule forbids keeps the taxi in place: waiting flies nothing
             first, hold = np.append(first, blocked[0]), np.append(hold, self.commit)
         C = len(first)
@@ -339,8 +351,8 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             for f, future in enumerate(futures):  # env c * F + f: candidate c in future f
                 getattr(env.state, name)[f::F] = getattr(future, name)[0]
         obs = env.observer.observe(env.state)
-        t = int(self.env.state.t[0])
-        limit = int(self.env.cfg.time_limit_steps - t)
+        t = int(self.sim.state.t[0])
+        limit = int(self.sim.cfg.time_limit_steps - t)
         if self.tail is not None:  # every sampled request is released by the window's end: then a tour bound
             limit = min(limit, max(0, self.prior.window_steps - t) + self.tail)
         rows_first, rows_hold = np.repeat(first, F), np.repeat(hold, F)
@@ -360,7 +372,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
                 break
         cut = ~finished  # still flying at the tail's end: its moves plus the tour through the stops it has left
         moves[cut] += self._tour_moves(obs)[cut]
-        moves[finished & ~delivered] += self.env.cfg.time_limit_steps  # cut by the time limit: never preferred
+        moves[finished & ~delivered] += self.sim.cfg.time_limit_steps  # cut by the time limit: never preferred
         means = moves.reshape(C, F).mean(1)
         best = int(np.argmin(means))  # ties to the lowest index: the policy's own first heading
         self.hedged.append(bool(best > 0 and first[best] != first[0]))
@@ -372,18 +384,18 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
 
     def _futures_env(self, num_envs: int) -> VectorEnv:
         """The scratch env of ``num_envs`` rows for one search (made once per size and config)."""
-        assert self.env is not None
+        assert self.sim is not None
         env = self._futures_envs.get(num_envs)
-        if env is None or env.cfg is not self.env.cfg:
-            env = self._futures_envs[num_envs] = VectorEnv(self.env.cfg, num_envs=num_envs, autoreset=True)
+        if env is None or env.cfg is not self.sim.cfg:
+            env = self._futures_envs[num_envs] = VectorEnv(self.sim.cfg, num_envs=num_envs, autoreset=True)
             env.reset(seed=0)
         return env
 
     def _search_due(self) -> bool:
         """`commit` steps flown since the last search over futures, while a request may come (or a horizon's plan
         flown, once nothing can)."""
-        assert self.env is not None
-        due = not self._known_search_done and int(self.env.state.t[0]) >= self._next_search_t
+        assert self.sim is not None
+        due = not self._known_search_done and int(self.sim.state.t[0]) >= self._next_search_t
         return due or super()._search_due()
 
 

@@ -17,6 +17,7 @@ import torch
 
 from uamfleet.checks import MAX_PASSENGERS, ConfigError
 from uamfleet.config import MAX_TAXIS, EnvConfig, check_integer
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.observe.spec import (
     PASSENGER_AXIS_FIELDS,
     Layout,
@@ -35,7 +36,7 @@ from uamfleet.rl.options import TrainArgs
 from uamfleet.rollout import Trajectory, fly
 
 
-class GreedyPolicy:
+class GreedyPolicy(PolicyBase):
     """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
 
     ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
@@ -68,8 +69,15 @@ class GreedyPolicy:
         self.traced = False  # see trace_actor
         self._traces: dict[tuple[object, ...], torch.jit.ScriptModule] = {}
 
-    def reset(self, env: object = None) -> None:
-        """A new episode (``Policy.reset``): the loop guard forgets every taxi's points."""
+    @property
+    def spec(self) -> dict[str, tuple[int, ...]] | None:
+        """What it reads (:class:`~uamfleet.env.protocol.Policy`): one agent's observation fields and their shapes
+        at training."""
+        return self.obs_shapes
+
+    def reset(self, sim: object = None) -> None:
+        """A new episode (:meth:`Policy.reset <uamfleet.env.protocol.Policy.reset>`): the loop guard forgets every
+        taxi's points (the simulator itself is not read)."""
         if self.loop_guard is not None:
             self.loop_guard.reset()
 
@@ -269,7 +277,7 @@ class GreedyPolicy:
             self._traces[signature] = trace
         return trace(*(x[k] for k in keys))
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         E, A = obs["action_mask"].shape[:2]
         logits = self.logits_of(self.network_input(obs))
         if self.loop_guard is None:
