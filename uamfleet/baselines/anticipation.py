@@ -156,7 +156,8 @@ REPLAN_FUTURES_SEARCH = SearchSettings(beam=64, rank_slack=0.5)
 class AnticipatingReplan(PolicyBase):
     """``replan_futures`` (module docstring) as a policy for a one-taxi, one-env core. ``plans`` keeps (step,
     number of candidates, index of the chosen one (0: ``replan``'s), its mean scored moves, actions committed to,
-    wall seconds) of every decision. The defaults are those of the first try (docs/results.md), not tuned."""
+    wall seconds) of every decision. The defaults are not tuned (how they were chosen:
+    reports/2026-12-03-results-history/README.md, "Anticipating releases")."""
 
     def __init__(
         self, prior: DemandPrior, futures: int = 4, scored: int = 8, replan: SearchSettings = REPLAN_FUTURES_SEARCH,

@@ -52,8 +52,8 @@ INCREASING: tuple[int, ...] = (1, 2, 3)
 """The columns whose weights the fit keeps >= 0. Each grows with the open share (remoteness is positive), so a
 taxi's value never grows with the time it is free at the same place: a taxi free earlier can always hover until
 the later time. A first fit without this rule, with a column of the time until the taxi is free, rewarded longer
-routes: priced at 400 s, riders waited until the time limit (docs/results.md, "A learned value inside
-batch_assignment")."""
+routes: priced at 400 s, riders waited until the time limit (reports/2026-12-03-results-history/README.md,
+"A learned value inside `batch_assignment`")."""
 
 MAX_SECONDS = 1e9
 """Upper bound of every time and price in seconds of the dispatchers (``price_s``, ``penalty_s``, ``+price=<s>``,

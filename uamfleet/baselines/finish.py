@@ -8,9 +8,10 @@ solves nearly exactly, and a learned policy's one- or two-move look-ahead does n
 flies any one-taxi policy until then, solves once at that step, and flies the plan to the end.
 
 Why: the shipped policy flies as short as ``replan`` until the last release and loses its whole gap to it after
-(docs/results.md, "The two-move look-ahead policy"), while ``replan`` pays a search at every release. Here the
-policy flies the uncertain part of the episode at its own cost (≤ 1 ms a decision) and one search flies the known
-part. The switch reads only the clock, the count of released requests and the family's model: never a hidden row.
+(reports/2026-12-03-results-history/README.md, "The two-move look-ahead policy"), while ``replan`` pays a search at
+every release. Here the policy flies the uncertain part of the episode at its own cost (≤ 1 ms a decision) and one
+search flies the known part. The switch reads only the clock, the count of released requests and the family's model:
+never a hidden row.
 """
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ class Args:
     --hedge-futures futures drawn from the instance family's demand model; the first heading of least mean distance
     is taken, or a wait in place where one is possible. Once nothing can come, one guided search of the policy's
     --guided-top-k first headings and --hedge-samples sampled flights. The defaults were chosen on 60 validation
-    instances (docs/results.md, "Hedging for the requests to come"). Instances only"""
+    instances (reports/2026-12-03-results-history/README.md, "Hedging for the requests to come"). Instances only"""
     hedge_first_headings: int = 4
     hedge_futures: int = 8
     hedge_commit: int = 4

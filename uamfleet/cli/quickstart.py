@@ -8,7 +8,7 @@ Starts from the shipped generalist (``uamfleet.pretrained("berlin")``, one polic
 on random demand) and fine-tunes it with PPO on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold),
 with a KL term toward the start (``--kl-to-init``). The start is evaluated first and after every iteration, and
 the shortest greedy tour of those evaluations is kept (runs/quickstart/best.pt), so the result is never worse than
-the start: every seed lands where the start does or shorter (docs/results.md, "The main job over 10 seeds").
+the start: every seed lands where the start does or shorter (docs/getting-started.md, "The main job").
 From scratch (``--init-from None``) it trains the ``de_msfea`` network for 150k agent-steps with shaping that
 pays only for progress; that recipe left 4 of 10 seeds 6-43 % above the best known tour. It prints TD / ATT /
 AWT / ELR / PR / connectivity next to the paper's MSHA-RL row and our raster planners (``raster_replan``, online;
@@ -62,19 +62,21 @@ class Args:
     sinr_min_db: float = -3.0
     seed: int = 1
     variant: Variant = "de_msfea"
-    """network variant from scratch (docs/results.md: de_msfea learns the tour fastest on a CPU; full is ~3x slower
-    per step); fine-tuning trains the start's network"""
+    """network variant from scratch (de_msfea learns the tour fastest on a CPU; full is ~3x slower per step:
+    docs/benchmarks.md, "Training"); fine-tuning trains the start's network"""
     feasibility: Feasibility = "endpoint_block"
-    """move rule of training and of every row printed (endpoint_block: the authors'; see docs/results.md)"""
+    """move rule of training and of every row printed (endpoint_block: the authors'; see docs/rules.md, "Feasibility
+    rules")"""
     threads: int = 1
     """torch CPU threads. With 1 the run repeats exactly on one machine (not across machines) and is the seed-1 run
-    of docs/results.md's "The main job over 10 seeds"; more threads change floating-point reductions, hence the
-    whole run (a 2-thread run of seed 1 under the earlier recipe stalled at 1 of 4 passengers)"""
+    of the spread over 10 seeds (docs/getting-started.md, "The main job"); more threads change floating-point
+    reductions, hence the whole run (a 2-thread run of seed 1 from scratch stalled at 1 of 4 passengers)"""
     shaping_gamma: float | None = 1.0
     """from scratch: discount inside the shaping term gamma_Phi Phi(s') - Phi(s) (TrainArgs.env.shaping_gamma; None:
     the trainer's gamma, 0.9). 1: a step pays only for progress toward the next stop. With 0.9 the term also pays
     w (1 - 0.9) |Phi| per step for staying far from it: seeds 3 and 6 learned to hover there
-    (docs/results.md, "The main job over 10 seeds"). Fine-tuning uses the start's reward (no shaping)"""
+    (reports/2026-12-03-results-history/README.md, "The main job over 10 seeds"). Fine-tuning uses the start's reward
+    (no shaping)"""
     kl_to_init: float = 0.01
     """fine-tuning: weight of the KL divergence from the start in the PPO loss (TrainArgs.net.kl_to_init)"""
     eval_every: int = 1
@@ -91,7 +93,8 @@ class Args:
     """then fly the shipped Berlin generalist (uamfleet.pretrained("berlin")) on Berlin P4 at -7 ... -3 dB and on
     the held-out test instances"""
     test_count: int = 200
-    """test instances the generalist flies (the first of the 200 of docs/results.md)"""
+    """test instances the generalist flies (the first of the 200 of docs/results.md, "The generalist on the test
+    sets")"""
     planner_csv: Path = Path("docs/results/benchmark_berlin_test.csv")
     """the planners' recorded rows on the test instances, shown beside the generalist's (skipped if absent)"""
 

@@ -436,9 +436,9 @@ def _load_error(err: Exception) -> str:
 PRETRAINED: dict[str, str] = {
     "berlin": "berlin.pt",  # one taxi on the Berlin WinProp map, any threshold -7 ... -3 dB, up to 6 requests;
     # berlin_stops plus a correction of its flight learned from replan (DAgger, issue 20), reading each heading's
-    # two-move look-ahead on the tour (EnvConfig.lookahead_depth=2; since 2026-12-02)
-    "berlin_lookahead1": "berlin_lookahead1.pt",  # the same from the one-move look-ahead (shipped as "berlin"
-    # 2026-12-01 ... 2026-12-02), for its results
+    # two-move look-ahead on the tour (EnvConfig.lookahead_depth=2)
+    "berlin_lookahead1": "berlin_lookahead1.pt",  # the same from the one-move look-ahead (the "berlin" shipped
+    # before it), for its results
     "berlin_stops": "berlin_stops.pt",  # the first generalist: stop head on the exact-tour prior, each stop flown
     # along its progress heading (issue 12); the look-ahead policy's prior and uamfleet-imitate's default start
     # The fleet names point at files by what the policy is, not by file name: every committed fleet command names
@@ -448,9 +448,9 @@ PRETRAINED: dict[str, str] = {
     # .for_fleet(n), any number of requests (it reads a 24-row passenger window, docs/rules.md "Passenger window"):
     # berlin_fleet_v1 fine-tuned on a mixture of 2-8 taxis, light and loaded, under the shield, waiting with the true
     # hover action (NetConfig.hover_logit; fly it with EnvConfig.hover_action=True, on in the *_fleet presets);
-    # docs/results/fleet_hover_finetune.md; since 2026-12-02 (docs/results.md "The hover fleet at 100 loaded")
+    # how it was trained: reports/2026-12-03-results-history/fleet_hover_finetune.md; its rows: docs/results.md "Fleets"
     "berlin_fleet_hover": "berlin_fleet_hover.pt",  # the same policy under the name its results were measured by
-    "berlin_fleet_v1": "berlin_fleet.pt",  # the fleet policy shipped as "berlin_fleet" until 2026-12-02 (trained
+    "berlin_fleet_v1": "berlin_fleet.pt",  # the "berlin_fleet" shipped before it (trained
     # with 4 taxis): nearest-first claims, zig-zagging when idle, 6 requests per taxi; any number of requests through
     # .for_fleet(n, passenger_window=24), its 24 trained slots; for its results
     "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results

@@ -212,11 +212,11 @@ def _launched(local_rank: int, world_size: int, port: int, fn: Callable[..., Non
     """One rank: ``fn(*args)``, then a teardown that never runs the interpreter's exit with gloo threads alive.
 
     A 2-rank run could end with a rank killed by SIGABRT ("terminate called without an active exception",
-    raised while the interpreter was finalising: docs/benchmarks.md). After ``train()``,
-    ``destroy_process_group()`` does not free the gloo group (its threads ``gloo_tcp_loop``, ``pt_gloo_runloop``
-    and rank 0's ``pt_tcpstore_uv`` still run: some object still holds it), so the C++ group was torn down
-    during interpreter finalisation, possibly after the other rank, which hosts the store, had gone. So on success
-    every rank waits for all (no rank leaves while another still uses the group), destroys the group and leaves
+    raised while the interpreter was finalising: reports/2026-12-03-benchmarks-history/README.md, "Data-parallel PPO").
+    After ``train()``, ``destroy_process_group()`` does not free the gloo group (its threads ``gloo_tcp_loop``,
+    ``pt_gloo_runloop`` and rank 0's ``pt_tcpstore_uv`` still run: some object still holds it), so the C++ group was
+    torn down during interpreter finalisation, possibly after the other rank, which hosts the store, had gone. So on
+    success every rank waits for all (no rank leaves while another still uses the group), destroys the group and leaves
     with ``os._exit(0)`` once its output is flushed; a rank whose ``fn`` raises exits the usual way, so the
     launcher still reports its traceback (atexit handlers of a successful rank do not run). ``faulthandler``
     prints every thread's stack if a rank crashes."""

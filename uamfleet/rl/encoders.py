@@ -115,11 +115,11 @@ def paired_map_features(first: MapEncoder, second: MapEncoder, a: torch.Tensor, 
     grouped convolution per layer over the two patches stacked as channels, in channels-last memory.
 
     Why: the CNNs have 4 channels, too few for oneDNN's kernels to pay for their calls, and their backward was the
-    largest single cost of a PPO update (docs/benchmarks.md, "Where a PPO iteration's time goes"). One grouped
-    channels-last convolution per layer does the two maps' work in less than half the time (a batch of 960: 9.5 ms
-    forward and backward against 22.5 ms), with the same numbers to float rounding (tested; bit for bit with this
-    machine's oneDNN for batches of 2 and more). A batch of one (a lone taxi's decision) keeps the two plain calls,
-    which are faster there. Both encoders must be :class:`MapEncoder` of the same width; the parameters stay
+    largest single cost of a PPO update (reports/2026-12-03-benchmarks-history/README.md, "Where a PPO iteration's time
+    goes"). One grouped channels-last convolution per layer does the two maps' work in less than half the time (a batch
+    of 960: 9.5 ms forward and backward against 22.5 ms), with the same numbers to float rounding (tested; bit for bit
+    with this machine's oneDNN for batches of 2 and more). A batch of one (a lone taxi's decision) keeps the two plain
+    calls, which are faster there. Both encoders must be :class:`MapEncoder` of the same width; the parameters stay
     theirs, so checkpoints are unchanged.
     """
     if a.shape[0] < 2:
@@ -257,7 +257,7 @@ class HybridAttention(nn.Module):
 
     The output projection starts near zero (orthogonal, gain 0.01), so the block starts close to the identity:
     the "full" variant starts as "de_msfea" (plus a position embedding) and learns the attention on top (why not
-    post-norm: docs/results.md, "The recipe, and what made the difference", item 3).
+    post-norm: reports/2026-12-03-results-history/README.md, "The recipe, and what made the difference", item 3).
 
     Tokens come in and go out in row-major grid order; inside, they are put in window-major order once so
     that every window is a contiguous block (attention, projections and LayerNorm do not care about order).

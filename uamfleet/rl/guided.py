@@ -60,8 +60,8 @@ class GuidedSearchPolicy(PolicyBase):
     """A one-taxi policy for :func:`uamfleet.rollout.fly`: ``policy`` improved by rollouts at each release
     (module docstring). ``plans`` keeps (release step, candidates, chosen moves, wall-clock seconds, thread CPU
     seconds) of every search. The defaults (8 first headings, 24 samples at temperature 2) flew the shortest of four
-    settings on 25 validation instances (docs/results.md, "Learning from the search"). ``horizon`` (None: every
-    candidate to its end) bounds a search's rollouts (module docstring)."""
+    settings on 25 validation instances (reports/2026-12-03-results-history/README.md, "Learning from the search").
+    ``horizon`` (None: every candidate to its end) bounds a search's rollouts (module docstring)."""
 
     def __init__(
         self, policy: GreedyPolicy, top_k: int = 8, samples: int = 24, temperature: float = 2.0, seed: int = 0,
@@ -261,9 +261,9 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     Once no request can come, it searches once as :class:`GuidedSearchPolicy` does (the known requests are then
     all the requests; ``top_k`` 8 and ``samples`` 8 here, so that search too fits a second of one core) and flies
     that plan. The defaults are the settings tried on 60 validation instances whose every search took at most a
-    second of one core (docs/results.md, "Hedging for the requests to come"). Like ``replan_futures`` it reads only
-    released requests, the clock and the family's demand model: ``demand`` (a family's name, a
-    :class:`~uamfleet.baselines.anticipation.DemandPrior`, or None: the family of the simulator's world at each
+    second of one core (reports/2026-12-03-results-history/README.md, "Hedging for the requests to come"). Like
+    ``replan_futures`` it reads only released requests, the clock and the family's demand model: ``demand`` (a family's
+    name, a :class:`~uamfleet.baselines.anticipation.DemandPrior`, or None: the family of the simulator's world at each
     :meth:`reset`, refused there for a world no family draws). ``plans`` keeps every search as
     :class:`GuidedSearchPolicy`'s does (the chosen candidate's mean moves, rounded, in place of its moves)."""
 

@@ -91,10 +91,11 @@ class StopHead(nn.Module):
     stop's pick-up radius on the side of the next stop, which the prior leaves to heading order.
     ``lookahead_rule`` (``NetConfig.lookahead_rule``) also takes that many logits per move of look-ahead from each
     heading, a fixed term: at :data:`LOOKAHEAD_RULE` the untrained head flies the least look-ahead heading (the rule
-    of ``benchmarks/lookahead_rule.py``), the prior breaking near-ties, and what is learned corrects the rule.
+    of ``reports/2026-12-03-one-off-benchmarks/lookahead_rule.py``), the prior breaking near-ties, and what is learned
+    corrects the rule.
 
-    Why each part is there (the runs without it): ``docs/results.md``, "What fell short, what was tried" (the
-    prior, the free move) and "A learned fleet" (claims, hover).
+    Why each part is there (the runs without it): ``reports/2026-12-03-results-history/README.md``, "What fell short,
+    what was tried" (the prior, the free move) and "A learned fleet" (claims, hover).
     """
 
     def __init__(

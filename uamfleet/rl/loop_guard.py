@@ -6,8 +6,8 @@ comes back to a point it stood on since its last event is likely to repeat what 
 ``segment_raster`` this happens: the distance table, interpolated between block centres, can make a point look
 closer to a stop than any move from it can get (the moves towards the stop cross outage cells), and the shipped
 policy flew two headings back and forth until the time limit on 32 of the 200 Berlin test instances
-(docs/results.md, "Under `segment_raster`"). With a consistent distance a return without an event only adds two
-moves, so forbidding it costs nothing where the policy is right.
+(reports/2026-12-03-results-history/README.md, "Under `segment_raster`"). With a consistent distance a return without an
+event only adds two moves, so forbidding it costs nothing where the policy is right.
 
 The rule (docs/rules.md "Greedy decoding of a trained policy"): while a taxi has somewhere to go (a rider on board,
 a request the fleet's matching gives it (``stop_claims``), or, flying alone, a waiting request and a free seat), a

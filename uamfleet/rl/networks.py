@@ -19,7 +19,7 @@ tokens) is read out by a linear layer over the flattened k × k cells (``readout
 which keeps *where* on the patch a feature is: the direction of a no-fly area decides the heading. The
 paper's ``f_output ∈ R^{1×C}`` after a linear layer admits this reading; ``readout="mean"`` (a mean over the
 cells, blind to position unless attention mixed in the position embedding) is kept for comparison (how the two
-compare: docs/results.md, "The recipe, and what made the difference", item 2).
+compare: reports/2026-12-03-results-history/README.md, "The recipe, and what made the difference", item 2).
 
 Inputs are used as given (the trainer's ObservationNormalizer standardises the continuous fields; raw SINR
 is in dB); masks are read as booleans (> 0.5), never rescaled.

@@ -243,9 +243,10 @@ class GreedyPolicy(PolicyBase):
     def trace_actor(self, enabled: bool = True) -> GreedyPolicy:
         """Run the network's actor as TorchScript traces (``torch.jit.trace``), one per set of input shapes, made
         at its first call: the same logits bit for bit (the actor branches on shapes only, never on values), in
-        less than half the time of the eager call for a lone taxi (docs/benchmarks.md), which is mostly Python
-        overhead per operation. The traces share the network's parameters, so later weight updates are seen.
-        For deployment and benchmarks; training and its evaluations run eagerly. Returns this policy."""
+        less than half the time of the eager call for a lone taxi (reports/2026-12-03-benchmarks-history/README.md, "the
+        actor as TorchScript traces"), which is mostly Python overhead per operation. The traces share the network's
+        parameters, so later weight updates are seen. For deployment and benchmarks; training and its evaluations run
+        eagerly. Returns this policy."""
         self.traced = enabled
         self._traces.clear()
         return self
@@ -254,7 +255,7 @@ class GreedyPolicy(PolicyBase):
     def logits_of(self, inputs: dict[str, np.ndarray]) -> torch.Tensor:
         """Masked logits [B, 16] (17 with the hover action's, ``NetConfig.hover_logit``) for :meth:`network_input`
         rows (needs no critic state). Under inference mode, not only no_grad: less overhead per call, which a lone
-        taxi's decision is mostly (docs/benchmarks.md); with :meth:`trace_actor`, through a trace."""
+        taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`, through a trace."""
         x = obs_to_torch(inputs, self.device)
         if not self.traced:
             return self.net.masked_logits(x)
