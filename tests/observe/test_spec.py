@@ -182,3 +182,14 @@ def test_from_dict_refuses_an_unknown_key_naming_it() -> None:
         ObserverSpec.from_dict({"stop_features": True})
     with pytest.raises(ConfigError, match="stops="):
         ObserverSpec.from_dict({"stops": {"rival": True}})
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_each_presets_named_observer_is_what_its_config_observes(name: str) -> None:
+    from uamfleet.presets import OBSERVERS
+
+    _, split = split_env_config(PRESETS[name]())
+    named = ObserverSpec.from_dict(OBSERVERS[name])
+    pinned = {"slots_per_taxi": None, "time_scale_steps": None, "hover": False}  # the split pins these to the world
+    assert dataclasses.replace(split, **pinned) == named
+    assert set(OBSERVERS) == set(PRESETS)

@@ -12,9 +12,11 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from uamfleet.config import ConfigError
 from uamfleet.observe import basic, stops, window
 from uamfleet.observe.lookahead import heading_lookahead
-from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
+from uamfleet.observe.legacy import check_observable, split_env_config
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, ObserverSpec, observation_space
 from uamfleet.paths import table_for
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.world import World
@@ -32,22 +34,43 @@ __all__ = [
 
 
 class Observer:
-    """Builds the observation dict ``{name: [E, A, ...] array}``; its fields, shapes and dtypes are
-    :func:`uamfleet.observe.spec.observation_layout`'s (``self.layout``). With a passenger window
-    (``EnvConfig.passenger_window``) every field is computed for every passenger of the state (``self.computed``),
-    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.observe.window`)."""
+    """Builds the observation dict ``{name: [E, A, ...] array}`` of what ``spec`` reads of ``world``; its fields,
+    shapes and dtypes are :meth:`ObserverSpec.layout`'s (``self.layout``). ``spec=None``: the split of the world's
+    config (:func:`uamfleet.observe.legacy.split_env_config`). With a passenger window (``spec.passenger_window``)
+    every field is computed for every passenger of the state (``self.computed``), then each taxi's window of the
+    passenger-axis fields is taken (:mod:`uamfleet.observe.window`). The time features divide by
+    ``spec.time_scale_steps`` (None: the world's time limit)."""
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: World, spec: ObserverSpec | None = None) -> None:
         cfg = world.cfg
+        if spec is None:
+            spec = split_env_config(cfg)[1]
+        else:
+            check_observable(cfg, spec)
+            kept = (cfg.history_len, cfg.patch_size, cfg.stop_features or spec.stops is None)
+            if kept != (spec.history_len, spec.patch_size, True):
+                raise ConfigError(
+                    f"the simulator keeps history_len={cfg.history_len}, patch_size={cfg.patch_size} and "
+                    f"stop_features={cfg.stop_features}, which the observer {spec} cannot read; build the simulator "
+                    "from uamfleet.observe.legacy.observed_config(world, spec)."
+                )
+        self.spec = spec
         self.world = world
         self.cfg = cfg
         self.num_taxis = cfg.num_taxis
-        self.layout = observation_layout(cfg)
-        self.computed = computed_layout(cfg)  # the layout itself without a window
-        self.window = cfg.passenger_window
+        self.layout = self.spec.layout(cfg)
+        self.computed = self.spec.computed_layout(cfg)  # the layout itself without a window
+        self.window = self.spec.passenger_window
+        self.depth = 0 if self.spec.lookahead is None else self.spec.lookahead.depth
         self.observation_space = observation_space(self.layout)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
-        self.table = table_for(world) if "stop_paths" in self.layout else None
+        self.table = table_for(world) if self.spec.stops is not None else None
+        # the always-on fields read the time limit from the world's arrays: the spec's scale replaces it there
+        scale = self.spec.time_scale_steps
+        arrays = world.arrays
+        if scale is not None and scale != arrays.time_limit_steps:
+            arrays = arrays._replace(time_limit_steps=float(scale))
+        self._basic_arrays = arrays
         # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
         self._observe, self._hover = PreTyped(basic.observe), PreTyped(basic.hover_headings)
 
@@ -56,7 +79,7 @@ class Observer:
         E, A = state.num_envs, state.num_taxis
         obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.computed.items()}
         self._observe(
-            state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
+            state, self._basic_arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
         if "hover_heading_mask" in obs:
@@ -102,9 +125,8 @@ class Observer:
             stops.stop_features(*paths)
             if rivals is not None:
                 stops.stop_rivals(*rivals)
-        depth = self.cfg.lookahead_depth
         if "heading_lookahead" in obs and not heading_lookahead(
-            state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
+            state, self.world.arrays, table.arrays, obs["heading_lookahead"], self.depth
         ):
             raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
 
