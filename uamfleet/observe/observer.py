@@ -13,8 +13,8 @@ import numpy as np
 from gymnasium import spaces
 
 from uamfleet.config import ConfigError
-from uamfleet.observe import basic, stops, window
-from uamfleet.observe.lookahead import heading_lookahead
+from uamfleet.observe import basic, window
+from uamfleet.observe.components import LookaheadComponent, StopsComponent, WindowComponent
 from uamfleet.observe.legacy import check_observable, split_env_config
 from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, ObserverSpec, observation_space
 from uamfleet.paths import table_for
@@ -65,6 +65,13 @@ class Observer:
         self.observation_space = observation_space(self.layout)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
         self.table = table_for(world) if self.spec.stops is not None else None
+        # the planner-derived fields, each prepared (table rows filled) before any kernel runs, then written
+        self.components: list[StopsComponent | LookaheadComponent] = []
+        if self.table is not None:
+            self.components.append(StopsComponent(world, self.table, "stop_rivals" in self.layout))
+            if self.depth:
+                self.components.append(LookaheadComponent(world, self.table, self.depth))
+        self._window = None if self.window is None else WindowComponent(self.window, cfg.num_passengers, self.table)
         # the always-on fields read the time limit from the world's arrays: the spec's scale replaces it there
         scale = self.spec.time_scale_steps
         arrays = world.arrays
@@ -77,6 +84,8 @@ class Observer:
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
         E, A = state.num_envs, state.num_taxis
+        for component in self.components:
+            component.prepare(state)
         obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.computed.items()}
         self._observe(
             state, self._basic_arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
@@ -84,51 +93,21 @@ class Observer:
         )  # fmt: skip
         if "hover_heading_mask" in obs:
             self._hover(state, self.world.arrays, obs["hover_heading_mask"])
-        if self.table is not None:
-            self._stop_fields(state, obs)
-        if self.window is None:
+        for component in self.components:
+            component.write(state, obs)
+        if self._window is None:
             return obs
-        rows = self.window_rows(state)
+        rows = self._window.rows(state)
         picked = window.take_rows(obs, rows, [name for name in PASSENGER_AXIS_FIELDS if name in obs])
         return {name: picked.get(name, obs[name]) for name in self.layout}
 
     def window_rows(self, state: FleetState) -> np.ndarray:
         """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
         (:mod:`uamfleet.observe.window`; needs ``passenger_window``)."""
-        assert self.window is not None
-        E, A = state.num_envs, state.num_taxis
-        dist = np.full((E, A, self.cfg.num_passengers), np.inf)
-        if self.table is None:
-            window.straight_distances(state, dist)
-        elif not window.path_distances(state, self.table.arrays, dist):
-            self.table.ensure(state.pax_origin_m[state.pax_exists])
-            if not window.path_distances(state, self.table.arrays, dist):
-                raise RuntimeError("the passenger window read a distance-table row that ensure() did not compute.")
-        rows = np.empty((E, A, self.window), np.int64)
-        window.window_rows(state, dist, rows)
-        return rows
-
-    def _stop_fields(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
-        """Write ``stop_paths`` and ``stop_heading_mask``, and ``stop_rivals`` (and ``stop_claims``) where the layout
-        has them; a stop whose table rows are not computed yet (a new instance) gets them, then all are written
-        again."""
-        assert self.table is not None
-        table = self.table
-        paths = (state, self.world.arrays, table.arrays, obs["stop_paths"], obs["stop_heading_mask"])
-        rivals = None
-        if "stop_rivals" in obs:
-            claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
-            rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
-        if not stops.stop_features(*paths) or (rivals is not None and not stops.stop_rivals(*rivals)):
-            exists = state.pax_exists
-            table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
-            stops.stop_features(*paths)
-            if rivals is not None:
-                stops.stop_rivals(*rivals)
-        if "heading_lookahead" in obs and not heading_lookahead(
-            state, self.world.arrays, table.arrays, obs["heading_lookahead"], self.depth
-        ):
-            raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
+        assert self._window is not None
+        for component in self.components:
+            component.prepare(state)
+        return self._window.rows(state)
 
 
 class ObservationShapeError(ValueError):
