@@ -72,3 +72,19 @@ def test_a_kernel_that_meets_a_missing_row_raises_naming_the_bug(monkeypatch: py
         monkeypatch.setattr(component, "prepare", lambda state: None)
     with pytest.raises(RuntimeError, match="did not compute: a bug"):
         env.reset(seed=0)
+
+
+def test_prepare_computes_nothing_when_every_stop_has_its_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    env = env_on_a_new_map()
+    env.reset(seed=0)  # its prepare filled the rows of every stop
+    table = env.observer.table
+    assert table is not None
+    ensured: list[int] = []
+    monkeypatch.setattr(table, "ensure", lambda stops: ensured.append(len(stops)))
+    env.observer.observe(env.state)
+    assert ensured == []
+    gone = table.arrays._replace(distance_m=np.full_like(table.distance_m, np.nan))
+    monkeypatch.setattr(table, "arrays", gone)  # every row gone: the next prepare asks for them
+    with pytest.raises(RuntimeError, match="a bug"):  # the stub computed nothing, so the kernel meets the gap
+        env.observer.observe(env.state)
+    assert len(ensured) == 1 and ensured[0] == 2 * int(env.state.pax_exists.sum())

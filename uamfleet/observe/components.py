@@ -8,11 +8,16 @@ is a bug: :class:`RuntimeError`, never a second call.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from uamfleet.observe import stops, window
 from uamfleet.observe.lookahead import heading_lookahead
 from uamfleet.paths import DistanceTable
+from uamfleet.paths.distance_table import TableArrays, new_corners, prepare_corners
+from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.world import World
 from uamfleet.types import FleetState
 
@@ -26,17 +31,37 @@ def _missing_row(kernel: str) -> RuntimeError:
     )
 
 
+@njit(cache=True)
+def stop_rows_missing(s: FleetState, t: TableArrays) -> bool:
+    """True when a table row that a lookup towards an existing request's origin or destination reads is not
+    computed yet (NaN)."""
+    corners = new_corners(1)
+    for e in range(s.pax_exists.shape[0]):
+        for p in range(s.pax_exists.shape[1]):
+            if not s.pax_exists[e, p]:
+                continue
+            for stop in (s.pax_origin_m, s.pax_dest_m):
+                prepare_corners(t, stop[e, p, 0], stop[e, p, 1], corners, 0)
+                for c in range(corners.used[0]):
+                    if math.isnan(t.distance_m[corners.cells[0, c], 0]):
+                        return True
+    return False
+
+
 class StopsComponent:
     """``stop_paths`` and ``stop_heading_mask``, with ``rivals`` also ``stop_rivals``, with ``claims`` also
     ``stop_claims`` (:mod:`uamfleet.observe.stops`), on the feasible-path distance table of the world."""
 
     def __init__(self, world: World, table: DistanceTable, rivals: bool) -> None:
         self.world, self.table, self.rivals = world, table, rivals
+        self._missing = PreTyped(stop_rows_missing)
 
     def prepare(self, state: FleetState) -> None:
-        """Fill the table rows of the origin and destination of every existing request."""
-        exists = state.pax_exists
-        self.table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
+        """Fill the table rows of the origin and destination of every existing request (a compiled lookup of
+        their rows first: nothing more when every row is there)."""
+        if self._missing(state, self.table.arrays):
+            exists = state.pax_exists
+            self.table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
 
     def write(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
         arrays, table = self.world.arrays, self.table.arrays
