@@ -13,9 +13,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from uamfleet.config import REWARD_TERMS, ConfigError, DemandConfig, EnvConfig, Request, RewardConfig
-from uamfleet.env.parallel_env import Renderer, UAMFleetParallelEnv, parallel_env
+from uamfleet.config import REWARD_TERMS, ConfigError, DemandConfig, EnvConfig, Request, RewardConfig, WorldConfig
+from uamfleet.env.parallel_env import Renderer, UAMFleetParallelEnv, face_config, parallel_env
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.observe.spec import LookaheadSpec, ObserverSpec, StopsSpec
 from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.radio import RADIO_MAPS, RadioMap, load_radio_map
 
@@ -34,10 +35,15 @@ UAMFleetParallelEnv.default_renderer = _viz_renderer
 
 
 def vector_env(
-    scenario: str | EnvConfig = "berlin_p4", num_envs: int = 1, autoreset: bool = True, **overrides: Any
+    scenario: str | WorldConfig = "berlin_p4",
+    num_envs: int = 1,
+    autoreset: bool = True,
+    observer: ObserverSpec | None = None,
+    **overrides: Any,
 ) -> VectorEnv:
-    """The batched core: ``num_envs`` envs of a scenario with config overrides (any EnvConfig field)."""
-    return VectorEnv(make_config(scenario, **overrides), num_envs=num_envs, autoreset=autoreset)
+    """The batched core: ``num_envs`` envs of a scenario with config overrides (any EnvConfig field), observed by
+    ``observer`` (None: the scenario's observer)."""
+    return VectorEnv(face_config(scenario, overrides), num_envs=num_envs, autoreset=autoreset, observer=observer)
 
 
 def pretrained(name: str = "berlin", device: str = "cpu") -> Any:
@@ -56,11 +62,15 @@ __all__ = [
     "ConfigError",
     "DemandConfig",
     "EnvConfig",
+    "LookaheadSpec",
+    "ObserverSpec",
     "RadioMap",
     "Request",
     "RewardConfig",
+    "StopsSpec",
     "UAMFleetParallelEnv",
     "VectorEnv",
+    "WorldConfig",
     "load_radio_map",
     "make_config",
     "parallel_env",

@@ -1,4 +1,5 @@
-"""Frozen configuration of a fleet environment: :class:`EnvConfig`, its :class:`RewardConfig` and their constants.
+"""Frozen configuration of a fleet environment: the world and its rules (:class:`WorldConfig`), its
+:class:`RewardConfig` and their constants, and :class:`EnvConfig`, a world together with what a policy reads of it.
 
 Every keyword accepted by :func:`uamfleet.parallel_env` / :func:`uamfleet.vector_env` is a field of
 :class:`EnvConfig` (or of its nested :class:`RewardConfig` / :class:`DemandConfig`, which can be passed as
@@ -12,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import InitVar, dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, Self
 
 import numpy as np
 
@@ -136,9 +137,10 @@ assert set(REWARD_TERMS) <= set(_REWARD_DEFAULTS), "every reward term needs a Re
 
 
 @dataclass(frozen=True, eq=False)
-class EnvConfig:
-    """Everything that defines a fleet environment. Use a preset (:func:`uamfleet.presets.make_config`) and
-    override fields.
+class WorldConfig:
+    """The world and its rules: the map, the threshold, the fleet, the demand, the starts, feasibility, separation,
+    hover, seats, the step and the reward. What a policy reads of it is not here: that is an observer's spec
+    (:class:`uamfleet.observe.spec.ObserverSpec`).
 
     Geometry is in the map's world frame (metres, origin at the map's first data point, x east, y north); the
     taxis operate in the square ``[0, side_m]^2``.
@@ -146,12 +148,11 @@ class EnvConfig:
     Every field is checked on construction and a bad one raises :class:`ConfigError` (a ``ValueError``) naming
     the field, the value and the fix; nothing is rounded, clamped or parsed from a string. Counts are integers
     (``500.0`` is accepted as 500, ``1.5`` is not); distances and thresholds are finite numbers. Sizes that set
-    the memory of every observation have upper bounds: ``patch_size`` <= :data:`MAX_PATCH_SIZE` (64),
-    ``history_len`` <= :data:`MAX_HISTORY_LEN` (256), ``num_taxis`` <= :data:`MAX_TAXIS` (1024),
-    ``max_passengers`` and ``DemandConfig.max_requests`` <= :data:`MAX_PASSENGERS` (1024). SINR blocks
-    (``block_m``, default ``step_m``) must not be finer than the radio raster. A fixed request must be released
-    before ``time_limit_steps``. Checks that need the radio map at the threshold (stops in bad blocks, stops
-    out of reach) raise :class:`uamfleet.sim.generator.InfeasibleInstanceError` when the env is built.
+    the memory of every state have upper bounds: ``num_taxis`` <= :data:`MAX_TAXIS` (1024), ``max_passengers`` and
+    ``DemandConfig.max_requests`` <= :data:`MAX_PASSENGERS` (1024). SINR blocks (``block_m``, default ``step_m``)
+    must not be finer than the radio raster. A fixed request must be released before ``time_limit_steps``. Checks
+    that need the radio map at the threshold (stops in bad blocks, stops out of reach) raise
+    :class:`uamfleet.sim.generator.InfeasibleInstanceError` when the env is built.
     """
 
     radio: RadioMap
@@ -169,20 +170,11 @@ class EnvConfig:
     requests: tuple[Request, ...] | None = None  # None -> random demand from `demand`
     demand: DemandConfig = field(default_factory=DemandConfig)
     max_passengers: int | None = None  # size of the passenger axis; None -> number of requests / max_requests
-    passenger_window: int | None = None  # each taxi observes at most this many passenger rows (rules.md); None: all
     time_limit_steps: int = 500
-    history_len: int = 3
-    patch_size: int = 10
     min_separation_m: float = 50.0
     separation: str = "none"  # "shield": conflicts resolved before moves (SEPARATION_MODES; the *_fleet presets)
     hover_action: bool = False  # action 16 (HOVER_ACTION) stays in place, always allowed (the *_fleet presets)
     max_block_visits: int | None = None  # truncate when a taxi visits one block more often (None: never)
-    stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
-    stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
-    stop_claims: bool = False  # with stop_features: "stop_rivals", "stop_claims" and "hover_heading_mask" (rules.md)
-    heading_lookahead: bool = False  # with stop_features: "heading_lookahead", each heading's move + tour after it
-    lookahead_depth: int = 1  # 2: each heading's move + the best second move + the tour after both (read only
-    # with heading_lookahead, so a copy that turns the look-ahead off keeps a valid config)
     reward: RewardConfig = field(default_factory=RewardConfig)
     scenario: str = "custom"
 
@@ -228,22 +220,11 @@ class EnvConfig:
         fix = " (step counts must stay exact in float32 for the observation's visit ratios)"
         limit = check_integer("time_limit_steps", self.time_limit_steps, 1, MAX_TIME_LIMIT_STEPS, fix=fix)
         put("time_limit_steps", limit)
-        put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
-        put(
-            "patch_size",
-            check_integer(
-                "patch_size", self.patch_size, 1, MAX_PATCH_SIZE, fix=" (blocks per side of the SINR and visit patches)"
-            ),
-        )
         put("min_separation_m", check_number("min_separation_m", self.min_separation_m, minimum=0))
         if self.max_block_visits is not None:
             put("max_block_visits", check_integer("max_block_visits (or None: never)", self.max_block_visits, 1))
         if self.max_passengers is not None:
             put("max_passengers", check_integer("max_passengers (or None)", self.max_passengers, 1, MAX_PASSENGERS))
-        if self.passenger_window is not None:
-            fix = f" (or None: every request); at least seats={self.seats}, so a taxi always observes its riders"
-            put("passenger_window", check_integer("passenger_window", self.passenger_window, self.seats,
-                                                  MAX_PASSENGERS, fix=fix))  # fmt: skip
         if self.block_size_m > self.side_m:
             raise ConfigError(
                 f"SINR blocks of {self.block_size_m:g} m (block_m, default step_m) are larger than the whole "
@@ -261,21 +242,7 @@ class EnvConfig:
             raise ConfigError(f"nc_rule={self.nc_rule!r} is unknown; use 'global_min' or 'nanmean'.")
         if self.feasibility not in FEASIBILITY_RULES:
             raise ConfigError(f"feasibility={self.feasibility!r} is unknown; use one of {FEASIBILITY_RULES}.")
-        for name in ("stop_features", "stop_rivals", "stop_claims", "heading_lookahead", "hover_action"):
-            object.__setattr__(self, name, check_flag(name, getattr(self, name)))
-        if self.stop_rivals and not self.stop_features:
-            raise ConfigError("stop_rivals=True needs stop_features=True (the rivals use the same path distances).")
-        if self.stop_claims and not self.stop_features:
-            raise ConfigError("stop_claims=True needs stop_features=True (the claims use the same path distances).")
-        if self.heading_lookahead and not self.stop_features:
-            raise ConfigError(
-                "heading_lookahead=True needs stop_features=True (the look-ahead reads the stop features' tours)."
-            )
-        if self.lookahead_depth not in (1, 2):
-            raise ConfigError(
-                f"lookahead_depth={self.lookahead_depth!r} must be 1 (each heading's move and the tour after it) or 2 "
-                "(its move, the best second move and the tour after both)."
-            )
+        object.__setattr__(self, "hover_action", check_flag("hover_action", self.hover_action))
         if not isinstance(self.scenario, str):
             raise ConfigError(f"scenario={self.scenario!r} must be a string (a label for logs and figures).")
         if self.separation not in SEPARATION_MODES:
@@ -341,13 +308,88 @@ class EnvConfig:
         """Size of the passenger axis P of the state's arrays (rows beyond the requests are padding)."""
         return self.max_passengers if self.max_passengers is not None else self.num_requests_max
 
+    def replace(self, **changes: Any) -> Self:
+        return dataclasses.replace(self, **changes)
+
+
+# The observer's rules, one wording for the legacy EnvConfig and uamfleet.observe.spec.ObserverSpec.
+NEEDS_STOP_FEATURES: dict[str, str] = {
+    "stop_rivals": "stop_rivals=True needs stop_features=True (the rivals use the same path distances).",
+    "stop_claims": "stop_claims=True needs stop_features=True (the claims use the same path distances).",
+    "heading_lookahead": (
+        "heading_lookahead=True needs stop_features=True (the look-ahead reads the stop features' tours)."
+    ),
+}
+"""The refusal of each stop option given without the stop features."""
+PATCH_SIZE_FIX = " (blocks per side of the SINR and visit patches)"
+
+
+def lookahead_depth_message(depth: Any) -> str:
+    """The refusal of a look-ahead depth other than 1 or 2."""
+    return (
+        f"lookahead_depth={depth!r} must be 1 (each heading's move and the tour after it) or 2 "
+        "(its move, the best second move and the tour after both)."
+    )
+
+
+def passenger_window_fix(seats: int) -> str:
+    """The fix named when a passenger window is below the world's seats."""
+    return f" (or None: every request); at least seats={seats}, so a taxi always observes its riders"
+
+
+@dataclass(frozen=True, eq=False)
+class EnvConfig(WorldConfig):
+    """A world (:class:`WorldConfig`) and what a policy reads of it, in one constructor: every keyword accepted by
+    :func:`uamfleet.parallel_env` / :func:`uamfleet.vector_env`. Use a preset (:func:`uamfleet.presets.make_config`)
+    and override fields. :func:`uamfleet.observe.legacy.split_env_config` splits it into the world and its observer
+    spec (:class:`uamfleet.observe.spec.ObserverSpec`).
+
+    The observer's fields are checked like the world's: ``patch_size`` <= :data:`MAX_PATCH_SIZE` (64),
+    ``history_len`` <= :data:`MAX_HISTORY_LEN` (256), ``passenger_window`` at least ``seats``; the stop options
+    need ``stop_features``.
+    """
+
+    passenger_window: int | None = None  # each taxi observes at most this many passenger rows (rules.md); None: all
+    history_len: int = 3
+    patch_size: int = 10
+    stop_features: bool = False  # observe "stop_paths" and "stop_heading_mask" (feasible-path features per stop)
+    stop_rivals: bool = False  # with stop_features: observe "stop_rivals" (what the other taxis offer per stop)
+    stop_claims: bool = False  # with stop_features: "stop_rivals", "stop_claims" and "hover_heading_mask" (rules.md)
+    heading_lookahead: bool = False  # with stop_features: "heading_lookahead", each heading's move + tour after it
+    lookahead_depth: int = 1  # 2: each heading's move + the best second move + the tour after both (read only
+    # with heading_lookahead, so a copy that turns the look-ahead off keeps a valid config)
+
+    def _check_numbers(self) -> None:
+        super()._check_numbers()
+
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
+        put("patch_size", check_integer("patch_size", self.patch_size, 1, MAX_PATCH_SIZE, fix=PATCH_SIZE_FIX))
+        if self.passenger_window is not None:
+            put("passenger_window", check_integer("passenger_window", self.passenger_window, self.seats,
+                                                  MAX_PASSENGERS, fix=passenger_window_fix(self.seats)))  # fmt: skip
+
+    def _check_choices(self) -> None:
+        super()._check_choices()
+        for name in ("stop_features", "stop_rivals", "stop_claims", "heading_lookahead"):
+            object.__setattr__(self, name, check_flag(name, getattr(self, name)))
+        for name, message in NEEDS_STOP_FEATURES.items():
+            if getattr(self, name) and not self.stop_features:
+                raise ConfigError(message)
+        if self.lookahead_depth not in (1, 2):
+            raise ConfigError(lookahead_depth_message(self.lookahead_depth))
+
+    @property
+    def world(self) -> WorldConfig:
+        """The world of this config: every field but the observer's."""
+        return WorldConfig(**{f.name: getattr(self, f.name) for f in dataclasses.fields(WorldConfig)})
+
     @property
     def observed_passengers(self) -> int:
         """Passenger rows of each taxi's observation: ``passenger_window`` when set, else :attr:`num_passengers`."""
         return self.passenger_window if self.passenger_window is not None else self.num_passengers
-
-    def replace(self, **changes: Any) -> EnvConfig:
-        return dataclasses.replace(self, **changes)
 
     def with_layout_of(self, like: EnvConfig) -> EnvConfig:
         """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
@@ -407,7 +449,9 @@ __all__ = [
     "MAX_PASSENGERS",
     "MAX_PATCH_SIZE",
     "MAX_TAXIS",
+    "NEEDS_STOP_FEATURES",
     "NUM_HEADINGS",
+    "PATCH_SIZE_FIX",
     "REWARD_TERMS",
     "SEPARATION_MODES",
     "SHAPING_METRICS",
@@ -419,6 +463,7 @@ __all__ = [
     "RadioMap",
     "Request",
     "RewardConfig",
+    "WorldConfig",
     "as_requests",
     "check_integer",
     "check_number",
@@ -427,4 +472,6 @@ __all__ = [
     "fleet_time_limit",
     "fleet_window_steps",
     "heading_vectors",
+    "lookahead_depth_message",
+    "passenger_window_fix",
 ]

@@ -18,6 +18,7 @@ from uamfleet.config import (
     FLEET_REQUESTS_PER_TAXI,
     EnvConfig,
     RewardConfig,
+    WorldConfig,
     fleet_time_limit,
     fleet_window_steps,
 )
@@ -240,14 +241,29 @@ PRESETS: dict[str, Callable[..., EnvConfig]] = {
 }
 SCENARIOS: tuple[str, ...] = tuple(PRESETS)
 
+_STOPS: dict[str, Any] = {"stops": {"rivals": False, "claims": False}}
+_CLAIMS: dict[str, Any] = {"stops": {"rivals": False, "claims": True}}
+OBSERVERS: dict[str, dict[str, Any]] = {
+    "berlin_p4": {}, "detroit_p5": {}, "detroit3gpp_p5": {},
+    "berlin_random": {}, "detroit3gpp_random": {}, "munich_random": {},
+    "berlin_instances": _STOPS, "detroit3gpp_instances": _STOPS, "munich_instances": _STOPS,
+    "berlin_fleet": _CLAIMS, "detroit3gpp_fleet": _CLAIMS,
+}  # fmt: skip
+"""The observer each scenario is flown with, as ``uamfleet.observe.spec.ObserverSpec.from_dict`` values (plain
+values: the presets sit below the observer): the paper's observation (``{}``: ``ObserverSpec()``), the stop
+features for ``*_instances``, the stop features with claims for ``*_fleet``. The split of a preset's config
+(:func:`uamfleet.observe.legacy.split_env_config`) reads these fields."""
 
-def make_config(scenario: str | EnvConfig = "berlin_p4", **overrides: Any) -> EnvConfig:
-    """The config of a named scenario with keyword overrides (any :class:`EnvConfig` field).
+
+def make_config(scenario: str | WorldConfig = "berlin_p4", **overrides: Any) -> EnvConfig:
+    """The config of a named scenario with keyword overrides (any :class:`EnvConfig` field). A config given in
+    place of a name is overridden; a bare :class:`WorldConfig` becomes an :class:`EnvConfig` with the observer
+    fields at their defaults.
 
     ``radio`` may be a :class:`~uamfleet.radio.RadioMap` or a name/path for :func:`uamfleet.load_radio_map`;
     ``requests`` a sequence of :class:`Request` or ``(release_step, origin, destination)`` tuples.
     """
-    if isinstance(scenario, EnvConfig):
+    if isinstance(scenario, WorldConfig):
         return _with_overrides(_fields(scenario), overrides)
     if not isinstance(scenario, str) or scenario not in PRESETS:  # a list would fail the lookup with a TypeError
         raise ConfigError(
@@ -257,8 +273,8 @@ def make_config(scenario: str | EnvConfig = "berlin_p4", **overrides: Any) -> En
     return PRESETS[scenario](**overrides)
 
 
-def _fields(cfg: EnvConfig) -> dict[str, Any]:
+def _fields(cfg: WorldConfig) -> dict[str, Any]:
     return {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
 
 
-__all__ = ["FLEET_REWARD", "INSTANCE_REWARD", "PRESETS", "SCENARIOS", "make_config"]
+__all__ = ["FLEET_REWARD", "INSTANCE_REWARD", "OBSERVERS", "PRESETS", "SCENARIOS", "make_config"]

@@ -18,8 +18,13 @@ Observation space
 -----------------
 A ``Dict`` per taxi, tabulated in :class:`UAMFleetParallelEnv` (``self``, ``history``, ``passengers`` with
 ``passenger_mask``, ``sinr_patch``, ``visit_patch``, ``others`` with ``others_mask``, ``action_mask``, and the
-stop fields of ``stop_features`` / ``stop_rivals`` / ``stop_claims``); one spec:
-:func:`uamfleet.observe.spec.observation_layout`;
+stop fields of ``stop_features`` / ``stop_rivals`` / ``stop_claims``). What a taxi observes is an observer spec
+(:class:`uamfleet.observe.spec.ObserverSpec`, ``observer=``). The default observer is the scenario's: the
+paper's observation for ``berlin_p4``, ``detroit_p5`` and the ``*_random`` scenarios (``ObserverSpec()``: history
+3, every passenger row, 10 x 10 patches, no stop fields), the stop features for ``*_instances``
+(``stops=StopsSpec()``) and the stop features with claims for ``*_fleet`` (``stops=StopsSpec(claims=True)``); the
+observer fields given as keywords (``patch_size=5``, ``stop_features=True``, ...) change it as they always did. A
+spec that cannot read the world is refused in one line (:meth:`~uamfleet.observe.spec.ObserverSpec.reads`).
 ``state()`` returns the global state for centralised critics (``state_space``), tabulated there too. The rules
 behind every field: ``docs/rules.md``.
 
@@ -40,8 +45,10 @@ agent list is then empty until ``reset``.
 
 Arguments
 ---------
-``parallel_env(scenario="berlin_p4", render_mode=None, **overrides)``: any :class:`uamfleet.config.EnvConfig`
-field as a keyword (``sinr_min_db``, ``num_taxis``, ``starts_m``, ``requests``, ``radio``, ...).
+``parallel_env(scenario="berlin_p4", render_mode=None, observer=None, **overrides)``: any
+:class:`uamfleet.config.EnvConfig` field as a keyword (``sinr_min_db``, ``num_taxis``, ``starts_m``, ``requests``,
+``radio``, ...); ``observer``: an :class:`~uamfleet.observe.spec.ObserverSpec` in place of the scenario's
+observer fields.
 ``render_mode="rgb_array"`` returns matplotlib frames; ``"human"`` opens a live meshcat viewer in the browser
 (closed, with its server, by ``close()``). The env draws nothing itself: ``render()`` asks a :class:`Renderer`
 made by ``renderer(render_mode, env)`` (``UAMFleetParallelEnv(cfg, render_mode, renderer=...)``), by default
@@ -64,8 +71,9 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from uamfleet.config import REWARD_TERMS, EnvConfig
+from uamfleet.config import REWARD_TERMS, EnvConfig, WorldConfig
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.presets import make_config
 from uamfleet.sim.dynamics import check_action
 
@@ -151,7 +159,13 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
     """The renderer factory used when none is passed. The env draws nothing itself (drawing lives above it, in
     :mod:`uamfleet.viz`): ``import uamfleet`` registers :func:`uamfleet.viz.render.make_renderer` here."""
 
-    def __init__(self, cfg: EnvConfig, render_mode: str | None = None, renderer: RendererFactory | None = None) -> None:
+    def __init__(
+        self,
+        cfg: WorldConfig,
+        render_mode: str | None = None,
+        renderer: RendererFactory | None = None,
+        observer: ObserverSpec | None = None,
+    ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not supported; use one of {self.metadata['render_modes']} or None."
@@ -162,10 +176,13 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
                 f"render_mode={render_mode!r} needs a renderer: pass renderer=uamfleet.viz.render.make_renderer "
                 "(import uamfleet registers it as the default)."
             )
-        self.cfg = cfg
         self.render_mode = render_mode
         self._make_renderer = factory
-        self.core = VectorEnv(cfg, num_envs=1, autoreset=False)
+        self.core = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer)
+        self.cfg: EnvConfig = (
+            self.core.cfg
+        )  # the world joined with what it observes (the given config without observer)
+        self.spec = self.core.spec  # what each taxi observes
         self.possible_agents = [f"uam_{i}" for i in range(cfg.num_taxis)]
         self.agents: list[AgentID] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
@@ -247,10 +264,22 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
 
 
 def parallel_env(
-    scenario: str | EnvConfig = "berlin_p4", render_mode: str | None = None, **overrides: Any
+    scenario: str | WorldConfig = "berlin_p4",
+    render_mode: str | None = None,
+    observer: ObserverSpec | None = None,
+    **overrides: Any,
 ) -> UAMFleetParallelEnv:
-    """The PettingZoo parallel env of a scenario (see :data:`uamfleet.SCENARIOS`) with config overrides."""
-    return UAMFleetParallelEnv(make_config(scenario, **overrides), render_mode=render_mode)
+    """The PettingZoo parallel env of a scenario (see :data:`uamfleet.SCENARIOS`) with config overrides, observed by
+    ``observer`` (None: the scenario's observer)."""
+    return UAMFleetParallelEnv(face_config(scenario, overrides), render_mode=render_mode, observer=observer)
+
+
+def face_config(scenario: str | WorldConfig, overrides: dict[str, Any]) -> WorldConfig:
+    """The config a face is built from: a bare world without overrides as it is (observed by ``ObserverSpec()``
+    unless an observer is given), else :func:`~uamfleet.presets.make_config`'s."""
+    if isinstance(scenario, WorldConfig) and not isinstance(scenario, EnvConfig) and not overrides:
+        return scenario
+    return make_config(scenario, **overrides)
 
 
 @functools.wraps(parallel_env)

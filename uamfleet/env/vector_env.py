@@ -17,8 +17,10 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.config import EnvConfig, RewardConfig
+from uamfleet.config import EnvConfig, RewardConfig, WorldConfig
+from uamfleet.observe.legacy import observed_config
 from uamfleet.observe.observer import Observer
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.sim.core import Simulator
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.reward import Potential
@@ -30,9 +32,15 @@ class VectorEnv:
     """Batched fleet environment: the simulator ``self.sim`` and the observer ``self.observer``.
 
     Args:
-        cfg: the environment config (see :func:`uamfleet.presets.make_config`).
+        cfg: the world (a :class:`~uamfleet.config.WorldConfig`), or the world and its observer fields in one
+            :class:`~uamfleet.config.EnvConfig` (see :func:`uamfleet.presets.make_config`).
         num_envs: number E of independent envs stepped together, 1 ... :data:`~uamfleet.checks.MAX_ENVS` (65,536).
         autoreset: ``True`` / ``False``: reset finished envs inside ``step`` (see the module docstring).
+        observer: what each taxi observes (:class:`~uamfleet.observe.spec.ObserverSpec`); None: the observer
+            fields of an ``EnvConfig``, or ``ObserverSpec()`` for a bare world. A spec that cannot read the world
+            raises :class:`~uamfleet.config.ConfigError` with :meth:`~uamfleet.observe.spec.ObserverSpec.reads`'s
+            line; ``self.cfg`` is then the world joined with the spec
+            (:func:`uamfleet.observe.legacy.observed_config`).
 
     ``reset(seed)`` (an integer 0 ... :data:`~uamfleet.checks.MAX_SEED`, or None) seeds env e with ``seed + e``
     (Gymnasium's vector convention), so env e here and a PettingZoo env reset with ``seed + e`` run the same
@@ -40,9 +48,13 @@ class VectorEnv:
     through.
     """
 
-    def __init__(self, cfg: EnvConfig, num_envs: int = 1, autoreset: bool = True) -> None:
+    def __init__(
+        self, cfg: WorldConfig, num_envs: int = 1, autoreset: bool = True, observer: ObserverSpec | None = None
+    ) -> None:
+        cfg, spec = observed_config(cfg, observer)
         self.sim = Simulator(cfg, num_envs, autoreset)
-        self.observer = Observer(self.sim.world)
+        self.observer = Observer(self.sim.world, spec)
+        self.spec = spec  # what each taxi observes
         self.layout = self.observer.layout  # the observation's spec (uamfleet.observe.spec): fields, shapes, kinds
         self.single_observation_space: spaces.Dict = self.observer.observation_space
         self.single_action_space = self.sim.single_action_space

@@ -12,9 +12,11 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.observe import basic, stops, window
-from uamfleet.observe.lookahead import heading_lookahead
-from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout, observation_space
+from uamfleet.config import ConfigError
+from uamfleet.observe import basic, window
+from uamfleet.observe.components import LookaheadComponent, StopsComponent, WindowComponent
+from uamfleet.observe.legacy import check_observable, split_env_config
+from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, ObserverSpec, observation_space
 from uamfleet.paths import table_for
 from uamfleet.sim.pretyped import PreTyped
 from uamfleet.sim.world import World
@@ -32,81 +34,80 @@ __all__ = [
 
 
 class Observer:
-    """Builds the observation dict ``{name: [E, A, ...] array}``; its fields, shapes and dtypes are
-    :func:`uamfleet.observe.spec.observation_layout`'s (``self.layout``). With a passenger window
-    (``EnvConfig.passenger_window``) every field is computed for every passenger of the state (``self.computed``),
-    then each taxi's window of the passenger-axis fields is taken (:mod:`uamfleet.observe.window`)."""
+    """Builds the observation dict ``{name: [E, A, ...] array}`` of what ``spec`` reads of ``world``; its fields,
+    shapes and dtypes are :meth:`ObserverSpec.layout`'s (``self.layout``). ``spec=None``: the split of the world's
+    config (:func:`uamfleet.observe.legacy.split_env_config`). With a passenger window (``spec.passenger_window``)
+    every field is computed for every passenger of the state (``self.computed``), then each taxi's window of the
+    passenger-axis fields is taken (:mod:`uamfleet.observe.window`). The time features divide by
+    ``spec.time_scale_steps`` (None: the world's time limit)."""
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: World, spec: ObserverSpec | None = None) -> None:
         cfg = world.cfg
+        if spec is None:
+            spec = split_env_config(cfg)[1]
+        else:
+            check_observable(cfg, spec)
+            kept = (cfg.history_len, cfg.patch_size, cfg.stop_features or spec.stops is None)
+            if kept != (spec.history_len, spec.patch_size, True):
+                raise ConfigError(
+                    f"the simulator keeps history_len={cfg.history_len}, patch_size={cfg.patch_size} and "
+                    f"stop_features={cfg.stop_features}, which the observer {spec} cannot read; build the simulator "
+                    "from uamfleet.observe.legacy.observed_config(world, spec)."
+                )
+        self.spec = spec
         self.world = world
         self.cfg = cfg
         self.num_taxis = cfg.num_taxis
-        self.layout = observation_layout(cfg)
-        self.computed = computed_layout(cfg)  # the layout itself without a window
-        self.window = cfg.passenger_window
+        self.layout = self.spec.layout(cfg)
+        self.computed = self.spec.computed_layout(cfg)  # the layout itself without a window
+        self.window = self.spec.passenger_window
+        self.depth = 0 if self.spec.lookahead is None else self.spec.lookahead.depth
         self.observation_space = observation_space(self.layout)
         # feasible-path distances for the stop features (cached per map and threshold; rows filled per new stop)
-        self.table = table_for(world) if "stop_paths" in self.layout else None
+        self.table = table_for(world) if self.spec.stops is not None else None
+        # the planner-derived fields, each prepared (table rows filled) before any kernel runs, then written
+        self.components: list[StopsComponent | LookaheadComponent] = []
+        if self.table is not None:
+            self.components.append(StopsComponent(world, self.table, "stop_rivals" in self.layout))
+            if self.depth:
+                self.components.append(LookaheadComponent(world, self.table, self.depth))
+        self._window = None if self.window is None else WindowComponent(self.window, cfg.num_passengers, self.table)
+        # the always-on fields read the time limit from the world's arrays: the spec's scale replaces it there
+        scale = self.spec.time_scale_steps
+        arrays = world.arrays
+        if scale is not None and scale != arrays.time_limit_steps:
+            arrays = arrays._replace(time_limit_steps=float(scale))
+        self._basic_arrays = arrays
         # the kernels without numba typing the state and the world's arrays on every call (uamfleet.sim.pretyped)
         self._observe, self._hover = PreTyped(basic.observe), PreTyped(basic.hover_headings)
 
     def observe(self, state: FleetState) -> dict[str, np.ndarray]:
         """The observation of every taxi: ``{name: [E, A, ...]}`` (fresh arrays, safe to keep)."""
         E, A = state.num_envs, state.num_taxis
+        for component in self.components:
+            component.prepare(state)
         obs = {name: np.empty((E, A, *spec.shape), spec.dtype) for name, spec in self.computed.items()}
         self._observe(
-            state, self.world.arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
+            state, self._basic_arrays, obs["self"], obs["history"], obs["passengers"], obs["passenger_mask"],
             obs["sinr_patch"], obs["visit_patch"], obs["others"], obs["others_mask"], obs["action_mask"],
         )  # fmt: skip
         if "hover_heading_mask" in obs:
             self._hover(state, self.world.arrays, obs["hover_heading_mask"])
-        if self.table is not None:
-            self._stop_fields(state, obs)
-        if self.window is None:
+        for component in self.components:
+            component.write(state, obs)
+        if self._window is None:
             return obs
-        rows = self.window_rows(state)
+        rows = self._window.rows(state)
         picked = window.take_rows(obs, rows, [name for name in PASSENGER_AXIS_FIELDS if name in obs])
         return {name: picked.get(name, obs[name]) for name in self.layout}
 
     def window_rows(self, state: FleetState) -> np.ndarray:
         """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot
         (:mod:`uamfleet.observe.window`; needs ``passenger_window``)."""
-        assert self.window is not None
-        E, A = state.num_envs, state.num_taxis
-        dist = np.full((E, A, self.cfg.num_passengers), np.inf)
-        if self.table is None:
-            window.straight_distances(state, dist)
-        elif not window.path_distances(state, self.table.arrays, dist):
-            self.table.ensure(state.pax_origin_m[state.pax_exists])
-            if not window.path_distances(state, self.table.arrays, dist):
-                raise RuntimeError("the passenger window read a distance-table row that ensure() did not compute.")
-        rows = np.empty((E, A, self.window), np.int64)
-        window.window_rows(state, dist, rows)
-        return rows
-
-    def _stop_fields(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
-        """Write ``stop_paths`` and ``stop_heading_mask``, and ``stop_rivals`` (and ``stop_claims``) where the layout
-        has them; a stop whose table rows are not computed yet (a new instance) gets them, then all are written
-        again."""
-        assert self.table is not None
-        table = self.table
-        paths = (state, self.world.arrays, table.arrays, obs["stop_paths"], obs["stop_heading_mask"])
-        rivals = None
-        if "stop_rivals" in obs:
-            claims = obs.get("stop_claims", np.zeros((0, 0, 0, 0), np.int8))  # 0-size: the kernel writes no claims
-            rivals = (state, self.world.arrays, table.arrays, obs["stop_rivals"], claims)
-        if not stops.stop_features(*paths) or (rivals is not None and not stops.stop_rivals(*rivals)):
-            exists = state.pax_exists
-            table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
-            stops.stop_features(*paths)
-            if rivals is not None:
-                stops.stop_rivals(*rivals)
-        depth = self.cfg.lookahead_depth
-        if "heading_lookahead" in obs and not heading_lookahead(
-            state, self.world.arrays, table.arrays, obs["heading_lookahead"], depth
-        ):
-            raise RuntimeError("heading_lookahead read a distance-table row that stop_features did not compute.")
+        assert self._window is not None
+        for component in self.components:
+            component.prepare(state)
+        return self._window.rows(state)
 
 
 class ObservationShapeError(ValueError):

@@ -7,11 +7,15 @@ policy learns its shapes from it (no env needed), and ``docs/rules.md`` and the 
 tested against it (``tests/observe/test_layout.py``). A field's presence depends on config flags only, never on the
 fleet size (the fleet size sets the length of ``others``).
 
-A pure function of the config: no world, distance table or env is built.
+What a policy reads is an :class:`ObserverSpec` (the fields, their sizes, the planner-derived components);
+:meth:`ObserverSpec.layout` gives its layout in a world and :meth:`ObserverSpec.reads` says in one line what of a
+world it cannot read. Pure functions of the config and the spec: no world, distance table or env is built.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -19,7 +23,19 @@ from typing import Any, Literal
 import numpy as np
 from gymnasium import spaces
 
-from uamfleet.config import EnvConfig
+from uamfleet.checks import MAX_HISTORY_LEN, MAX_PASSENGERS, MAX_PATCH_SIZE, MAX_TAXIS, MAX_TIME_LIMIT_STEPS
+from uamfleet.config import (
+    NEEDS_STOP_FEATURES,
+    PATCH_SIZE_FIX,
+    ConfigError,
+    EnvConfig,
+    WorldConfig,
+    check_integer,
+    check_number,
+    lookahead_depth_message,
+    passenger_window_fix,
+)
+from uamfleet.checks import check_flag
 from uamfleet.sim.world import PATCH_CLIP_DB, PATCH_PAD_DB
 from uamfleet.types import (
     HISTORY_FEATURES,
@@ -130,6 +146,163 @@ def _layout(
     return layout
 
 
+@dataclass(frozen=True)
+class StopsSpec:
+    """The stop features (``stop_paths``, ``stop_heading_mask``): with ``rivals`` also ``stop_rivals``; with
+    ``claims`` also ``stop_rivals``, ``stop_claims`` and ``hover_heading_mask`` (docs/rules.md "Observation")."""
+
+    rivals: bool = False
+    claims: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rivals", check_flag("stop_rivals", self.rivals))
+        object.__setattr__(self, "claims", check_flag("stop_claims", self.claims))
+
+
+@dataclass(frozen=True)
+class LookaheadSpec:
+    """The ``heading_lookahead`` field: each heading's move and the tour after it (``depth=1``), or its move, the
+    best second move and the tour after both (``depth=2``). Reads the stop features' tours."""
+
+    depth: int = 1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.depth, bool) or self.depth not in (1, 2):
+            raise ConfigError(lookahead_depth_message(self.depth))
+        object.__setattr__(self, "depth", int(self.depth))
+
+
+@dataclass(frozen=True)
+class ObserverSpec:
+    """What a policy reads of a world: the observation's fields and their sizes, independent of the world's rules.
+
+    ``ObserverSpec()`` is the paper's observation: ``self``, ``history`` (3 steps), ``passengers`` (every passenger
+    row of the world), 10 x 10 ``sinr_patch`` / ``visit_patch``, ``others``, ``action_mask``; no stop fields.
+
+    - ``passenger_window``: K passenger rows per taxi (its nearest active requests); None: a fixed passenger axis.
+    - ``slots_per_taxi``: without a window, the rows read are ``ceil(slots_per_taxi x the world's taxis)`` (rows
+      beyond the world's are padding); None: the world's own rows.
+    - ``time_scale_steps``: the denominator of the time feature; None: the world's time limit.
+    - ``stops`` (:class:`StopsSpec`), ``lookahead`` (:class:`LookaheadSpec`, needs ``stops``): the planner-derived
+      fields.
+    - ``hover``: the policy's action set includes the hover action (16).
+    - ``fleet_rows``: the policy reads the other taxis by position, this many rows (a world of ``fleet_rows + 1``
+      taxis); None: as a set, any fleet.
+
+    Checked on construction (:class:`ConfigError`, one line); what needs the world is :meth:`reads`.
+    """
+
+    history_len: int = 3
+    patch_size: int = 10
+    passenger_window: int | None = None
+    slots_per_taxi: float | None = None
+    time_scale_steps: int | None = None
+    stops: StopsSpec | None = None
+    lookahead: LookaheadSpec | None = None
+    hover: bool = False
+    fleet_rows: int | None = None
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("history_len", check_integer("history_len", self.history_len, 1, MAX_HISTORY_LEN))
+        put("patch_size", check_integer("patch_size", self.patch_size, 1, MAX_PATCH_SIZE, fix=PATCH_SIZE_FIX))
+        if self.passenger_window is not None:
+            put("passenger_window", check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS,
+                                                  fix=" (or None: every request)"))  # fmt: skip
+        if self.slots_per_taxi is not None:
+            put("slots_per_taxi", check_number("slots_per_taxi (or None: the world's rows)", self.slots_per_taxi,
+                                               positive=True))  # fmt: skip
+        if self.time_scale_steps is not None:
+            put("time_scale_steps", check_integer("time_scale_steps (or None: the world's time limit)",
+                                                  self.time_scale_steps, 1, MAX_TIME_LIMIT_STEPS))  # fmt: skip
+        if self.fleet_rows is not None:
+            put("fleet_rows", check_integer("fleet_rows (or None: any fleet)", self.fleet_rows, 0, MAX_TAXIS - 1))
+        put("hover", check_flag("hover", self.hover))
+        for name, cls in (("stops", StopsSpec), ("lookahead", LookaheadSpec)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, cls):
+                raise ConfigError(f"{name}={value!r} must be a {cls.__name__} or None, e.g. {cls.__name__}().")
+        if self.lookahead is not None and self.stops is None:
+            raise ConfigError(NEEDS_STOP_FEATURES["heading_lookahead"])
+
+    def rows(self, world: WorldConfig) -> int:
+        """Passenger rows of each taxi's observation in ``world``."""
+        if self.passenger_window is not None:
+            return self.passenger_window
+        return self.slots(world) if self.slots_per_taxi is not None else world.num_passengers
+
+    def slots(self, world: WorldConfig) -> int:
+        """Without a window: the passenger rows this spec reads in ``world`` (``slots_per_taxi`` x its taxis, up)."""
+        per_taxi = world.num_passengers / world.num_taxis if self.slots_per_taxi is None else self.slots_per_taxi
+        return math.ceil(round(per_taxi * world.num_taxis, 6))  # round: 7 / 3 * 3 must stay 7
+
+    def layout(self, world: WorldConfig) -> Layout:
+        """The fields this spec observes in ``world``, as :func:`observation_layout` gives them."""
+        return self._layout_of(world, self.rows(world))
+
+    def computed_layout(self, world: WorldConfig) -> Layout:
+        """The layout the observer computes before the passenger window picks each taxi's rows: :meth:`layout`
+        with a row for every passenger of the world's state; the same as it without a window."""
+        return self._layout_of(world, world.num_passengers)
+
+    def _layout_of(self, world: WorldConfig, rows: int) -> Layout:
+        stops, lookahead = self.stops, self.lookahead
+        return _layout(rows, self.history_len, self.patch_size, max(world.num_taxis - 1, 1),
+                       stops is not None, stops is not None and (stops.rivals or stops.claims),
+                       stops is not None and stops.claims, lookahead is not None)  # fmt: skip
+
+    def reads(self, world: WorldConfig) -> str | None:
+        """None when this spec can observe ``world``, else the one line that says which part of it it cannot read
+        and the fix. The world is never changed."""
+        if self.passenger_window is None and world.num_passengers > self.slots(world):
+            return (
+                f"the world has {world.num_passengers} passenger rows; this policy reads {self.slots(world)}: give "
+                f"it at most {self.slots(world)} requests, or fly it with a passenger window"
+            )
+        if self.fleet_rows is not None and world.num_taxis - 1 != self.fleet_rows:
+            return (
+                f"this policy reads the other taxis by position ({self.fleet_rows} rows), but the world has "
+                f"{world.num_taxis} taxis: fly it with {self.fleet_rows + 1} taxis"
+            )
+        if self.passenger_window is not None and self.passenger_window < world.seats:
+            try:
+                check_integer("passenger_window", self.passenger_window, world.seats, MAX_PASSENGERS,
+                              fix=passenger_window_fix(world.seats))  # fmt: skip
+            except ConfigError as err:
+                return str(err)
+        if self.hover and not world.hover_action:
+            return (
+                "this policy waits with the hover action (16), which this world refuses: build it with "
+                "hover_action=True"
+            )
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values (ints, floats, bools, None, dicts of them): ``torch.load(weights_only=True)`` and JSON read
+        them."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ObserverSpec:
+        """The inverse of :meth:`to_dict`; :class:`ConfigError` naming the key for an unknown one."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ConfigError(f"observer spec keys {unknown} are unknown; the keys are {sorted(known)}.")
+        values = dict(data)
+        for name, part in (("stops", StopsSpec), ("lookahead", LookaheadSpec)):
+            value = values.get(name)
+            if isinstance(value, Mapping):
+                try:
+                    values[name] = part(**value)
+                except TypeError:
+                    fields = [f.name for f in dataclasses.fields(part)]
+                    raise ConfigError(f"observer spec {name}={dict(value)!r}: its keys are {fields}.") from None
+        return cls(**values)
+
+
 _EVERY_FIELD = _layout(1, 1, 1, 1, stops=True, rivals=True, claims=True, lookahead=True)
 PASSENGER_AXIS_FIELDS: tuple[str, ...] = ("passengers", "passenger_mask", "stop_paths", "stop_heading_mask",
                                           "stop_rivals", "stop_claims")  # fmt: skip
@@ -224,6 +397,9 @@ __all__ = [
     "FieldKind",
     "FieldSpec",
     "Layout",
+    "LookaheadSpec",
+    "ObserverSpec",
+    "StopsSpec",
     "computed_layout",
     "field_kind",
     "field_row_mask",
