@@ -359,8 +359,9 @@ def test_the_expected_output_matches_the_recorded_rows():
 
 
 def quickstart_seeds(recipe: str) -> list[dict[str, str]]:
-    """The main job's runs over seeds (docs/results.md, "The main job over 10 seeds"): ``fine_tune`` is today's
-    recipe (the shipped generalist fine-tuned on P4), ``scratch`` the recipe from scratch after issue 20
+    """The main job's runs over seeds (docs/results/quickstart_seeds.csv; their story in
+    reports/2026-12-03-results-history/README.md, "The main job over 10 seeds"): ``fine_tune`` is today's recipe
+    (the shipped generalist fine-tuned on P4), ``scratch`` the recipe from scratch after issue 20
     (``--init-from None``), ``before_issue20`` the one before (``--shaping-gamma 0.9 --eval-every 5``)."""
     return [r for r in rows("quickstart_seeds.csv") if r["recipe"] == recipe]
 
