@@ -1,6 +1,6 @@
 """A pre-typed entry into a compiled kernel: numba's dispatcher types every argument on every call, a NamedTuple
 (:class:`~uamfleet.types.FleetState`, :class:`~uamfleet.sim.arrays.WorldArrays`) field by field in Python, about
-10 µs per call, which is most of a one-taxi step (docs/benchmarks.md, "PettingZoo face vs MPE2"). A
+10 µs per call, which is most of a one-taxi step (docs/benchmarks.md, "The environment"). A
 :class:`PreTyped` kernel looks the machine code of its arguments' types up once and calls it directly while the
 same NamedTuples come back, which they do every step of an env: the state is updated in place, the world's arrays
 never change.
