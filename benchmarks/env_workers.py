@@ -15,8 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uamfleet.cli._common import run
-from uamfleet.env.mixture import MixtureVectorEnv
-from uamfleet.env.workers import ShardedVectorEnv
+from uamfleet.env.backends import make_vector
 from uamfleet.paths import table_for
 from uamfleet.rl.checkpoint import run_config
 from uamfleet.rl.collector import training_configs
@@ -49,9 +48,7 @@ def training_envs_configs(args: Args) -> list:
 
 
 def measure(cfgs: list, num_envs: int, workers: int, args: Args) -> float:
-    venv = (
-        MixtureVectorEnv(cfgs, num_envs) if workers == 0 else ShardedVectorEnv(cfgs, num_envs, workers, copy=args.copy)
-    )
+    venv = make_vector(cfgs, num_envs, "workers" if workers else "mixture", workers=workers, copy=args.copy)
     try:
         obs, _ = venv.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -65,8 +62,7 @@ def measure(cfgs: list, num_envs: int, workers: int, args: Args) -> float:
             if step >= args.warmup:
                 elapsed += time.perf_counter() - start
     finally:
-        if isinstance(venv, ShardedVectorEnv):
-            venv.close()
+        venv.close()
     return args.steps * num_envs / elapsed
 
 

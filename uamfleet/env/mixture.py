@@ -111,15 +111,7 @@ class MixtureVectorEnv:
             info["_episode"] = done
             # groups without a finished episode contribute placeholders (their rows are not read)
             info["final_obs"] = self._cat_obs([r[4].get("final_obs", r[0]) for r in results])
-            stats = [r[4].get("episode") for r in results]
-            template = next(s for s in stats if s is not None)
-            info["episode"] = {
-                key: np.concatenate(
-                    [self._pad_taxis(s[key]) if s is not None else np.zeros((hi - lo, *v.shape[1:]), v.dtype)
-                     for s, lo, hi in zip(stats, self.bounds[:-1], self.bounds[1:], strict=True)]
-                )
-                for key, v in self._padded_stats(template).items()
-            }  # fmt: skip
+            info["episode"] = self._cat_stats([r[4].get("episode") for r in results])
         return obs, rewards, terminated, truncated, info
 
     def set_reward_weights(self, weights: RewardConfig) -> None:
@@ -136,6 +128,9 @@ class MixtureVectorEnv:
             )
         return np.concatenate([env.global_state() for env in self.envs])
 
+    def close(self) -> None:
+        """Nothing to stop: the envs step in this process (the backend interface, :mod:`uamfleet.env.backends`)."""
+
     # ---- padding a mixture of fleet sizes to the largest -------------------------------------------------------
 
     def _pad_taxis(self, x: np.ndarray) -> np.ndarray:
@@ -146,8 +141,18 @@ class MixtureVectorEnv:
         out[:, : x.shape[1]] = x
         return out
 
-    def _padded_stats(self, template: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {key: self._pad_taxis(v) for key, v in template.items()}
+    def _cat_stats(self, stats: list[dict[str, np.ndarray] | None]) -> dict[str, np.ndarray]:
+        """The groups' episode statistics along the env axis, padded to A_max taxis; a group without a finished
+        episode (None) gives zeros."""
+        template = {key: self._pad_taxis(v) for key, v in next(s for s in stats if s is not None).items()}
+        sizes = np.diff(self.bounds)
+        return {
+            key: np.concatenate([
+                self._pad_taxis(s[key]) if s is not None else np.zeros((n, *v.shape[1:]), v.dtype)
+                for s, n in zip(stats, sizes, strict=True)
+            ])
+            for key, v in template.items()
+        }  # fmt: skip
 
     def _cat_obs(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         """The groups' observations along the env axis, each padded to A_max taxis and A_max - 1 other-taxi rows."""

@@ -231,8 +231,9 @@ class ShardedVectorEnv:
     The same interface as the mixture for a trainer: ``reset(seed)``, ``step(actions)`` (obs, rewards [E, A],
     terminated [E], truncated [E], info with ``reward_terms`` and, where an episode ended, ``_episode``,
     ``episode`` and ``final_obs`` for every env; read them where ``_episode``), ``global_state()`` (with
-    ``global_state=True``), ``set_reward_weights``, the spaces, ``num_envs``, ``num_taxis`` (one fleet size: no
-    padded taxis, so no ``taxi_mask``).
+    ``global_state=True``), ``set_reward_weights``, ``close``, the spaces, ``num_envs``, ``num_taxis`` (one fleet
+    size: ``taxis_per_env`` all ``num_taxis``, ``mixed_sizes`` False), and ``envs`` empty (the envs live in the
+    workers): the backend interface of :mod:`uamfleet.env.backends`.
 
     ``copy=True`` (as Gymnasium's ``AsyncVectorEnv``): the observations returned are copies. ``copy=False`` returns
     views of the shared buffers, which the next ``step`` or ``reset`` overwrites: for a caller that copies them on
@@ -244,22 +245,29 @@ class ShardedVectorEnv:
         fill_tables: bool = False, copy: bool = True,
     ) -> None:  # fmt: skip
         cfgs = checked_configs("ShardedVectorEnv", cfgs, num_envs)
-        if int(workers) != workers or not 1 <= workers <= num_envs:
-            raise ValueError(
-                f"workers={workers!r} must be an integer from 1 to num_envs={num_envs} (each worker steps at "
-                "least one env); 0 env workers means the in-process envs, which need no ShardedVectorEnv."
-            )
-        fleets = sorted({cfg.num_taxis for cfg in cfgs})
-        if len(fleets) > 1:
-            raise ValueError(
-                f"the configs fly fleets of {fleets} taxis; env workers step configs of one fleet size (the "
-                "mixture's padding of smaller fleets runs in one process): train mixed fleet sizes without "
-                "env workers."
-            )
+        self.num_taxis = _one_fleet_size(cfgs, num_envs, workers)
         self.cfgs, self.cfg, self.copy = cfgs, cfgs[0], bool(copy)
         self.num_envs, self.num_workers = int(num_envs), int(workers)
+        self.taxis_per_env = np.full(self.num_envs, self.num_taxis)  # one fleet size: no padded taxis
+        self.mixed_sizes = False
+        self.envs: list[Any] = []  # the envs live in the workers: none here to fill tables of
         self.pieces = shard_pieces(cfgs, self.num_envs, self.num_workers)
         self._closed = True
+        self._finalizer: weakref.finalize[Any, Any]
+        self._start_workers(fill_tables)
+        self._read_spaces([self._receive(w) for w in range(self.num_workers)], global_state)
+        state_dim = int(self.state_space.shape[0]) if global_state and self.state_space is not None else None
+        self._shared = _Shared(
+            _array_specs(self.single_observation_space, self.num_envs, self.num_taxis, state_dim), create=True
+        )
+        self._finalizer.detach()
+        self._finalizer = weakref.finalize(self, _shutdown, self._conns, self._procs, self._shared)
+        self._call_all("attach", self._shared.specs)
+        self._keys = list(self.single_observation_space.spaces)
+        self.needs_reset = True
+
+    def _start_workers(self, fill_tables: bool) -> None:
+        """One spawned process per share of the envs, stopped on garbage collection or at exit until closed."""
         context = mp.get_context("spawn")  # module docstring: not fork
         self._conns: list[Connection] = []
         self._procs: list[Any] = []
@@ -274,7 +282,10 @@ class ShardedVectorEnv:
             self._procs.append(proc)
         self._closed = False
         self._finalizer = weakref.finalize(self, _shutdown, self._conns, self._procs, None)
-        described = [self._receive(w) for w in range(self.num_workers)]
+
+    def _read_spaces(self, described: list[dict[str, Any]], global_state: bool) -> None:
+        """The spaces the workers report, refused (the workers closed, ValueError) when their observation layouts
+        differ, or when ``global_state`` asks for one state the configs do not share."""
         obs_spaces = [space for d in described for space in d["observation_spaces"]]
         if any(space != obs_spaces[0] for space in obs_spaces):
             self.close()
@@ -286,21 +297,11 @@ class ShardedVectorEnv:
         self.single_action_space = described[0]["action_space"]
         states = {None if d["state_space"] is None else d["state_space"].shape for d in described}
         self.state_space = described[0]["state_space"] if len(states) == 1 else None
-        self.num_taxis = fleets[0]
         if global_state and self.state_space is None:
             self.close()
             raise ValueError(
                 "global_state=True, but the configs' global states differ in size: no one [E, S] state holds them."
             )
-        state_dim = int(self.state_space.shape[0]) if global_state and self.state_space is not None else None
-        self._shared = _Shared(
-            _array_specs(self.single_observation_space, self.num_envs, self.num_taxis, state_dim), create=True
-        )
-        self._finalizer.detach()
-        self._finalizer = weakref.finalize(self, _shutdown, self._conns, self._procs, self._shared)
-        self._call_all("attach", self._shared.specs)
-        self._keys = list(self.single_observation_space.spaces)
-        self.needs_reset = True
 
     # ---- the interface ---------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -377,6 +378,24 @@ class ShardedVectorEnv:
             self.close()
             raise RuntimeError(f"env worker {w} (envs {envs}) failed:\n{payload}")
         return payload
+
+
+def _one_fleet_size(cfgs: list[EnvConfig], num_envs: int, workers: int) -> int:
+    """The configs' one fleet size; ValueError naming the fix for a worker count out of 1 ... ``num_envs`` or for
+    configs of several fleet sizes."""
+    if int(workers) != workers or not 1 <= workers <= num_envs:
+        raise ValueError(
+            f"workers={workers!r} must be an integer from 1 to num_envs={num_envs} (each worker steps at "
+            "least one env); 0 env workers means the in-process envs, which need no ShardedVectorEnv."
+        )
+    fleets = sorted({cfg.num_taxis for cfg in cfgs})
+    if len(fleets) > 1:
+        raise ValueError(
+            f"the configs fly fleets of {fleets} taxis; env workers step configs of one fleet size (the "
+            "mixture's padding of smaller fleets runs in one process): train mixed fleet sizes without "
+            "env workers."
+        )
+    return fleets[0]
 
 
 def _gather_stats(finished: dict[int, Any], num_envs: int) -> dict[str, np.ndarray]:

@@ -19,17 +19,12 @@ from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
 from uamfleet.observe.spec import Layout, layout_shapes, observation_layout
-from uamfleet.env.mixture import MixtureVectorEnv
-from uamfleet.env.vector_env import VectorEnv
-from uamfleet.env.workers import ShardedVectorEnv
-from uamfleet.paths import table_for
-from uamfleet.paths.distance_table import cache_dir
+from uamfleet.env.backends import VectorBackend, make_vector
 from uamfleet.rl.buffer import EpisodeSums, ObservationNormalizer, RewardScaler, RolloutBuffer
 from uamfleet.rl.checkpoint import Checkpoint, run_config
 from uamfleet.rl.distributed import Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
-from uamfleet.sim.world import World
 
 
 @dataclass
@@ -58,7 +53,7 @@ class Run:
     folder: Path
     cfg: EnvConfig
     eval_cfg: EnvConfig
-    venv: VectorEnv | MixtureVectorEnv | ShardedVectorEnv
+    venv: VectorBackend  # inline, a mixture or env workers (uamfleet.env.backends)
     obs_shapes: dict[str, tuple[int, ...]]
     layout: Layout  # the spec of one taxi's observation (stored in checkpoints)
     buffer: RolloutBuffer
@@ -97,7 +92,7 @@ class Run:
 
     def finished_episode(self, episode: dict[str, np.ndarray], e: int) -> dict[str, np.ndarray]:
         """Env ``e``'s episode statistics (``info["episode"]``) as a batch of one, its own taxis only."""
-        taxis = int(self.venv.taxis_per_env[e]) if isinstance(self.venv, MixtureVectorEnv) else self.venv.num_taxis
+        taxis = int(self.venv.taxis_per_env[e])
         return {k: v[e : e + 1, :taxis] if v.ndim >= 2 else v[e : e + 1] for k, v in episode.items()}
 
     def global_state(self) -> np.ndarray | None:
@@ -124,13 +119,14 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     assert layout_shapes(layout) == shapes, "the env's observation is built from its spec"
     state_dim = _critic_state_dim(args, venv)
     rows = None
-    if isinstance(venv, MixtureVectorEnv) and venv.mixed_sizes:
+    if venv.mixed_sizes:
         if ranks.active:
             raise ConfigError(
                 f"--fleet-mixture={list(args.env.fleet_mixture)} mixes fleet sizes, whose agents do not split evenly "
                 "among torchrun ranks; train it in one process."
             )
-        rows = np.flatnonzero(venv.taxi_mask.reshape(-1))
+        real = np.arange(venv.num_taxis)[None, :] < venv.taxis_per_env[:, None]  # [E, A_max]
+        rows = np.flatnonzero(real.reshape(-1))
     local_agents = local_envs * taxis if rows is None else len(rows)
     total_agents = args.env.num_envs * taxis if rows is None else len(rows)
     batch = args.ppo.num_steps * total_agents
@@ -144,7 +140,7 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     )  # fmt: skip
 
 
-def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv | ShardedVectorEnv) -> int:
+def _critic_state_dim(args: TrainArgs, venv: VectorBackend) -> int:
     """Size of the centralised critic's state (the env state and a one-hot of the taxi); 0 without one.
     ConfigError for a mixture whose settings' global states differ in size (no one critic input holds them)."""
     if not args.net.centralised_critic:
@@ -159,43 +155,30 @@ def _critic_state_dim(args: TrainArgs, venv: VectorEnv | MixtureVectorEnv | Shar
     return int(venv.state_space.shape[0]) + venv.num_taxis
 
 
-def _training_envs(
-    args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local_envs: int
-) -> VectorEnv | MixtureVectorEnv | ShardedVectorEnv:
-    """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``; tables
-    filled if asked."""
+def _training_envs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local_envs: int) -> VectorBackend:
+    """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``, stepped by
+    ``--vector-backend`` (auto: env workers with ``--env-workers``, else a mixture with either option, else one
+    config's envs); tables filled if asked."""
     cfgs = training_configs(args, cfg, base)
+    # Random demand reads every row of the distance tables within minutes: compute them now (or load them from the
+    # disk cache), instead of a few Dijkstras in every new episode's reset.
     fill = args.env.fill_tables and cfg.stop_features and cfg.requests is None
-    if args.env.env_workers:
-        if args.env.env_workers > local_envs:
-            raise ConfigError(
-                f"--env-workers={args.env.env_workers} exceeds this rank's {local_envs} envs; give at most "
-                f"{local_envs} (each worker steps one env at least), or more --num-envs."
-            )
-        if fill and cache_dir() is not None:  # filled once here and saved to the disk cache, which every worker loads
-            for c in cfgs:  # (without a disk cache each worker fills its own: filling here would be lost)
-                table_for(World(c)).fill()
-        try:
-            # copy=False: collect_rollout copies each observation into its buffer before it steps again
-            return ShardedVectorEnv(
-                cfgs,
-                local_envs,
-                args.env.env_workers,
-                global_state=args.net.centralised_critic,
-                fill_tables=fill,
-                copy=False,
-            )
-        except ValueError as err:
-            raise ConfigError(f"--env-workers={args.env.env_workers}: {err}") from err
-    venv: VectorEnv | MixtureVectorEnv = VectorEnv(cfg, num_envs=local_envs)
-    if args.env.thresholds or args.env.fleet_mixture:
-        venv = MixtureVectorEnv(cfgs, num_envs=local_envs)
-    if fill:
-        # Random demand reads every row of the distance tables within minutes: compute them now (or load them
-        # from the disk cache), instead of a few Dijkstras in every new episode's reset.
-        for env in venv.envs if isinstance(venv, MixtureVectorEnv) else [venv]:
-            table_for(env.world).fill()
-    return venv
+    backend = args.chosen_backend()
+    if backend != "workers":
+        return make_vector(cfgs, local_envs, backend, fill_tables=fill)
+    if args.env.env_workers > local_envs:
+        raise ConfigError(
+            f"--env-workers={args.env.env_workers} exceeds this rank's {local_envs} envs; give at most "
+            f"{local_envs} (each worker steps one env at least), or more --num-envs."
+        )
+    try:
+        # copy=False: collect_rollout copies each observation into its buffer before it steps again
+        return make_vector(
+            cfgs, local_envs, backend, workers=args.env.env_workers, global_state=args.net.centralised_critic,
+            fill_tables=fill, copy=False,
+        )  # fmt: skip
+    except ValueError as err:
+        raise ConfigError(f"--env-workers={args.env.env_workers}: {err}") from err
 
 
 def training_configs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig) -> list[EnvConfig]:

@@ -77,6 +77,11 @@ class EnvOptions:
     env_workers: int = 0
     """step this rank's training envs in this many worker processes, one core each (uamfleet.env.workers), while
     the network runs here (e.g. on a GPU); 0: in this process. Same episodes either way; configs of one fleet size"""
+    vector_backend: Literal["auto", "inline", "mixture", "workers"] = "auto"
+    """what steps this rank's training envs (uamfleet.env.backends): inline (one config, in this process), mixture
+    (a group of envs per --thresholds value and --fleet-mixture setting, in this process), workers (the mixture's
+    envs in --env-workers processes); auto: workers with --env-workers, else mixture with --thresholds or
+    --fleet-mixture, else inline. Same episodes with any"""
     fill_tables: bool = True
     """with stop features on random demand: compute the feasible-path distance tables before training (or load
     them from the disk cache, uamfleet.paths.distance_table), ~30 s per threshold on Berlin the first time"""
@@ -321,6 +326,7 @@ class TrainArgs:
                 "with --init-from (a shipped name such as berlin, or a checkpoint file), or drop --kl-to-init."
             )
         self._check_fleet_mixture()
+        self._check_vector_backend()
         if net.reinit_critic and net.init_from is None:
             raise ConfigError(
                 "--reinit-critic starts the critic of an --init-from policy afresh; give that policy with "
@@ -403,6 +409,38 @@ class TrainArgs:
                 f"({largest}): the run's observation holds the largest fleet's other taxis; set --num-taxis {largest} "
                 "or leave it out."
             )
+
+    def _check_vector_backend(self) -> None:
+        """--vector-backend: a known name that agrees with --env-workers, --thresholds and --fleet-mixture."""
+        env = self.env
+        backend, workers = env.vector_backend, env.env_workers
+        if backend not in ("auto", "inline", "mixture", "workers"):
+            raise ConfigError(f"--vector-backend={backend!r} is unknown; use auto, inline, mixture or workers.")
+        if backend == "workers" and not workers:
+            raise ConfigError(
+                "--vector-backend workers steps the envs in worker processes; give --env-workers >= 1 (or use auto)."
+            )
+        if backend in ("inline", "mixture") and workers:
+            raise ConfigError(
+                f"--vector-backend {backend} steps the envs in this process, but --env-workers={workers} asks for "
+                "worker processes; use --vector-backend workers (or auto), or drop --env-workers."
+            )
+        configs = max(1, len(env.thresholds)) * max(1, len(env.fleet_mixture))
+        if backend == "inline" and configs > 1:
+            raise ConfigError(
+                f"--vector-backend inline steps one config, but --thresholds and --fleet-mixture give {configs}; use "
+                "--vector-backend mixture (or auto)."
+            )
+
+    def chosen_backend(self) -> str:
+        """The backend that steps the training envs: --vector-backend, with auto resolved (workers with
+        --env-workers, else mixture with --thresholds or --fleet-mixture, else inline)."""
+        env = self.env
+        if env.vector_backend != "auto":
+            return env.vector_backend
+        if env.env_workers:
+            return "workers"
+        return "mixture" if env.thresholds or env.fleet_mixture else "inline"
 
     def fleet_settings(self) -> list[tuple[int, int]]:
         """(taxis, requests) of each --fleet-mixture setting, in the order given (ConfigError for a malformed one)."""

@@ -30,7 +30,6 @@ import torch
 
 from uamfleet.config import REWARD_TERMS, EnvConfig
 from uamfleet.observe.spec import layout_to_dict
-from uamfleet.env.workers import ShardedVectorEnv
 from uamfleet.instances import family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import (
@@ -219,8 +218,7 @@ def train(
         try:
             return _train(run, on_iteration, claim)
         finally:
-            if isinstance(run.venv, ShardedVectorEnv):
-                run.venv.close()  # the env workers stop with the training, however it ends
+            run.venv.close()  # env workers stop with the training, however it ends
     finally:
         if claim is not None:
             claim.release()
