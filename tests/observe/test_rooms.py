@@ -34,4 +34,13 @@ def test_the_observe_package_holds_the_observation_each_module_under_600_lines()
 
 
 def test_the_env_package_holds_only_the_faces() -> None:
-    assert set(_modules("env")) == {"__init__", "vector_env", "parallel_env", "mixture", "workers"}
+    # The faces, the one interface of the vector backends (backends) and the Policy protocol the faces are flown by.
+    assert set(_modules("env")) == {
+        "__init__",
+        "vector_env",
+        "parallel_env",
+        "mixture",
+        "workers",
+        "backends",
+        "protocol",
+    }

@@ -238,7 +238,7 @@ class ShardedVectorEnv:
     ``copy=True`` (as Gymnasium's ``AsyncVectorEnv``): the observations returned are copies. ``copy=False`` returns
     views of the shared buffers, which the next ``step`` or ``reset`` overwrites: for a caller that copies them on
     before it steps again (the trainer writes them into its rollout buffer), it saves a copy of every observation
-    (at 1,020 envs, a third of a step's time on the 2-core machine; docs/benchmarks.md)."""
+    (at 1,020 envs, a third of a step's time on the 2-core machine; docs/benchmarks.md, "The environment")."""
 
     def __init__(
         self, cfgs: Sequence[EnvConfig], num_envs: int, workers: int, global_state: bool = False,

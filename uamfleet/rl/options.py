@@ -111,7 +111,7 @@ class NetOptions:
     """MSHA ablation variant: linear encoders / designed encoders / + multi-source features / + hybrid attention.
     Default de_msfea: on Berlin P4 it came within 5 % of raster_opt (a raster planner, not an optimum of the env's
     moves) in 40-140k agent-steps in 8 of 10 runs, at 3x the full model's speed per step; the full model learned
-    slower per step too (docs/results.md)"""
+    slower per step too (reports/2026-12-03-results-history/README.md, "The recipe, and what made the difference")"""
     d_model: int = 64
     """token / feature width of the network"""
     num_heads: int = 4
@@ -174,7 +174,8 @@ class PPOOptions:
     0.9, not CleanRL's 0.99:
     with the path-distance potential every step's progress is paid at once, so a short horizon loses little
     and cuts the variance of the advantages; on Berlin P4 it took the LE variant from TD 8,900 m (gamma 0.95) to
-    5,200-5,300 m in 150k agent-steps (docs/results.md). Raise it for sparse rewards (shaping 0)"""
+    5,200-5,300 m in 150k agent-steps (reports/2026-12-03-results-history/README.md, "The recipe, and what made
+    the difference"). Raise it for sparse rewards (shaping 0)"""
     gae_lambda: float = 0.9
     """GAE lambda"""
     clip_coef: float = 0.2
