@@ -96,3 +96,27 @@ def brute_force_moves(start, requests, side_m, step_m, radius_m, seats, max_move
                 nxt.add((round(px, 6), round(py, 6), tuple(ph)))
         frontier = nxt
     return None
+
+
+# One short PPO iteration of a small network, for tests that need a trained checkpoint rather than a good one.
+TINY_TRAINING: dict[str, Any] = dict(
+    total_timesteps=64,
+    num_envs=2,
+    num_steps=32,
+    num_minibatches=1,
+    update_epochs=1,
+    run_name="tiny",
+    progress=False,
+    tensorboard=False,
+    threads=1,
+    time_limit_steps=40,
+    d_model=16,
+    num_heads=2,
+)
+
+
+def tiny_train_args(run_dir: Any, **overrides: Any) -> Any:
+    """The training options of :data:`TINY_TRAINING` in ``run_dir``, with ``overrides`` (flat option names)."""
+    from uamfleet.rl.options import TrainArgs
+
+    return TrainArgs.from_flat({**TINY_TRAINING, "run_dir": run_dir, **overrides})

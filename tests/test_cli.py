@@ -21,6 +21,7 @@ from uamfleet.cli import benchmark, msha_table, paper_table, quickstart, render,
 from uamfleet.cli import train as train_cli
 from uamfleet.cli._common import UsageError, fmt, output_path
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
+from tests.conftest import tiny_train_args
 
 ROOT = Path(__file__).resolve().parents[1]
 Cli = Callable[[Sequence[str] | None], int]
@@ -165,28 +166,7 @@ def test_trainargs_refuse_every_out_of_range_number() -> None:
 def tiny_checkpoint(tmp_path_factory) -> Path:
     """A one-taxi policy of berlin_random (12 passenger slots), one short iteration."""
     folder = tmp_path_factory.mktemp("runs")
-    result = train(
-        TrainArgs.from_flat(
-            dict(
-                scenario="berlin_random",
-                num_taxis=1,
-                total_timesteps=64,
-                num_envs=2,
-                num_steps=32,
-                num_minibatches=1,
-                update_epochs=1,
-                eval_every=0,
-                run_dir=folder,
-                run_name="tiny",
-                progress=False,
-                tensorboard=False,
-                threads=1,
-                time_limit_steps=40,
-                d_model=16,
-                num_heads=2,
-            )
-        )
-    )
+    result = train(tiny_train_args(folder, scenario="berlin_random", num_taxis=1, eval_every=0))
     return result.run_dir / "best.pt"
 
 
@@ -217,25 +197,14 @@ def test_benchmark_flies_a_checkpoint_beside_a_planner(tiny_checkpoint: Path, tm
 
 def test_benchmark_refuses_a_fleet_checkpoint(tmp_path: Path, capsys) -> None:
     result = train(
-        TrainArgs.from_flat(
-            dict(
-                scenario="berlin_random",
-                num_taxis=2,
-                total_timesteps=64,
-                num_envs=1,
-                num_steps=32,
-                num_minibatches=1,
-                update_epochs=1,
-                eval_every=0,
-                run_dir=tmp_path,
-                run_name="fleet",
-                progress=False,
-                tensorboard=False,
-                threads=1,
-                time_limit_steps=20,
-                d_model=16,
-                num_heads=2,
-            )
+        tiny_train_args(
+            tmp_path,
+            scenario="berlin_random",
+            num_taxis=2,
+            num_envs=1,
+            eval_every=0,
+            run_name="fleet",
+            time_limit_steps=20,
         )
     )
     capsys.readouterr()

@@ -9,31 +9,12 @@ from pathlib import Path
 import pytest
 
 from uamfleet.cli.paper_table import Args, main
-from uamfleet.rl.trainer import TrainArgs, train
+from uamfleet.rl.trainer import train
+from tests.conftest import tiny_train_args
 
 
 def test_quick_table_with_a_checkpoint(tmp_path: Path) -> None:
-    result = train(
-        TrainArgs.from_flat(
-            dict(
-                sinr_min_db=-3.0,
-                total_timesteps=64,
-                num_envs=2,
-                num_steps=32,
-                num_minibatches=1,
-                update_epochs=1,
-                run_dir=tmp_path,
-                run_name="tiny",
-                progress=False,
-                tensorboard=False,
-                threads=1,
-                time_limit_steps=40,
-                d_model=16,
-                num_heads=2,
-                variant="full",
-            )
-        )
-    )
+    result = train(tiny_train_args(tmp_path, sinr_min_db=-3.0, variant="full"))
     md = tmp_path / "results.md"
     md.write_text("# Results\n\nhand-written text stays\n")
     main(Args(quick=True, out_md=md, out_csv=tmp_path / "t.csv", figures=tmp_path / "fig",

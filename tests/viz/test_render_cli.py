@@ -9,6 +9,7 @@ import pytest
 from PIL import Image
 
 from uamfleet.cli.render import Args, main
+from tests.conftest import tiny_train_args
 
 
 def test_planner_on_berlin_p4_writes_page_and_figures(tmp_path: Path) -> None:
@@ -43,25 +44,17 @@ def test_planners_fly_one_taxi(tmp_path: Path) -> None:
 
 
 def test_render_a_trained_checkpoint(tmp_path: Path) -> None:
-    from uamfleet.rl.trainer import TrainArgs, train
+    from uamfleet.rl.trainer import train
 
     result = train(
-        TrainArgs.from_flat(
-            dict(
-                total_timesteps=64,
-                num_envs=2,
-                num_steps=32,
-                num_minibatches=1,
-                update_epochs=1,
-                run_dir=tmp_path,
-                run_name="tiny",
-                progress=False,
-                tensorboard=False,
-                threads=1,
-                time_limit_steps=40,
-                d_model=16,
-                num_heads=2,
-            )
+        tiny_train_args(
+            tmp_path,
+            scenario="berlin_random",
+            num_taxis=2,
+            num_envs=1,
+            eval_every=0,
+            run_name="fleet",
+            time_limit_steps=20,
         )
     )
     written = main(Args(checkpoint=result.run_dir / "best.pt", out=tmp_path / "msha.html"))
