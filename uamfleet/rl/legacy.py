@@ -146,8 +146,8 @@ def spec_of_checkpoint(
     encoder (variant ``"le"``) reads the other taxis by position, so ``fleet_rows`` is its fleet's taxis less one.
 
     A file with ``obs_layout`` must read what it stored: the spec's layout in the rebuilt world equals it field for
-    field, else :class:`CheckpointError` naming the first field that differs. A file without one reads what today's
-    presets rebuild."""
+    field, else :class:`CheckpointError` naming the first field that differs. A file without one reads what its
+    scenario's preset gives now (an edit of the preset changes it)."""
     hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
     if not isinstance(hover, bool):
         raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
@@ -162,10 +162,11 @@ def spec_of_checkpoint(
             raise CheckpointError(f"{source}: its observation layout is not a spec: {err}") from None
         differences = layout_differences(stored, spec.layout(world))
         if differences:
+            first = differences[0].replace("the first layout", "the stored layout")
             raise CheckpointError(
                 f"{source}: the observer rebuilt from its args does not read what its obs_layout stores: field "
-                f"{differences[0].replace('first', 'stored').replace('second', 'rebuilt')} (stored vs rebuilt); "
-                "the file's args or the presets it names were changed since it was written."
+                f"{first.replace('the second layout', 'the rebuilt layout')} (stored vs rebuilt); the file's args "
+                "or the preset they name changed since it was written."
             )
     return spec
 
