@@ -3,7 +3,8 @@
 :func:`upgrade_checkpoint` converts a checkpoint of format 1 (NumPy objects pickled inside) to the safe format,
 reading only NumPy arrays and scalars (:data:`NUMPY_GLOBALS`); unpickling anything else happens only with
 ``trust=True``, which warns what it means. :func:`checkpoint_args` reads the options a checkpoint was trained with
-(stored flat, one key per option) as a :class:`~uamfleet.rl.options.TrainArgs`.
+(stored flat, one key per option) as a :class:`~uamfleet.rl.options.TrainArgs`. :func:`spec_of_checkpoint` says what
+a checkpoint of format 2 reads, as an :class:`~uamfleet.observe.spec.ObserverSpec`, from those arguments.
 """
 
 from __future__ import annotations
@@ -18,9 +19,16 @@ import numpy as np
 import torch
 
 from uamfleet.config import EnvConfig
-from uamfleet.observe.spec import layout_to_dict, observation_layout
+from uamfleet.observe.legacy import split_env_config
+from uamfleet.observe.spec import ObserverSpec, layout_differences, layout_from_dict, layout_to_dict, observation_layout
 from uamfleet.presets import make_config
-from uamfleet.rl.checkpoint import Checkpoint, CheckpointError, _load_error, with_input_flags
+from uamfleet.rl.checkpoint import (
+    Checkpoint,
+    CheckpointError,
+    _load_error,
+    run_config,
+    with_input_flags,
+)
 from uamfleet.rl.options import TrainArgs
 
 try:  # NumPy 2 renamed numpy.core to numpy._core
@@ -122,4 +130,45 @@ def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
     return TrainArgs.from_saved(ckpt.args)
 
 
-__all__ = ["NUMPY_GLOBALS", "TRUST_WARNING", "checkpoint_args", "upgrade_checkpoint"]
+def spec_of_checkpoint(
+    args: Mapping[str, Any],
+    net_config: Mapping[str, Any],
+    obs_layout: Mapping[str, Any] | None = None,
+    source: str = "the checkpoint",
+) -> ObserverSpec:
+    """What a checkpoint of format 2 reads, from its flat ``args``, its ``net_config`` and, when it has one, its
+    ``obs_layout`` (the parts ``torch.load(weights_only=True)`` gives).
+
+    The config it is evaluated on is rebuilt as :func:`~uamfleet.rl.policy.load_policy` rebuilds it
+    (:func:`~uamfleet.rl.checkpoint.run_config`: its scenario through the presets with its options, laid out as the
+    policy its ``init_from`` names), then split (:func:`~uamfleet.observe.legacy.split_env_config`). ``hover`` is
+    the network's hover logit (``net_config["hover_logit"]``), not the world's rule; a network of the linear
+    encoder (variant ``"le"``) reads the other taxis by position, so ``fleet_rows`` is its fleet's taxis less one.
+
+    A file with ``obs_layout`` must read what it stored: the spec's layout in the rebuilt world equals it field for
+    field, else :class:`CheckpointError` naming the first field that differs. A file without one reads what its
+    scenario's preset gives now (an edit of the preset changes it)."""
+    hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
+    if not isinstance(hover, bool):
+        raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
+    cfg = run_config(TrainArgs.from_saved(args), training=False)
+    world, spec = split_env_config(cfg)
+    fleet_rows = world.num_taxis - 1 if net_config.get("variant") == "le" else None
+    spec = dataclasses.replace(spec, hover=hover, fleet_rows=fleet_rows)
+    if obs_layout is not None:
+        try:
+            stored = layout_from_dict(obs_layout)
+        except (ValueError, TypeError, AttributeError) as err:
+            raise CheckpointError(f"{source}: its observation layout is not a spec: {err}") from None
+        differences = layout_differences(stored, spec.layout(world))
+        if differences:
+            first = differences[0].replace("the first layout", "the stored layout")
+            raise CheckpointError(
+                f"{source}: the observer rebuilt from its args does not read what its obs_layout stores: field "
+                f"{first.replace('the second layout', 'the rebuilt layout')} (stored vs rebuilt); the file's args "
+                "or the preset they name changed since it was written."
+            )
+    return spec
+
+
+__all__ = ["NUMPY_GLOBALS", "TRUST_WARNING", "checkpoint_args", "spec_of_checkpoint", "upgrade_checkpoint"]
