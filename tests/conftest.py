@@ -115,6 +115,12 @@ TINY_TRAINING: dict[str, Any] = dict(
 )
 
 
+# The same for a two-taxi fleet policy of berlin_random (tests that need a fleet checkpoint).
+TINY_FLEET: dict[str, Any] = dict(
+    scenario="berlin_random", num_taxis=2, num_envs=1, eval_every=0, run_name="fleet", time_limit_steps=20
+)
+
+
 def tiny_train_args(run_dir: Any, **overrides: Any) -> Any:
     """The training options of :data:`TINY_TRAINING` in ``run_dir``, with ``overrides`` (flat option names)."""
     from uamfleet.rl.options import TrainArgs

@@ -21,7 +21,7 @@ from uamfleet.cli import benchmark, msha_table, paper_table, quickstart, render,
 from uamfleet.cli import train as train_cli
 from uamfleet.cli._common import UsageError, fmt, output_path
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
-from tests.conftest import tiny_train_args
+from tests.conftest import TINY_FLEET, tiny_train_args
 
 ROOT = Path(__file__).resolve().parents[1]
 Cli = Callable[[Sequence[str] | None], int]
@@ -196,17 +196,7 @@ def test_benchmark_flies_a_checkpoint_beside_a_planner(tiny_checkpoint: Path, tm
 
 
 def test_benchmark_refuses_a_fleet_checkpoint(tmp_path: Path, capsys) -> None:
-    result = train(
-        tiny_train_args(
-            tmp_path,
-            scenario="berlin_random",
-            num_taxis=2,
-            num_envs=1,
-            eval_every=0,
-            run_name="fleet",
-            time_limit_steps=20,
-        )
-    )
+    result = train(tiny_train_args(tmp_path, **TINY_FLEET))
     capsys.readouterr()
     assert benchmark.cli(["--count", "1", "--checkpoint", str(result.run_dir / "best.pt")]) == 2
     assert "was trained with 2 taxis; the benchmark's instances have one taxi" in capsys.readouterr().err

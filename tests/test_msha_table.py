@@ -33,13 +33,18 @@ def test_experiment_grid_names_and_budgets():
     assert {e.total_timesteps for e in grid if e.scenario == "detroit_p5"} == {2000}
 
 
-def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
-    name = "berlin_p4_-3dB_le_s1"
+def _tiny_le_run(run_dir: Path, name: str) -> None:
+    """One short PPO iteration of the linear-encoder variant on Berlin P4 at -3 dB, as the table's run ``name``."""
     train(TrainArgs.from_flat(dict(
         sinr_min_db=-3.0, variant="le", total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
-        update_epochs=1, run_dir=tmp_path, run_name=name, progress=False, tensorboard=False, threads=1,
+        update_epochs=1, run_dir=run_dir, run_name=name, progress=False, tensorboard=False, threads=1,
         time_limit_steps=40, eval_every=1,
     )))  # fmt: skip
+
+
+def test_tables_from_a_tiny_run(tmp_path: Path) -> None:
+    name = "berlin_p4_-3dB_le_s1"
+    _tiny_le_run(tmp_path, name)
     md = tmp_path / "results.md"
     md.write_text("# Results\n\nhand-written text stays\n")
     rows = main(Args(run_dir=tmp_path, only=(name,), seeds=(1,), train=False, feasibility="endpoint_block",
@@ -66,11 +71,7 @@ def test_default_run_writes_no_markdown_and_points_to_docs_tables(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     name = "berlin_p4_-3dB_le_s1"
-    train(TrainArgs.from_flat(dict(
-        sinr_min_db=-3.0, variant="le", total_timesteps=64, num_envs=2, num_steps=32, num_minibatches=1,
-        update_epochs=1, run_dir=tmp_path, run_name=name, progress=False, tensorboard=False, threads=1,
-        time_limit_steps=40, eval_every=1,
-    )))  # fmt: skip
+    _tiny_le_run(tmp_path, name)
     (tmp_path / "docs").mkdir()
     monkeypatch.chdir(tmp_path)  # in a checkout's root the old default (--out-md docs/results.md) wrote the page
     capsys.readouterr()

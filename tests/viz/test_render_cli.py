@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from uamfleet.cli.render import Args, main
-from tests.conftest import tiny_train_args
+from tests.conftest import TINY_FLEET, tiny_train_args
 
 
 def test_planner_on_berlin_p4_writes_page_and_figures(tmp_path: Path) -> None:
@@ -46,16 +46,6 @@ def test_planners_fly_one_taxi(tmp_path: Path) -> None:
 def test_render_a_trained_checkpoint(tmp_path: Path) -> None:
     from uamfleet.rl.trainer import train
 
-    result = train(
-        tiny_train_args(
-            tmp_path,
-            scenario="berlin_random",
-            num_taxis=2,
-            num_envs=1,
-            eval_every=0,
-            run_name="fleet",
-            time_limit_steps=20,
-        )
-    )
+    result = train(tiny_train_args(tmp_path, **TINY_FLEET))
     written = main(Args(checkpoint=result.run_dir / "best.pt", out=tmp_path / "msha.html"))
     assert written["html"].stat().st_size > 100_000
