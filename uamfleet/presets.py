@@ -251,8 +251,9 @@ OBSERVERS: dict[str, dict[str, Any]] = {
 }  # fmt: skip
 """The observer each scenario is flown with, as ``uamfleet.observe.spec.ObserverSpec.from_dict`` values (plain
 values: the presets sit below the observer): the paper's observation (``{}``: ``ObserverSpec()``), the stop
-features for ``*_instances``, the stop features with claims for ``*_fleet``. The split of a preset's config
-(:func:`uamfleet.observe.legacy.split_env_config`) reads these fields."""
+features for ``*_instances``, the stop features with claims for ``*_fleet``. Until the presets build their worlds
+without the observer's fields, each preset's config also carries them; ``tests/observe/test_spec.py`` holds the two
+equal (:func:`uamfleet.observe.legacy.split_env_config` of the config gives this spec)."""
 
 
 def make_config(scenario: str | WorldConfig = "berlin_p4", **overrides: Any) -> EnvConfig:
