@@ -47,7 +47,7 @@ MAX_REQUESTS_PER_TAXI = 32
 taxi (496 pairs, 35,960 quadruples at this bound), each sequenced exactly."""
 
 
-def _seconds(name: str, value: float, fix: str = "") -> float:
+def check_seconds(name: str, value: float, fix: str = "") -> float:
     """``value`` as a finite number of seconds in ``[0, MAX_SECONDS]``; ConfigError naming ``name`` otherwise."""
     value = check_number(name, value, minimum=0.0)
     if value > MAX_SECONDS:
@@ -142,7 +142,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         # dearer to serve at every batch it waits and, once dearer than the price, never served; the wait so far
         # added to its price leaves only what is still to come to be weighed.
         if unassigned_price_s is not None:
-            unassigned_price_s = _seconds("unassigned_price_s", unassigned_price_s, " or None (penalty_s)")
+            unassigned_price_s = check_seconds("unassigned_price_s", unassigned_price_s, " or None (penalty_s)")
         self.unassigned_price_s = unassigned_price_s
         # A finite price can still starve a request whose remaining trip costs more than the price at every batch
         # (a long ride, few taxis); past the guard its price is penalty_s again, so it is taken as soon as a taxi can.
@@ -152,7 +152,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
                     f"unassigned_guard_s={unassigned_guard_s!r} bounds the wait unassigned_price_s prices, which is "
                     "None: give both, or neither."
                 )
-            unassigned_guard_s = _seconds("unassigned_guard_s", unassigned_guard_s, " or None (no guard)")
+            unassigned_guard_s = check_seconds("unassigned_guard_s", unassigned_guard_s, " or None (no guard)")
         self.unassigned_guard_s = unassigned_guard_s
         # also re-assign at a step where a request is released: else it waits up to period - 1 steps for its taxi
         self.assign_on_release = check_flag("assign_on_release", assign_on_release)
@@ -163,7 +163,7 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         self.max_requests_per_taxi = check_integer(
             "max_requests_per_taxi", max_requests_per_taxi, 1, MAX_REQUESTS_PER_TAXI, fix=" (e.g. 6)"
         )
-        self.penalty_s = _seconds("penalty_s", penalty_s)
+        self.penalty_s = check_seconds("penalty_s", penalty_s)
         if self.penalty_s == 0:
             raise ConfigError("penalty_s=0 must be > 0: a request left unassigned must cost something (e.g. 1e6).")
 
@@ -308,4 +308,11 @@ class RecordingAssignment(BatchAssignmentPolicy):
             self.decisions.append((a, now, free, self.remoteness_after(a, route), plan))
 
 
-__all__ = ["MAX_REQUESTS_PER_TAXI", "BatchAssignmentPolicy", "InsertionPolicy", "RecordingAssignment", "assign_trips"]
+__all__ = [
+    "MAX_REQUESTS_PER_TAXI",
+    "BatchAssignmentPolicy",
+    "InsertionPolicy",
+    "RecordingAssignment",
+    "assign_trips",
+    "check_seconds",
+]

@@ -22,8 +22,8 @@ from uamfleet.baselines import (
     PlannerPolicy,
 )
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
-from uamfleet.baselines.assignment_value import MAX_SECONDS, VALUE_DISPATCHER, value_for_dispatcher
-from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy
+from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
+from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, check_seconds
 from uamfleet.baselines.fleet_dispatch import check_wait_weight
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
@@ -39,12 +39,7 @@ REFIT_VALUES = Path("docs/results/assignment_value_refit")
 
 def _seconds(name: str, value: float | None) -> float | None:
     """``value`` as seconds in ``[0, MAX_SECONDS]`` (None stays None)."""
-    if value is None:
-        return None
-    value = check_number(name, value, minimum=0.0)
-    if value > MAX_SECONDS:
-        raise ConfigError(f"{name}={value:g} is too large: at most {MAX_SECONDS:g} s.")
-    return value
+    return None if value is None else check_seconds(name, value)
 
 
 @dataclass(frozen=True)
