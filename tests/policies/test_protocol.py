@@ -15,6 +15,7 @@ from uamfleet.baselines.anticipation import NoDemandModelError, world_family
 from uamfleet.env.protocol import Policy
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, make_fleet_instance, make_instance
+from uamfleet.observe.spec import LookaheadSpec, ObserverSpec, StopsSpec
 from uamfleet.rollout import run_episode
 from uamfleet.sim.core import Simulator
 
@@ -27,8 +28,11 @@ def test_every_registered_policy_satisfies_the_protocol() -> None:
 
 def test_planners_read_the_state_and_learned_policies_say_what_they_read() -> None:
     assert policies.make("replan").spec is None and policies.make("greedy").spec is None
-    learned = policies.make("learned")
-    assert learned.spec == learned.obs_shapes and "action_mask" in learned.spec
+    learned = policies.make("learned")  # berlin.pt: 6 rows per taxi, stops, the two-move look-ahead
+    assert learned.spec == ObserverSpec(slots_per_taxi=6.0, time_scale_steps=600, stops=StopsSpec(),
+                                        lookahead=LookaheadSpec(depth=2))  # fmt: skip
+    layout = learned.spec.layout(uamfleet.make_config("berlin_instances").world)
+    assert {k: layout[k].shape for k in learned.obs_shapes} == learned.obs_shapes and "action_mask" in layout
     assert policies.make("guided", base=learned).spec is learned.spec
     assert policies.make("finish", base=learned).spec is learned.spec
     assert policies.make("finish", base="replan").spec is None

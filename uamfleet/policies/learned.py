@@ -23,6 +23,7 @@ from typing import Any, Literal
 from uamfleet.checks import MAX_TAXIS, check_integer
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
+from uamfleet.rl.legacy import with_stored_spec
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 
 
@@ -41,8 +42,10 @@ def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
 
 def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
     """Write ``checkpoint`` without what only training needs (optimiser moments, RNG states): a few hundred
-    kB that still loads with :func:`uamfleet.rl.policy.load_policy` (it cannot be resumed)."""
-    ckpt = Checkpoint.load(checkpoint)
+    kB that still loads with :func:`uamfleet.rl.policy.load_policy` (it cannot be resumed). It is written in the
+    current format: what the policy reads (``observer``) and the world it trained in (``world``) are stored, for a
+    file of format 2 rebuilt from its training arguments (:func:`uamfleet.rl.legacy.with_stored_spec`)."""
+    ckpt = with_stored_spec(Checkpoint.load(checkpoint), str(checkpoint))
     ckpt.optimizer = {}
     ckpt.numpy_rng = {}
     ckpt.reward_scaler = None

@@ -31,15 +31,18 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from uamfleet.config import EnvConfig
-from uamfleet.observe.spec import Layout, layout_differences, layout_from_dict
+from uamfleet.config import EnvConfig, WorldConfig
+from uamfleet.observe.legacy import split_env_config
+from uamfleet.observe.spec import Layout, ObserverSpec, layout_differences, layout_from_dict
 from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
 from uamfleet.rl.networks import INPUT_FIELDS, MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.options import TrainArgs, make_env_config
 
-CHECKPOINT_FORMAT = 2
-"""2: tensors, numbers, strings, lists and dicts only (``torch.load(weights_only=True)``); 1 (before): a pickled
-NumPy RNG state inside."""
+CHECKPOINT_FORMAT = 3
+"""3: as 2, plus what the policy reads (``observer``, :meth:`ObserverSpec.to_dict`) and the world it trained in
+(``world``, :func:`world_record`), both plain values; 2: tensors, numbers, strings, lists and dicts only
+(``torch.load(weights_only=True)``), what it reads rebuilt from its ``args`` (:func:`uamfleet.rl.legacy.
+spec_of_checkpoint`); 1 (before): a pickled NumPy RNG state inside."""
 ARCHITECTURE_FIELDS = (
     "variant", "d_model", "num_heads", "local_window", "readout", "centralised_critic", "action_head",
     "stop_free_move", "stop_prior",
@@ -150,6 +153,8 @@ class Checkpoint:
     cuda_rng: torch.Tensor | None = None
     format: int = CHECKPOINT_FORMAT
     obs_layout: dict[str, Any] | None = None  # layout_to_dict of the training env's spec; None: an older file
+    observer: dict[str, Any] | None = None  # ObserverSpec.to_dict of what the policy reads; None: format 2 or older
+    world: dict[str, Any] | None = None  # world_record of the world it trained in; None: format 2 or older
 
     def to_bytes(self) -> bytes:
         data = io.BytesIO()
@@ -197,6 +202,15 @@ class Checkpoint:
         except (ValueError, TypeError, AttributeError) as err:
             raise CheckpointError(f"{source}: its observation layout is not a spec: {err}") from None
 
+    def spec(self, source: str) -> ObserverSpec | None:
+        """What the policy reads, as stored (format 3); None for a file written before checkpoints stored it."""
+        if self.observer is None:
+            return None
+        try:
+            return ObserverSpec.from_dict(self.observer)
+        except (ValueError, TypeError) as err:
+            raise CheckpointError(f"{source}: its observer is not an observer spec: {err}") from None
+
     def validate(self, source: str) -> NetConfig:
         """Raise CheckpointError unless the parts are of the right types, the network config is known and
         bounded, and every weight and normalisation statistic is finite; the network's config."""
@@ -227,6 +241,14 @@ class Checkpoint:
         for key, shape in self.obs_shapes.items():
             if not (isinstance(shape, list | tuple) and all(_is_int(n) and 0 <= n <= 100_000 for n in shape)):
                 raise CheckpointError(f"{source}: observation field {key!r} has no valid shape ({shape!r}).")
+        for name in ("observer", "world"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, dict) and _is_plain(value)):
+                raise CheckpointError(
+                    f"{source}: its {name} holds something other than dicts, lists, strings and numbers: the file "
+                    "was not written by uamfleet or was altered."
+                )
+        self.spec(source)
         self._check_layout(source)
 
     def _check_layout(self, source: str) -> None:
@@ -313,6 +335,42 @@ def _is_plain(value: object, depth: int = 0) -> bool:
     if isinstance(value, dict):
         return all(isinstance(k, str) and _is_plain(v, depth + 1) for k, v in value.items())
     return False
+
+
+def trained_spec(cfg: EnvConfig, net_config: Mapping[str, Any], source: str = "the checkpoint") -> ObserverSpec:
+    """What a network of ``net_config`` trained on ``cfg`` (its evaluation config) reads: the observer of ``cfg``
+    (:func:`~uamfleet.observe.legacy.split_env_config`) with ``hover`` its network's hover logit
+    (``net_config["hover_logit"]``, not the world's rule) and, for the linear encoder (variant ``"le"``), which
+    reads the other taxis by position, ``fleet_rows`` its fleet's taxis less one."""
+    hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
+    if not isinstance(hover, bool):
+        raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
+    world, spec = split_env_config(cfg)
+    fleet_rows = world.num_taxis - 1 if net_config.get("variant") == "le" else None
+    return dataclasses.replace(spec, hover=hover, fleet_rows=fleet_rows)
+
+
+def world_record(world: WorldConfig) -> dict[str, Any]:
+    """The plain fields of ``world`` (numbers, strings, booleans, None, lists and dicts of them): a checkpoint's
+    record of the world it trained in, read by ``torch.load(weights_only=True)``. The radio map is named, never
+    stored (``"radio"``: its name; ``"scenario"``: the preset it came from); demand, reward and fixed requests as
+    dicts of their fields."""
+    record: dict[str, Any] = {}
+    for f in dataclasses.fields(WorldConfig):
+        value = getattr(world, f.name)
+        record[f.name] = value.name if f.name == "radio" else _plain_value(value)
+    return record
+
+
+def _plain_value(value: Any) -> Any:
+    """``value`` with dataclasses as dicts of their fields, tuples as lists and NumPy scalars as Python numbers."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, list | tuple):
+        return [_plain_value(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def with_input_flags(net_config: dict[str, Any], obs_shapes: Mapping[str, Any]) -> dict[str, Any]:
@@ -557,5 +615,7 @@ __all__ = [
     "read_checkpoint_file",
     "run_config",
     "set_numpy_rng_state",
+    "trained_spec",
     "with_input_flags",
+    "world_record",
 ]

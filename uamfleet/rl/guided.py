@@ -39,6 +39,7 @@ from uamfleet.config import EnvConfig
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import check_family
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
@@ -91,8 +92,8 @@ class GuidedSearchPolicy(PolicyBase):
         self.plans: list[tuple[int, int, int, float, float]] = []
 
     @property
-    def spec(self) -> dict[str, tuple[int, ...]] | None:
-        """What it reads: its base policy's observation (:attr:`GreedyPolicy.spec`)."""
+    def spec(self) -> ObserverSpec | None:
+        """What it reads: its base policy's observer spec (:attr:`GreedyPolicy.spec`)."""
         return self.policy.spec
 
     @property

@@ -42,7 +42,14 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.heads import PRIOR_FLOOR
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
-from uamfleet.rl.checkpoint import PRETRAINED, pretrained_path, run_config
+from uamfleet.rl.checkpoint import (
+    CHECKPOINT_FORMAT,
+    PRETRAINED,
+    pretrained_path,
+    run_config,
+    trained_spec,
+    world_record,
+)
 from uamfleet.rl.options import Flat, flat_options, grouped_from_flat, option_groups
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
@@ -467,6 +474,9 @@ def _save(
         net_config=dataclasses.asdict(policy.net.cfg),
         obs_shapes={k: list(spec.shape) for k, spec in read.items()},
         obs_layout=layout_to_dict(read),
+        observer=trained_spec(like, dataclasses.asdict(policy.net.cfg)).to_dict(),
+        world=world_record(like.world),
+        format=CHECKPOINT_FORMAT,
         args={**source.args, **extra, "imitation": {k: _plain(v) for k, v in args.flat().items()}},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},

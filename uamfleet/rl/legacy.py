@@ -19,15 +19,17 @@ import numpy as np
 import torch
 
 from uamfleet.config import EnvConfig
-from uamfleet.observe.legacy import split_env_config
 from uamfleet.observe.spec import ObserverSpec, layout_differences, layout_from_dict, layout_to_dict, observation_layout
 from uamfleet.presets import make_config
 from uamfleet.rl.checkpoint import (
+    CHECKPOINT_FORMAT,
     Checkpoint,
     CheckpointError,
     _load_error,
     run_config,
+    trained_spec,
     with_input_flags,
+    world_record,
 )
 from uamfleet.rl.options import TrainArgs
 
@@ -130,6 +132,17 @@ def checkpoint_args(ckpt: Checkpoint) -> TrainArgs:
     return TrainArgs.from_saved(ckpt.args)
 
 
+def with_stored_spec(ckpt: Checkpoint, source: str = "the checkpoint") -> Checkpoint:
+    """``ckpt`` in the current format: a file of format 2 gains what it reads (:func:`spec_of_checkpoint`) and the
+    world it was evaluated in (rebuilt from its ``args``), so that it no longer depends on the presets; a file that
+    stores them is returned as it is."""
+    if ckpt.observer is not None:
+        return ckpt
+    spec = spec_of_checkpoint(ckpt.args, ckpt.net_config, ckpt.obs_layout, source)
+    world = run_config(TrainArgs.from_saved(ckpt.args), training=False).world
+    return dataclasses.replace(ckpt, observer=spec.to_dict(), world=world_record(world), format=CHECKPOINT_FORMAT)
+
+
 def spec_of_checkpoint(
     args: Mapping[str, Any],
     net_config: Mapping[str, Any],
@@ -148,13 +161,9 @@ def spec_of_checkpoint(
     A file with ``obs_layout`` must read what it stored: the spec's layout in the rebuilt world equals it field for
     field, else :class:`CheckpointError` naming the first field that differs. A file without one reads what its
     scenario's preset gives now (an edit of the preset changes it)."""
-    hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
-    if not isinstance(hover, bool):
-        raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
     cfg = run_config(TrainArgs.from_saved(args), training=False)
-    world, spec = split_env_config(cfg)
-    fleet_rows = world.num_taxis - 1 if net_config.get("variant") == "le" else None
-    spec = dataclasses.replace(spec, hover=hover, fleet_rows=fleet_rows)
+    spec = trained_spec(cfg, net_config, source)
+    world = cfg.world
     if obs_layout is not None:
         try:
             stored = layout_from_dict(obs_layout)
@@ -171,4 +180,11 @@ def spec_of_checkpoint(
     return spec
 
 
-__all__ = ["NUMPY_GLOBALS", "TRUST_WARNING", "checkpoint_args", "spec_of_checkpoint", "upgrade_checkpoint"]
+__all__ = [
+    "NUMPY_GLOBALS",
+    "TRUST_WARNING",
+    "checkpoint_args",
+    "spec_of_checkpoint",
+    "upgrade_checkpoint",
+    "with_stored_spec",
+]

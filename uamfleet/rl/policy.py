@@ -21,14 +21,16 @@ from uamfleet.env.protocol import PolicyBase
 from uamfleet.observe.spec import (
     PASSENGER_AXIS_FIELDS,
     Layout,
+    ObserverSpec,
     layout_differences,
     layout_shapes,
     observation_layout,
     observation_space,
 )
+from uamfleet.observe.legacy import split_env_config
 from uamfleet.presets import PRESETS
 from uamfleet.rl.buffer import ObservationNormalizer
-from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config
+from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config, trained_spec
 from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
@@ -39,7 +41,9 @@ from uamfleet.rollout import Trajectory, fly
 class GreedyPolicy(PolicyBase):
     """The trained policy acting greedily (argmax of the masked logits) on a core's ``[E, A, ...]`` obs.
 
-    ``obs_shapes`` (one agent's observation shapes at training), ``num_taxis`` and ``passenger_slots`` (the
+    ``spec`` (:class:`~uamfleet.observe.spec.ObserverSpec`, the protocol's :attr:`~uamfleet.env.protocol.Policy.spec`)
+    is what it reads, as its checkpoint stores it; ``obs_shapes`` (one agent's observation shapes, the fields its
+    network takes) are checked on every observation; ``num_taxis`` and ``passenger_slots`` (the
     training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
     ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it;
     ``thresholds_db`` (lowest, highest threshold it trained on), when given, makes :meth:`layout` warn once about a
@@ -59,8 +63,10 @@ class GreedyPolicy(PolicyBase):
         passenger_slots: int | None = None,
         trained_on: EnvConfig | None = None,
         thresholds_db: tuple[float, float] | None = None,
+        spec: ObserverSpec | None = None,
     ) -> None:
         self.net, self.normalizer, self.device = net, normalizer, device
+        self.spec = spec
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
         self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
@@ -68,12 +74,6 @@ class GreedyPolicy(PolicyBase):
         self.loop_guard: LoopGuard | None = LoopGuard()
         self.traced = False  # see trace_actor
         self._traces: dict[tuple[object, ...], torch.jit.ScriptModule] = {}
-
-    @property
-    def spec(self) -> dict[str, tuple[int, ...]] | None:
-        """What it reads (:class:`~uamfleet.env.protocol.Policy`): one agent's observation fields and their shapes
-        at training."""
-        return self.obs_shapes
 
     def reset(self, sim: object = None) -> None:
         """A new episode (:meth:`Policy.reset <uamfleet.env.protocol.Policy.reset>`): the loop guard forgets every
@@ -199,7 +199,12 @@ class GreedyPolicy(PolicyBase):
         if normalizer is not None and window is not None and self.passenger_window is None:
             normalizer = normalizer.resized(_one_row(shapes))  # rows no longer mean request indices: pool them
         normalizer = normalizer.resized(shapes) if normalizer is not None else None
-        fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db)
+        spec = None
+        if self.spec is not None:  # what the fitted copy reads: its layout's observer, the network's own options
+            spec = dataclasses.replace(
+                split_env_config(like)[1], hover=self.spec.hover, fleet_rows=self.spec.fleet_rows
+            )
+        fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db, spec)
         fitted.trained_num_taxis = self.trained_num_taxis
         if self.loop_guard is None:
             fitted.loop_guard = None
@@ -306,13 +311,19 @@ def load_policy(
 ) -> tuple[GreedyPolicy, TrainArgs]:
     """A greedy policy and the training arguments from a checkpoint written by :func:`train` (pass the same
     ``env_config`` when it was trained on one). Loads with ``weights_only=True``: a foreign or pickle-only
-    file is refused with a ValueError, a checkpoint of another observation layout says what differs."""
+    file is refused with a ValueError, a checkpoint of another observation layout says what differs. The policy
+    reads the observer spec its checkpoint stores (format 3), else the one rebuilt from the config it was
+    evaluated on (format 2: :func:`~uamfleet.rl.checkpoint.trained_spec`)."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = checkpoint_args(ckpt)
     cfg = env_config if env_config is not None else run_config(args, training=False)
-    layout = observation_layout(cfg)  # the spec: no env is built
+    # what it reads: stored (format 3), else rebuilt from the config it was evaluated on (format 2)
+    spec = ckpt.spec(str(path)) or trained_spec(cfg, ckpt.net_config, str(path))
+    layout = spec.layout(cfg.world)  # the spec: no env is built
     _check_layout(ckpt, layout, str(path), args)
-    read = {k: spec for k, spec in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
+    if env_config is not None:  # the config it trained on, as given, must observe what the weights read
+        _check_layout(ckpt, observation_layout(env_config), str(path), args)
+    read = {k: field for k, field in layout.items() if k in ckpt.obs_shapes}  # fields added since are not read
     space, shapes = observation_space(read), layout_shapes(read)
     net = MSHAActorCritic(space, check_network(ckpt, space, str(path))).to(device)
     net.load_state_dict(ckpt.model)
@@ -325,7 +336,7 @@ def load_policy(
     if env_config is not None and args.env.scenario in PRESETS:
         trained_on = run_config(args, training=False)
     return GreedyPolicy(
-        net, normalizer, torch.device(device), shapes, cfg.num_taxis, cfg.observed_passengers, trained_on
+        net, normalizer, torch.device(device), shapes, cfg.num_taxis, spec.rows(cfg.world), trained_on, spec=spec
     ), args
 
 

@@ -41,6 +41,8 @@ from uamfleet.rl.checkpoint import (
     check_state_dict,
     numpy_rng_state,
     set_numpy_rng_state,
+    trained_spec,
+    world_record,
 )
 from uamfleet.rl.collector import Counters, RolloutStats, Run, collect_rollout, make_run, restore_counters
 from uamfleet.rl.distributed import RankZeroError, Ranks
@@ -79,7 +81,8 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
         model=copy.deepcopy(learner.net.state_dict()), optimizer=copy.deepcopy(learner.optimizer.state_dict()),
         net_config=dataclasses.asdict(learner.net_cfg), args=run.args.flat(),
         obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, obs_layout=layout_to_dict(run.layout),
-        iteration=counters.iteration,
+        observer=trained_spec(run.eval_cfg, dataclasses.asdict(learner.net_cfg)).to_dict(),
+        world=world_record(run.eval_cfg.world), iteration=counters.iteration,
         global_step=counters.global_step, wall_s=counters.wall_offset + time.time() - run.start_time,
         obs_normalizer=learner.normalizer.state_dict() if learner.normalizer is not None else None,
         reward_scaler=learner.scaler.rms.state_dict() if learner.scaler is not None else None,
