@@ -34,7 +34,6 @@ class Case:
     scenario: str
     overrides: dict[str, Any] = field(default_factory=dict)
     policy: str = "random"  # "random" (masked uniform) or a shipped policy name (uamfleet.pretrained)
-    fleet: int | None = None  # fly the shipped policy resized with .for_fleet(fleet)
     num_envs: int = 2
     steps: int = 80
     seed: int = 3
@@ -49,19 +48,22 @@ CASES: dict[str, Case] = {
     "berlin_fleet_4taxis": Case("berlin_fleet", {"num_taxis": 4, "separation": "none"}),
     "detroit3gpp_fleet": Case("detroit3gpp_fleet", {"num_taxis": 4, "separation": "none"}, steps=60),
     "pretrained_berlin": Case("berlin_instances", policy="berlin", steps=150),
-    "pretrained_berlin_p4": Case("berlin_p4", policy="berlin", num_envs=1, steps=150),
+    # the world it has always hashed: berlin_p4 with the 6 passenger rows and the 600-step limit berlin trained on
+    "pretrained_berlin_p4": Case(
+        "berlin_p4", {"max_passengers": 6, "time_limit_steps": 600}, policy="berlin", num_envs=1, steps=150
+    ),
     "pretrained_berlin_fleet_4taxis": Case(
-        "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet", fleet=4, steps=100
+        "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet", steps=100
     ),
     "pretrained_berlin_fleet_2taxis": Case(
-        "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet", fleet=2, steps=50
+        "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet", steps=50
     ),
     # the fleet policy shipped as "berlin_fleet" until 2026-12-02: these hashed as the two cases above did then
     "pretrained_berlin_fleet_v1_4taxis": Case(
         "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet_v1", steps=100
     ),
     "pretrained_berlin_fleet_v1_2taxis": Case(
-        "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet_v1", fleet=2, steps=50
+        "berlin_fleet", {"num_taxis": 2, "separation": "none"}, policy="berlin_fleet_v1", steps=50
     ),
     "pretrained_berlin_fleet4": Case(
         "berlin_fleet", {"num_taxis": 4, "separation": "none"}, policy="berlin_fleet4", steps=40
@@ -106,15 +108,15 @@ def rollout_hashes(case: Case) -> dict[str, str]:
     policy: Callable[[dict[str, np.ndarray]], np.ndarray]
     if case.policy == "random":
         policy = _random_policy(case.seed)
-    else:
+        env = VectorEnv(cfg, num_envs=case.num_envs)
+        obs, _ = env.reset(seed=case.seed)
+    else:  # the world as written, observed as the checkpoint's spec says; the policy fits itself to it
         shipped = uamfleet.pretrained(case.policy)
-        if case.fleet is not None:
-            shipped = shipped.for_fleet(case.fleet)
-        cfg = shipped.layout(cfg)
+        env = VectorEnv(cfg, num_envs=case.num_envs, observer=shipped.spec)
+        obs, _ = env.reset(seed=case.seed)
+        shipped.reset(env.sim)
         policy = shipped
-    env = VectorEnv(cfg, num_envs=case.num_envs)
     streams = _Streams()
-    obs, _ = env.reset(seed=case.seed)
     for _ in range(case.steps):
         for key in sorted(obs):
             streams.add(f"obs/{key}", obs[key])

@@ -98,7 +98,6 @@ def test_the_time_features_divide_by_the_specs_time_scale() -> None:
         (config(), ObserverSpec(hover=True), "which this world refuses: build it with hover_action=True."),
         (config(), ObserverSpec(fleet_rows=3), "fly it with 4 taxis."),
         (config(), ObserverSpec(slots_per_taxi=1.0), "the world has 3 passenger rows; this policy reads 2"),
-        (config(), ObserverSpec(slots_per_taxi=2.0), "the observer reads 4 passenger rows and the world has 3"),
         (config(seats=2), ObserverSpec(passenger_window=1), "passenger_window=1 must be an integer in [2, 1024]"),
     ],
 )
@@ -107,6 +106,17 @@ def test_a_face_refuses_an_observer_that_cannot_read_its_world_in_one_line(cfg: 
     with pytest.raises(ConfigError) as err:
         VectorEnv(cfg, observer=spec)
     assert line in str(err.value) and "\n" not in str(err.value)
+
+
+def test_an_observer_that_reads_more_passenger_rows_than_the_world_has_pads_them_masked_and_zero() -> None:
+    own = VectorEnv(config(), observer=ObserverSpec(patch_size=3))  # the world's 3 rows
+    padded = VectorEnv(config(), observer=ObserverSpec(patch_size=3, slots_per_taxi=2.0))  # 4 rows for 2 taxis
+    assert padded.single_observation_space["passengers"].shape[0] == 4 and padded.cfg.num_passengers == 3
+    for a, b in zip(fly(own), fly(padded), strict=True):
+        np.testing.assert_array_equal(b["passengers"][:, :, :3], a["passengers"])
+        np.testing.assert_array_equal(b["passenger_mask"][:, :, :3], a["passenger_mask"])
+        assert not b["passengers"][:, :, 3].any() and not b["passenger_mask"][:, :, 3].any()
+        assert all(np.array_equal(a[k], b[k]) for k in a if k not in ("passengers", "passenger_mask"))
 
 
 def test_an_observer_refuses_a_simulator_that_keeps_less_than_it_reads() -> None:

@@ -35,16 +35,11 @@ def split_env_config(cfg: EnvConfig) -> tuple[WorldConfig, ObserverSpec]:
 
 
 def check_observable(world: WorldConfig, spec: ObserverSpec) -> None:
-    """:class:`ConfigError` with :meth:`ObserverSpec.reads`'s line when ``spec`` cannot read ``world``, or when it
-    reads, without a window, another number of passenger rows than the world has."""
+    """:class:`ConfigError` with :meth:`ObserverSpec.reads`'s line when ``spec`` cannot read ``world``. A spec that
+    reads more passenger rows than the world has is observable: the observer pads them (masked, zero)."""
     refusal = spec.reads(world)
     if refusal is not None:
         raise ConfigError(refusal + ".")
-    if spec.passenger_window is None and spec.rows(world) != world.num_passengers:
-        raise ConfigError(
-            f"the observer reads {spec.rows(world)} passenger rows and the world has {world.num_passengers}; "
-            f"build the world with max_passengers={spec.rows(world)} or give the observer a passenger window."
-        )
 
 
 def observed_config(cfg: WorldConfig, observer: ObserverSpec | None = None) -> tuple[EnvConfig, ObserverSpec]:
@@ -55,7 +50,8 @@ def observed_config(cfg: WorldConfig, observer: ObserverSpec | None = None) -> t
     :class:`WorldConfig` is observed by ``ObserverSpec()``. A spec given is checked against the world
     (:meth:`ObserverSpec.reads`; :class:`ConfigError` with its line) and the world is joined with it: the
     simulator keeps the history, the patch margin and the tour caches the observer reads (``history_len``,
-    ``patch_size``, the stop fields). A spec without a window must read the world's own passenger rows."""
+    ``patch_size``, the stop fields). A spec without a window that reads more passenger rows than the world has
+    is padded by the observer (the world is not resized)."""
     if observer is None:
         if isinstance(cfg, EnvConfig):
             return cfg, split_env_config(cfg)[1]

@@ -38,7 +38,8 @@ class Observer:
     shapes and dtypes are :meth:`ObserverSpec.layout`'s (``self.layout``). ``spec=None``: the split of the world's
     config (:func:`uamfleet.observe.legacy.split_env_config`). With a passenger window (``spec.passenger_window``)
     every field is computed for every passenger of the state (``self.computed``), then each taxi's window of the
-    passenger-axis fields is taken (:mod:`uamfleet.observe.window`). The time features divide by
+    passenger-axis fields is taken (:mod:`uamfleet.observe.window`); without one, a spec that reads more passenger
+    rows than the world has gets them padded (masked and zero). The time features divide by
     ``spec.time_scale_steps`` (None: the world's time limit)."""
 
     def __init__(self, world: World, spec: ObserverSpec | None = None) -> None:
@@ -72,6 +73,12 @@ class Observer:
             if self.depth:
                 self.components.append(LookaheadComponent(world, self.table, self.depth))
         self._window = None if self.window is None else WindowComponent(self.window, cfg.num_passengers, self.table)
+        # without a window the spec may read more rows than the world has: those are padded, masked and zero, as
+        # the rows of passengers a larger state holds but has not drawn
+        self._padded = [
+            name for name in PASSENGER_AXIS_FIELDS
+            if name in self.layout and self.layout[name].shape[0] > self.computed[name].shape[0]
+        ]  # fmt: skip
         # the always-on fields read the time limit from the world's arrays: the spec's scale replaces it there
         scale = self.spec.time_scale_steps
         arrays = world.arrays
@@ -96,10 +103,19 @@ class Observer:
         for component in self.components:
             component.write(state, obs)
         if self._window is None:
-            return obs
+            return self._pad(obs) if self._padded else obs
         rows = self._window.rows(state)
         picked = window.take_rows(obs, rows, [name for name in PASSENGER_AXIS_FIELDS if name in obs])
         return {name: picked.get(name, obs[name]) for name in self.layout}
+
+    def _pad(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """``obs`` with the passenger-axis fields grown to the rows the spec reads (the rows past the world's zero)."""
+        for name in self._padded:
+            value = obs[name]
+            grown = np.zeros((*value.shape[:2], *self.layout[name].shape), value.dtype)
+            grown[:, :, : value.shape[2]] = value
+            obs[name] = grown
+        return obs
 
     def window_rows(self, state: FleetState) -> np.ndarray:
         """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot

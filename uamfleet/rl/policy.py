@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from uamfleet.checks import MAX_PASSENGERS, ConfigError
-from uamfleet.config import MAX_TAXIS, EnvConfig, check_integer
+from uamfleet.config import MAX_TAXIS, EnvConfig, WorldConfig, check_integer
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.observe.spec import (
     PASSENGER_AXIS_FIELDS,
@@ -36,6 +36,7 @@ from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
 from uamfleet.rollout import Trajectory, fly
+from uamfleet.sim.core import Simulator
 
 
 class GreedyPolicy(PolicyBase):
@@ -70,16 +71,77 @@ class GreedyPolicy(PolicyBase):
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
         self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
+        # what it read as built, and its fits to other world shapes (reset): network, normaliser, shapes, rows
+        self._built = (net, normalizer, obs_shapes, num_taxis, passenger_slots, spec)
+        self._fits: dict[tuple[object, ...], tuple[MSHAActorCritic, ObservationNormalizer | None]] = {}
         self._warned_threshold = False
         self.loop_guard: LoopGuard | None = LoopGuard()
         self.traced = False  # see trace_actor
         self._traces: dict[tuple[object, ...], torch.jit.ScriptModule] = {}
 
-    def reset(self, sim: object = None) -> None:
+    def reset(self, sim: Simulator | None = None) -> None:
         """A new episode (:meth:`Policy.reset <uamfleet.env.protocol.Policy.reset>`): the loop guard forgets every
-        taxi's points (the simulator itself is not read)."""
+        taxi's points, and a policy with a :attr:`spec` fits itself to the simulator's world (:meth:`fit`)."""
         if self.loop_guard is not None:
             self.loop_guard.reset()
+        if sim is not None and self.spec is not None:
+            self.fit(sim.cfg)
+
+    def fit(self, world: WorldConfig) -> None:
+        """Read ``world`` with this policy's :attr:`spec`, never changing the world: :class:`ConfigError` with the
+        spec's one line when it cannot (:meth:`ObserverSpec.reads`); else the shapes it checks follow the rows the
+        spec reads there (``slots_per_taxi`` times the world's taxis, or the window) and its fleet, and the
+        normaliser's statistics of the set fields are pooled over their rows when the row count differs from the
+        one it trained on (:meth:`ObservationNormalizer.resized`), also when it reads a window it did not train
+        with. Fitted once per world shape. Warns once when the world's threshold lies outside
+        :attr:`thresholds_db`."""
+        assert self.spec is not None
+        refusal = self.spec.reads(world)
+        if refusal is not None:
+            raise ConfigError(refusal + ".")
+        self._warn_threshold(world.sinr_min_db)
+        net, normalizer, shapes, taxis, slots, built = self._built
+        if shapes is None or built is None:
+            return
+        layout = self.spec.layout(world)
+        missing = sorted(set(shapes) - set(layout))
+        if missing:
+            raise ConfigError(
+                f"this policy reads {missing}, which its spec lacks: give it the spec its checkpoint stores."
+            )
+        fitted = {k: layout[k].shape for k in shapes}
+        rows = self.spec.rows(world)
+        if fitted == shapes and self.spec.passenger_window == built.passenger_window:
+            self.net, self.normalizer, self.obs_shapes = net, normalizer, shapes
+            self.num_taxis, self.passenger_slots = taxis, slots
+            return
+        if not isinstance(net.torso, DesignedTorso):
+            raise ConfigError(
+                "only a policy of a designed variant ('de', 'de_msfea', 'full') flies another fleet size or passenger "
+                f"window; this one flies num_taxis={taxis} and {slots} passenger slots only."
+            )
+        key = (tuple(sorted(fitted.items())), self.spec.passenger_window)
+        if key not in self._fits:
+            resized = copy.copy(net)  # the same modules and weights; only the shapes it checks differ
+            resized.shapes = fitted
+            pooled = normalizer
+            if pooled is not None and self.spec.passenger_window is not None and built.passenger_window is None:
+                pooled = pooled.resized(_one_row(fitted))  # rows no longer mean request indices: pool them
+            self._fits[key] = (resized, pooled.resized(fitted) if pooled is not None else None)
+        self.net, self.normalizer = self._fits[key]
+        self.obs_shapes, self.num_taxis, self.passenger_slots = fitted, world.num_taxis, rows
+
+    def _warn_threshold(self, sinr_min_db: float) -> None:
+        """Warn once when ``sinr_min_db`` lies outside :attr:`thresholds_db`."""
+        low, high = self.thresholds_db or (-math.inf, math.inf)
+        if not low <= sinr_min_db <= high and not self._warned_threshold:
+            self._warned_threshold = True  # once: a sweep over thresholds would otherwise repeat it per episode
+            warnings.warn(
+                f"sinr_min_db={sinr_min_db:g} dB lies outside the thresholds this policy trained on "
+                f"({low:g} ... {high:g} dB); it flies, but nothing was measured there (docs/results.md).",
+                UserWarning,
+                stacklevel=4,
+            )
 
     def layout(self, cfg: EnvConfig) -> EnvConfig:
         """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
@@ -89,15 +151,7 @@ class GreedyPolicy(PolicyBase):
         rules, threshold and instance are kept. Raises ValueError when the instance has more requests than the
         policy has passenger slots (without a window), or another fleet size. Warns (once per policy) when
         ``cfg``'s threshold lies outside :attr:`thresholds_db`."""
-        low, high = self.thresholds_db or (-math.inf, math.inf)
-        if not low <= cfg.sinr_min_db <= high and not self._warned_threshold:
-            self._warned_threshold = True  # once: a sweep over thresholds would otherwise repeat it per episode
-            warnings.warn(
-                f"sinr_min_db={cfg.sinr_min_db:g} dB lies outside the thresholds this policy trained on "
-                f"({low:g} ... {high:g} dB); it flies, but nothing was measured there (docs/results.md).",
-                UserWarning,
-                stacklevel=3,
-            )
+        self._warn_threshold(cfg.sinr_min_db)
         if self.net.cfg.hover_logit and not cfg.hover_action:
             raise ValueError(
                 "this policy's network takes the hover action (16; NetConfig.hover_logit), which the config lacks: "

@@ -1,0 +1,70 @@
+"""A learned policy fits itself to the world it is reset in, never the world to itself: it reads the world with its
+observer spec (a world built with ``observer=policy.spec``), refuses in one line a world its spec cannot read, and
+flies another fleet size with the rows its spec reads there and its normaliser's set statistics pooled, exactly as
+the policy resized for that fleet (``for_fleet``) flies the world laid out for it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import uamfleet
+from uamfleet.checks import ConfigError
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import make_fleet_instance
+from uamfleet.observe.spec import ObserverSpec
+
+
+def _actions(env: VectorEnv, policy, steps: int) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    obs, _ = env.reset(seed=0)
+    policy.reset(env.sim)
+    flown = []
+    for _ in range(steps):
+        actions = policy.act(obs)
+        flown.append(actions)
+        obs, _, terminated, truncated, _ = env.step(actions)
+        if terminated[0] or truncated[0]:
+            break
+    return flown
+
+
+@pytest.mark.parametrize("requests", [12, 8])  # 8: the observer pads to the 12 rows the spec reads at 2 taxis
+def test_a_fleet_policy_reset_in_a_smaller_fleet_flies_as_the_policy_resized_for_it(requests: int) -> None:
+    policy = uamfleet.pretrained("berlin_fleet_v1")  # 4 taxis, 24 rows (6 per taxi), no window
+    instance = make_fleet_instance("berlin", 3, num_taxis=2, num_requests=requests)
+    resized = policy.for_fleet(2)
+    old = VectorEnv(resized.layout(instance), autoreset=False)
+    new = VectorEnv(instance, observer=policy.spec, autoreset=False)  # the world as it is: its own time limit
+    assert new.cfg.num_passengers == requests and new.single_observation_space == old.single_observation_space
+    expected = _actions(old, resized, 60)
+    flown = _actions(new, policy, 60)
+    assert len(flown) == len(expected) == 60
+    for step, (a, b) in enumerate(zip(flown, expected, strict=True)):
+        np.testing.assert_array_equal(a, b, err_msg=f"step {step}")
+    assert policy.passenger_slots == 12 and policy.num_taxis == 2
+    pooled, theirs = policy.normalizer.fields["passengers"], resized.normalizer.fields["passengers"]
+    np.testing.assert_array_equal(pooled.mean, theirs.mean)
+    np.testing.assert_array_equal(pooled.var, theirs.var)
+    # back in a world of its trained shape it reads its trained rows and statistics again
+    _actions(VectorEnv(make_fleet_instance("berlin", 3, num_taxis=4, num_requests=24), observer=policy.spec), policy, 1)
+    assert policy.passenger_slots == 24 and policy.normalizer.fields["passengers"].mean.shape[0] == 24
+
+
+def test_a_policy_refuses_at_reset_a_world_its_spec_cannot_read_in_one_line_naming_the_fix() -> None:
+    fleet = uamfleet.pretrained("berlin_fleet_v1")  # 6 rows per taxi, no window
+    crowded = make_fleet_instance("berlin", 3, num_taxis=2, num_requests=16)
+    env = VectorEnv(crowded, observer=ObserverSpec(passenger_window=8), autoreset=False)
+    env.reset(seed=0)
+    with pytest.raises(ConfigError) as err:
+        fleet.reset(env.sim)
+    assert str(err.value) == (
+        "the world has 16 passenger rows; this policy reads 12: give it at most 12 requests, or fly it with a "
+        "passenger window."
+    )
+    hover = uamfleet.pretrained("berlin_fleet")  # waits with the hover action
+    still = VectorEnv(make_fleet_instance("berlin", 3, num_taxis=2, num_requests=8, hover_action=False))
+    still.reset(seed=0)
+    with pytest.raises(
+        ConfigError, match=r"hover action \(16\), which this world refuses: build it with hover_action="
+    ):
+        hover.reset(still.sim)
