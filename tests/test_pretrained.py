@@ -73,7 +73,21 @@ def test_the_shipped_fleet_policy_serves_any_fleet_size_and_asks_for_the_hover_a
         m = episode_metrics(policy.fly(cfg), cfg.radio)
         assert m.num_requests == requests and m.pr_pct == 100.0
     with pytest.raises(ValueError, match=r"hover_action=True"):
-        fleet.for_fleet(2).layout(make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4))
+        fleet.for_fleet(2).layout(
+            make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4, hover_action=False)
+        )
+
+
+def test_a_fleet_instance_has_its_fleet_presets_hover_so_the_shipped_fleet_policy_flies_it_as_made() -> None:
+    from uamfleet.instances import make_fleet_instance
+
+    for family in ("berlin", "detroit3gpp"):
+        assert uamfleet.make_config(f"{family}_fleet").hover_action is True
+    cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4)
+    assert cfg.hover_action is True and cfg.num_actions == 17
+    m = episode_metrics(uamfleet.pretrained("berlin_fleet").for_fleet(2).fly(cfg), cfg.radio)
+    assert m.num_requests == 4 and m.pr_pct == 100.0
+    assert make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4, hover_action=False).num_actions == 16
 
 
 def test_the_first_shipped_fleet_policy_serves_its_own_and_other_fleet_sizes() -> None:

@@ -161,7 +161,7 @@ def make_fleet_instance(
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S,
     max_passengers: int | None = None,
     separation: str = "none",
-    hover_action: bool = False,
+    hover_action: bool | None = None,
 ) -> EnvConfig:
     """The fleet instance of ``seed`` in ``family`` (:data:`FAMILIES`): ``num_taxis`` fixed starts,
     ``num_requests`` fixed requests released by Poisson arrivals over ``arrival_window_s`` and a fixed threshold
@@ -169,11 +169,14 @@ def make_fleet_instance(
     and destination on them; 0 uses every flyable block centre. Every stop is reachable along feasible paths from
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
     ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield";
-    ``hover_action``: action 16 hovers (off in every table before issue 21's hover, where idle taxis zig-zag)."""
+    ``hover_action``: action 16 hovers; None: as the family's ``*_fleet`` preset has it (on: a fleet policy waits with
+    it), False: the 16 headings alone (as every table before issue 21's hover, where idle taxis zig-zag)."""
     seed, num_taxis, num_requests, num_vertiports = _check_fleet_args(
         family, seed, num_taxis, num_requests, num_vertiports, arrival_window_s
     )
     fam = FAMILIES[family]
+    if hover_action is None:
+        hover_action = make_config(f"{family}_fleet").hover_action
 
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
