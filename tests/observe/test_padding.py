@@ -8,6 +8,7 @@ import numpy as np
 
 import uamfleet
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import make_fleet_instance
 from uamfleet.observe.spec import ObserverSpec
 
 
@@ -39,3 +40,22 @@ def test_berlin_on_a_four_request_instance_reads_the_same_padded_as_in_a_world_o
             assert (term_small[0], trunc_small[0]) == (term_big[0], trunc_big[0])
             break
     assert steps > 10 and bool(big.state.pax_exists[0].sum()) and int(big.state.pax_exists[0].sum()) == 4
+
+
+def test_a_fleet_policy_reads_rivals_and_claims_padded_as_in_a_world_of_its_rows() -> None:
+    policy = uamfleet.pretrained("berlin_fleet_v1")  # 6 rows per taxi: 12 at 2 taxis; stop rivals and claims
+    own = make_fleet_instance("berlin", 5, num_taxis=2, num_requests=8)
+    sized = make_fleet_instance("berlin", 5, num_taxis=2, num_requests=8, max_passengers=12)
+    big = VectorEnv(sized, observer=policy.spec, autoreset=False)
+    small = VectorEnv(own, observer=policy.spec, autoreset=False)
+    assert (sized.num_passengers, own.num_passengers) == (12, 8)
+    assert "stop_claims" in small.single_observation_space.spaces
+    obs_big, _ = big.reset(seed=0)
+    obs_small, _ = small.reset(seed=0)
+    policy.reset(big.sim)
+    for step in range(40):
+        for name in obs_big:
+            assert obs_small[name].tobytes() == obs_big[name].tobytes(), f"{name} differs at step {step}"
+        actions = policy.act(obs_big)
+        obs_big, *_ = big.step(actions)
+        obs_small, *_ = small.step(actions)

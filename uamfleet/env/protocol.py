@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 class Policy(Protocol):
     """Maps a batch of observations ``{name: [E, A, ...]}`` to headings [E, A] (int64).
 
-    ``spec`` says what of the observation it reads (a learned policy: the fields and shapes its network takes; a
+    ``spec`` says what of the observation it reads (a learned policy: the
+    :class:`~uamfleet.observe.spec.ObserverSpec` its checkpoint stores, to build its env with ``observer=spec``; a
     search wrapper: its base's); None for a policy that reads the simulator's state (planners, dispatchers) or
     nothing beyond the action mask every observation has."""
 

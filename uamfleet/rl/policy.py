@@ -1,7 +1,7 @@
-"""The trained policy at inference: :class:`GreedyPolicy` (greedy actions, the layout it reads, the same weights for
-another fleet size). Its shapes come from the observation spec (:func:`uamfleet.observe.spec.observation_layout`),
-never from a built env. Loading one from a checkpoint: :func:`load_policy` (no env is built, the training loop is
-not imported).
+"""The trained policy at inference: :class:`GreedyPolicy` (greedy actions, the observer spec it reads, fitted at
+``reset`` to the world it flies, the same weights for another fleet size). Its shapes come from the observation
+spec (:class:`uamfleet.observe.spec.ObserverSpec`), never from a built env. Loading one from a checkpoint:
+:func:`load_policy` (no env is built, the training loop is not imported).
 """
 
 from __future__ import annotations
