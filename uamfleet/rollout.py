@@ -12,6 +12,7 @@ import numpy as np
 from uamfleet.config import EnvConfig
 from uamfleet.env.protocol import Policy
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.types import StepEvents
 
 
@@ -57,8 +58,12 @@ class Trajectory:
 def fly(
     cfg: EnvConfig, policy: Policy | Callable[[dict[str, np.ndarray]], np.ndarray], seed: int | None = 0
 ) -> Trajectory:
-    """One recorded episode of ``policy`` in a fresh one-env core of ``cfg``."""
-    return run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), policy, seed=seed)
+    """One recorded episode of ``policy`` in a fresh one-env core of ``cfg``, observed as the policy reads it (its
+    :class:`~uamfleet.observe.spec.ObserverSpec` ``spec``, :class:`~uamfleet.env.protocol.Policy`; none: the
+    config's own observer). The world is flown as given; a spec that cannot read it is refused in one line."""
+    spec = getattr(policy, "spec", None)
+    observer = spec if isinstance(spec, ObserverSpec) else None
+    return run_episode(VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer), policy, seed=seed)
 
 
 def run_episode(

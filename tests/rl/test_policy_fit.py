@@ -12,6 +12,7 @@ import uamfleet
 from uamfleet.checks import ConfigError
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
+from uamfleet.metrics import episode_metrics
 from uamfleet.observe.spec import ObserverSpec
 
 
@@ -41,13 +42,23 @@ def test_a_fleet_policy_reset_in_a_smaller_fleet_flies_as_the_policy_resized_for
     assert len(flown) == len(expected) == 60
     for step, (a, b) in enumerate(zip(flown, expected, strict=True)):
         np.testing.assert_array_equal(a, b, err_msg=f"step {step}")
-    assert policy.passenger_slots == 12 and policy.num_taxis == 2
-    pooled, theirs = policy.normalizer.fields["passengers"], resized.normalizer.fields["passengers"]
-    np.testing.assert_array_equal(pooled.mean, theirs.mean)
-    np.testing.assert_array_equal(pooled.var, theirs.var)
+    # it reads what the resized policy reads: the same rows, normalised with the same pooled statistics
+    obs, _ = new.reset(seed=0)
+    policy.reset(new.sim)
+    mine, theirs = policy.network_input(obs), resized.network_input(obs)
+    assert sorted(mine) == sorted(theirs) and mine["passengers"].shape == (2, 12, 12)
+    for name in mine:
+        np.testing.assert_array_equal(mine[name], theirs[name], err_msg=name)
+    assert (policy.obs_shapes["passengers"], policy.passenger_slots, policy.num_taxis) == ((24, 12), 24, 4)  # as built
     # back in a world of its trained shape it reads its trained rows and statistics again
-    _actions(VectorEnv(make_fleet_instance("berlin", 3, num_taxis=4, num_requests=24), observer=policy.spec), policy, 1)
-    assert policy.passenger_slots == 24 and policy.normalizer.fields["passengers"].mean.shape[0] == 24
+    trained = VectorEnv(make_fleet_instance("berlin", 3, num_taxis=4, num_requests=24), observer=policy.spec)
+    obs, _ = trained.reset(seed=0)
+    policy.reset(trained.sim)
+    fresh = uamfleet.pretrained("berlin_fleet_v1").network_input(obs)
+    mine = policy.network_input(obs)
+    assert mine["passengers"].shape == (4, 24, 12)
+    for name in mine:
+        np.testing.assert_array_equal(mine[name], fresh[name], err_msg=name)
 
 
 def test_a_policy_refuses_at_reset_a_world_its_spec_cannot_read_in_one_line_naming_the_fix() -> None:
@@ -68,3 +79,15 @@ def test_a_policy_refuses_at_reset_a_world_its_spec_cannot_read_in_one_line_nami
         ConfigError, match=r"hover action \(16\), which this world refuses: build it with hover_action="
     ):
         hover.reset(still.sim)
+
+
+def test_rollout_flies_a_world_as_made_observed_by_the_policys_spec() -> None:
+    from uamfleet.rollout import fly
+
+    cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=6)  # the fleet preset's hover
+    shipped = uamfleet.pretrained("berlin_fleet")  # trained on up to 8 taxis, a 24-row window
+    flown = fly(cfg, shipped)  # no resize, no layout: the policy fits itself at reset
+    laid_out = shipped.for_fleet(2).fly(cfg)
+    assert flown.num_steps == laid_out.num_steps and flown.truncated == laid_out.truncated
+    np.testing.assert_array_equal(flown.stacked("actions"), laid_out.stacked("actions"))
+    assert episode_metrics(flown, cfg.radio).delivered == 6

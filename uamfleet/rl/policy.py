@@ -11,6 +11,7 @@ import dataclasses
 import math
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -71,9 +72,10 @@ class GreedyPolicy(PolicyBase):
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
         self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
-        # what it read as built, and its fits to other world shapes (reset): network, normaliser, shapes, rows
-        self._built = (net, normalizer, obs_shapes, num_taxis, passenger_slots, spec)
-        self._fits: dict[tuple[object, ...], tuple[MSHAActorCritic, ObservationNormalizer | None]] = {}
+        # fitted to the world of the last reset (None: as built): the network, normaliser and shapes it acts with,
+        # and the fits to each world shape met (per network, so a network swapped in is fitted afresh)
+        self._fitted: tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]]] | None = None
+        self._fits: dict[tuple[object, ...], tuple[Any, ...]] = {}
         self._warned_threshold = False
         self.loop_guard: LoopGuard | None = LoopGuard()
         self.traced = False  # see trace_actor
@@ -93,15 +95,17 @@ class GreedyPolicy(PolicyBase):
         spec reads there (``slots_per_taxi`` times the world's taxis, or the window) and its fleet, and the
         normaliser's statistics of the set fields are pooled over their rows when the row count differs from the
         one it trained on (:meth:`ObservationNormalizer.resized`), also when it reads a window it did not train
-        with. Fitted once per world shape. Warns once when the world's threshold lies outside
+        with. Fitted once per world shape; :attr:`net`, :attr:`normalizer`, :attr:`obs_shapes`, :attr:`num_taxis`
+        and :attr:`passenger_slots` stay those it was built with. Warns once when the world's threshold lies outside
         :attr:`thresholds_db`."""
         assert self.spec is not None
         refusal = self.spec.reads(world)
         if refusal is not None:
             raise ConfigError(refusal + ".")
         self._warn_threshold(world.sinr_min_db)
-        net, normalizer, shapes, taxis, slots, built = self._built
-        if shapes is None or built is None:
+        self._fitted = None
+        shapes = self.obs_shapes
+        if shapes is None:
             return
         layout = self.spec.layout(world)
         missing = sorted(set(shapes) - set(layout))
@@ -110,26 +114,35 @@ class GreedyPolicy(PolicyBase):
                 f"this policy reads {missing}, which its spec lacks: give it the spec its checkpoint stores."
             )
         fitted = {k: layout[k].shape for k in shapes}
-        rows = self.spec.rows(world)
-        if fitted == shapes and self.spec.passenger_window == built.passenger_window:
-            self.net, self.normalizer, self.obs_shapes = net, normalizer, shapes
-            self.num_taxis, self.passenger_slots = taxis, slots
+        window, trained_window = self.spec.passenger_window, self.passenger_window
+        if fitted == shapes and window == trained_window:
             return
-        if not isinstance(net.torso, DesignedTorso):
+        if not isinstance(self.net.torso, DesignedTorso):
             raise ConfigError(
                 "only a policy of a designed variant ('de', 'de_msfea', 'full') flies another fleet size or passenger "
-                f"window; this one flies num_taxis={taxis} and {slots} passenger slots only."
+                f"window; this one flies num_taxis={self.num_taxis} and {self.passenger_slots} passenger slots only."
             )
-        key = (tuple(sorted(fitted.items())), self.spec.passenger_window)
+        key = (id(self.net), id(self.normalizer), tuple(sorted(fitted.items())), window)
         if key not in self._fits:
-            resized = copy.copy(net)  # the same modules and weights; only the shapes it checks differ
+            resized = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
             resized.shapes = fitted
-            pooled = normalizer
-            if pooled is not None and self.spec.passenger_window is not None and built.passenger_window is None:
+            pooled = self.normalizer
+            if pooled is not None and window is not None and trained_window is None:
                 pooled = pooled.resized(_one_row(fitted))  # rows no longer mean request indices: pool them
-            self._fits[key] = (resized, pooled.resized(fitted) if pooled is not None else None)
-        self.net, self.normalizer = self._fits[key]
-        self.obs_shapes, self.num_taxis, self.passenger_slots = fitted, world.num_taxis, rows
+            # the network and normaliser fitted are kept alive with their fit, so that their ids stay theirs
+            self._fits[key] = (
+                resized,
+                pooled.resized(fitted) if pooled is not None else None,
+                self.net,
+                self.normalizer,
+            )
+        net, normalizer = self._fits[key][:2]
+        self._fitted = (net, normalizer, fitted)
+
+    def _acting(self) -> tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]] | None]:
+        """The network, normaliser and field shapes it acts with: fitted to the world of the last reset, else as
+        built."""
+        return self._fitted if self._fitted is not None else (self.net, self.normalizer, self.obs_shapes)
 
     def _warn_threshold(self, sinr_min_db: float) -> None:
         """Warn once when ``sinr_min_db`` lies outside :attr:`thresholds_db`."""
@@ -271,11 +284,12 @@ class GreedyPolicy(PolicyBase):
 
     def check_layout(self, obs: dict[str, np.ndarray]) -> None:
         """ValueError naming every observation field whose shape differs from the training env's."""
-        if self.obs_shapes is None:
+        shapes = self._acting()[2]
+        if shapes is None:
             return
         diffs = [
             f"{k!r} {tuple(obs[k].shape[2:]) if k in obs else None} (trained on {shape})"
-            for k, shape in self.obs_shapes.items()
+            for k, shape in shapes.items()
             if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
         ]
         if diffs:
@@ -295,9 +309,10 @@ class GreedyPolicy(PolicyBase):
         fields it was trained on, normalised."""
         self.check_layout(obs)
         E, A = obs["action_mask"].shape[:2]
-        known = self.obs_shapes or obs  # a field the policy was not trained on is not read
+        _, normalizer, shapes = self._acting()
+        known = shapes or obs  # a field the policy was not trained on is not read
         flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
-        return self.normalizer(flat) if self.normalizer is not None else flat
+        return normalizer(flat) if normalizer is not None else flat
 
     def trace_actor(self, enabled: bool = True) -> GreedyPolicy:
         """Run the network's actor as TorchScript traces (``torch.jit.trace``), one per set of input shapes, made
@@ -316,8 +331,9 @@ class GreedyPolicy(PolicyBase):
         rows (needs no critic state). Under inference mode, not only no_grad: less overhead per call, which a lone
         taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`, through a trace."""
         x = obs_to_torch(inputs, self.device)
+        net = self._acting()[0]
         if not self.traced:
-            return self.net.masked_logits(x)
+            return net.masked_logits(x)
         keys = tuple(sorted(x))
         signature = tuple((k, tuple(x[k].shape), x[k].dtype) for k in keys)
         trace = self._traces.get(signature)
@@ -329,11 +345,11 @@ class GreedyPolicy(PolicyBase):
                 warnings.simplefilter("ignore", torch.jit.TracerWarning)
                 warnings.simplefilter("ignore", DeprecationWarning)
                 try:
-                    trace = torch.jit.trace(_Actor(self.net, keys).eval(), tuple(x[k] for k in keys), check_trace=False)
+                    trace = torch.jit.trace(_Actor(net, keys).eval(), tuple(x[k] for k in keys), check_trace=False)
                 except Exception as err:  # a torch without torch.jit, or a network it cannot trace: run eagerly
                     warnings.warn(f"trace_actor: tracing failed ({err!r}); the actor runs eagerly.", stacklevel=2)
                     self.traced = False
-                    return self.net.masked_logits(x)
+                    return net.masked_logits(x)
             self._traces[signature] = trace
         return trace(*(x[k] for k in keys))
 
