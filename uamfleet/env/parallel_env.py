@@ -222,7 +222,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             )
         n = self.cfg.num_actions
         batch = np.array([[_action(actions[a], i, a, n) for i, a in enumerate(agents)]], dtype=np.int64)
-        obs, rewards, terminated, truncated, info = self.core.step(batch)
+        # no events: the face returns none, and making them for Python costs more than the step
+        obs, rewards, terminated, truncated, info = self.core.step(batch, events=False)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
         infos = _agent_infos(agents, info)
