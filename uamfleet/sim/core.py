@@ -124,7 +124,7 @@ class Simulator:
             step_events = dynamics.step(state, actions, self.world, self._scratch_kernel, into=self._scratch)
         # [E]; a copy where the arrays are the simulator's (the caller may keep it past the next step)
         terminated = step_events.all_delivered if events else step_events.all_delivered.copy()
-        truncated = (state.t >= self.cfg.time_limit_steps) & ~terminated
+        truncated = (state.t >= self.cfg.time_limit_steps) > terminated  # on bools, a > b is a & ~b: one call less
         if self.cfg.max_block_visits is not None:
             truncated |= np.any(step_events.block_visits > self.cfg.max_block_visits, axis=1) & ~terminated
 
@@ -139,9 +139,9 @@ class Simulator:
         info: dict[str, Any] = {"reward_terms": terms}
         if events:
             info["events"] = step_events
-        done = terminated | truncated
-        if done.any():
-            info["_episode"] = done
+        # count_nonzero, not any(): any()'s call overhead is several times larger on the few values of a step
+        if np.count_nonzero(terminated) or np.count_nonzero(truncated):
+            info["_episode"] = terminated | truncated
             info["episode"] = self.episode_stats()
         return rewards, terminated, truncated, info
 
