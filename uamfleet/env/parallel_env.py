@@ -233,9 +233,9 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         infos = _agent_infos(agents, info)
         out_obs = self._split(obs)
         out_rew = dict(zip(agents, rewards[0].tolist(), strict=True))
-        out_term = dict.fromkeys(agents, bool(terminated[0]))
-        out_trunc = dict.fromkeys(agents, bool(truncated[0]))
-        if terminated[0] or truncated[0]:
+        ended = bool(terminated[0]), bool(truncated[0])
+        out_term, out_trunc = dict.fromkeys(agents, ended[0]), dict.fromkeys(agents, ended[1])
+        if ended[0] or ended[1]:
             self.agents = []
         return out_obs, out_rew, out_term, out_trunc, infos
 
