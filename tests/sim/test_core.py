@@ -1,6 +1,7 @@
 """The simulator without an observer (uamfleet/sim/core.py): it flies the episodes the vector env flies, ends
-episodes as its ``autoreset`` says, and its global state is the one written out by hand. That it imports no
-observation code is tests/test_layers.py's rule (``uamfleet.sim`` sits below ``uamfleet.env``)."""
+episodes as its ``autoreset`` says, its global state is the one written out by hand, and a step that keeps its
+events in its own arrays (``events=False``) flies the same steps. That it imports no observation code is
+tests/test_layers.py's rule (``uamfleet.sim`` sits below ``uamfleet.env``)."""
 
 from __future__ import annotations
 
