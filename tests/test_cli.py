@@ -105,7 +105,13 @@ def test_a_typo_in_a_known_set_is_a_usage_error_listing_the_choices(cli: Cli, fl
     assert exit_status(cli, [flag, "berln"]) == 2
     out, err = capsys.readouterr()
     assert "Traceback" not in out + err and err.count("\n") == 1, err  # one line, not tyro's box
-    assert f"error: invalid choice 'berln' for argument '{flag}'" in err and all(repr(c) in err for c in choices)
+    # --policy takes the registry's grammar, checked by uamfleet.policies.parse instead of tyro's choices
+    refusal = (
+        f"unknown {flag} 'berln'; choose one of"
+        if flag == "--policy"
+        else f"invalid choice 'berln' for argument '{flag}'"
+    )
+    assert f"error: {refusal}" in err and all(repr(c) in err for c in choices)
     assert exit_status(cli, ["--help"]) == 0
     help_text = capsys.readouterr().out
     assert all(c in help_text for c in choices)

@@ -11,8 +11,8 @@ from conftest import small_config
 
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.observe import components
-from uamfleet.observe.components import StopsComponent
+from uamfleet.observe import stops as stop_kernels
+from uamfleet.observe.stops import StopsComponent
 
 OPEN_7 = "\n".join(["......."] * 7)
 REQUESTS = (
@@ -30,14 +30,14 @@ def env_on_a_new_map(**overrides: Any) -> VectorEnv:
 
 
 def counting(monkeypatch: pytest.MonkeyPatch, name: str) -> list[bool]:
-    kernel = getattr(components.stops, name)
+    kernel = getattr(stop_kernels, name)
     calls: list[bool] = []
 
     def counted(*args: Any) -> bool:
         calls.append(bool(kernel(*args)))
         return calls[-1]
 
-    monkeypatch.setattr(components.stops, name, counted)
+    monkeypatch.setattr(stop_kernels, name, counted)
     return calls
 
 
@@ -61,9 +61,9 @@ def test_prepare_fills_the_rows_of_every_existing_stop_before_the_kernels() -> N
     E, A, P = state.num_envs, state.num_taxis, state.pax_exists.shape[1]
     args = (state, env.world.arrays, env.observer.table.arrays, np.empty((E, A, P, 3), np.float32),
             np.empty((E, A, P, 16), np.int8))  # fmt: skip
-    assert not components.stops.stop_features(*args)  # a fresh table: the kernel meets a missing row
+    assert not stop_kernels.stop_features(*args)  # a fresh table: the kernel meets a missing row
     stops.prepare(state)
-    assert components.stops.stop_features(*args)
+    assert stop_kernels.stop_features(*args)
 
 
 def test_a_kernel_that_meets_a_missing_row_raises_naming_the_bug(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -21,7 +21,6 @@ def test_the_observe_package_holds_the_observation_each_module_under_600_lines()
         "spec",
         "legacy",
         "observer",
-        "components",
         "basic",
         "stops",
         "moves",

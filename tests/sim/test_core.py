@@ -1,6 +1,7 @@
 """The simulator without an observer (uamfleet/sim/core.py): it flies the episodes the vector env flies, ends
-episodes as its ``autoreset`` says, and its global state is the one written out by hand. That it imports no
-observation code is tests/test_layers.py's rule (``uamfleet.sim`` sits below ``uamfleet.env``)."""
+episodes as its ``autoreset`` says, its global state is the one written out by hand, and a step that keeps its
+events in its own arrays (``events=False``) flies the same steps. That it imports no observation code is
+tests/test_layers.py's rule (``uamfleet.sim`` sits below ``uamfleet.env``)."""
 
 from __future__ import annotations
 
@@ -87,3 +88,49 @@ def test_the_global_state_by_hand() -> None:
     expected = np.array([taxis + first + hidden + [0.0]], np.float32)
     assert sim.state_size == expected.shape[1] and sim.state_space.shape == (expected.shape[1],)
     np.testing.assert_allclose(sim.global_state(), expected, rtol=1e-6)
+
+
+def test_a_step_without_events_flies_the_same_steps_and_keeps_nothing_it_returns() -> None:
+    # Four taxis crowded on an open map (the shield turns and holds moves), hovers, riders picked up and dropped
+    # off, episodes ended by the time limit: the events arrays the simulator reuses are rewritten in full every step.
+    open_map = "\n".join(["." * 10] * 10)
+    starts = ((150.0, 150.0), (190.0, 150.0), (150.0, 190.0), (450.0, 450.0))
+    requests = tuple(Request(t, (250.0 + 100 * t, 150.0), (150.0, 450.0 - 100 * t)) for t in range(3))
+    cfg = small_config(
+        open_map, starts_m=starts, requests=requests, separation="shield", hover_action=True, time_limit_steps=9
+    )
+    fresh, reused = Simulator(cfg, num_envs=2), Simulator(cfg, num_envs=2)
+    fresh.reset(seed=3)
+    reused.reset(seed=3)
+    rng = np.random.default_rng(1)
+    kept, expected = [], []
+    seen = dict.fromkeys(["shield_intervened", "hovered", "picked_up", "dropped_off", "pickups", "blocked"], False)
+    for _ in range(30):
+        actions = rng.integers(0, 17, size=(2, 4))
+        out_fresh = fresh.advance(actions)
+        out_reused = reused.advance(actions, events=False)
+        for a, b in zip(out_fresh[:3], out_reused[:3], strict=True):
+            np.testing.assert_array_equal(a, b)
+        info, info_reused = out_fresh[3], out_reused[3]
+        assert "events" not in info_reused and set(info_reused) == set(info) - {"events"}
+        np.testing.assert_array_equal(info["reward_terms"], info_reused["reward_terms"])
+        for name, value in info["events"]._asdict().items():  # the reused arrays hold this step's events
+            if name != "actions":
+                np.testing.assert_array_equal(getattr(reused._scratch, name), value, err_msg=name)
+            if name in seen:
+                seen[name] = seen[name] or bool(np.any(value))
+        if "_episode" in info:
+            for key, value in info["episode"].items():
+                np.testing.assert_array_equal(value, info_reused["episode"][key], err_msg=key)
+            fresh.end_episodes(info["_episode"])
+            reused.end_episodes(info_reused["_episode"])
+        returned = [*out_reused[:3], info_reused["reward_terms"]]
+        assert not any(np.shares_memory(r, v) for r in returned for v in reused._scratch), "returns a reused array"
+        kept.append(out_reused[:3])  # kept without a copy: later steps must not write into them
+        expected.append(tuple(x.copy() for x in out_fresh[:3]))
+        for name, value in fresh.state._asdict().items():
+            np.testing.assert_array_equal(value, getattr(reused.state, name), err_msg=name)
+    for got, want in zip(kept, expected, strict=True):
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert all(seen.values()), seen  # events a step sets or counts happened, and were rewritten after

@@ -9,16 +9,20 @@ import functools
 import io
 import math
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeVar
 
 import tyro
 
-from uamfleet.baselines import POLICIES
+from uamfleet.baselines import planner_configs
 from uamfleet.io import PathError, has_section, os_error_message, shown_path
-from uamfleet.config import FEASIBILITY_RULES
+from uamfleet.config import FEASIBILITY_RULES, EnvConfig
+from uamfleet.policies import available, make, make_flown, parse
+from uamfleet.policies.learned import for_world
+from uamfleet.policies.registry import BASE, PolicyNameError
 from uamfleet.presets import SCENARIOS
 from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.rl.distributed import RankZeroError
@@ -30,18 +34,34 @@ T = TypeVar("T")
 # rejects a typo with a usage message (exit 2). mypy sees plain strings.
 if TYPE_CHECKING:
     Scenario = str
-    Policy = str
     Variant = str
     Feasibility = str
     Family = str
     Split = str
 else:
     Scenario = Literal[SCENARIOS]
-    Policy = Literal[POLICIES]
     Variant = Literal[VARIANTS]
     Feasibility = Literal[FEASIBILITY_RULES]
     Family = Literal[tuple(FAMILIES)]
     Split = Literal[tuple(SPLITS)]
+
+
+def _policy_help() -> str:
+    """``--policy``'s help: the grammar and the registered names by kind (:func:`uamfleet.policies.available`)."""
+    kinds = {kind: ", ".join(name for name, (k, _) in available().items() if k == kind) for kind in ("planner",
+             "dispatcher", "learned", "search")}  # fmt: skip
+    return (
+        "a policy of uamfleet.policies, NAME[:OPTION=VALUE,...] or SEARCH[:OPTIONS](BASE): a planner (one taxi; "
+        f"random: any fleet) {kinds['planner']}; a fleet dispatcher {kinds['dispatcher']}; a learned policy "
+        f"{kinds['learned']} (source=<shipped name or checkpoint file>, e.g. learned:source=berlin_stops); a search "
+        f"over a learned base {kinds['search']} (e.g. argmax(learned), guided:top_k=4(learned)); or a recorded "
+        "name (batch_assignment+wait=1+release, learned:berlin_stops)"
+    )
+
+
+Policy = Annotated[str, tyro.conf.arg(metavar="NAME", help=_policy_help())]
+"""``--policy``: a name of :mod:`uamfleet.policies` in its grammar (:func:`uamfleet.policies.parse`), checked by
+:func:`policy_call`."""
 
 SCENARIO_DEFAULT = tyro.conf.arg(help_behavior_hint="(default: the scenario's)")
 """``Annotated[float | None, SCENARIO_DEFAULT]``: an option whose unset value means the scenario's own."""
@@ -122,6 +142,56 @@ def earlier_rows(read: Callable[[Path], list[T]], path: Path) -> list[T]:
     if not rows:
         raise UsageError(f"--from-csv {path} holds no rows: nothing to render.")
     return rows
+
+
+def policy_call(text: str, flag: str = "--policy") -> tuple[str, dict[str, Any]]:
+    """``(name, options)`` of the policy ``text`` names (:func:`uamfleet.policies.parse`); a UsageError naming
+    ``flag``, the value and the registered policies when its name is unknown, or the parser's reason otherwise."""
+    try:
+        return parse(text)
+    except PolicyNameError as err:
+        head = re.split(r"[:+@(]", text, maxsplit=1)[0] if isinstance(text, str) else text
+        if head not in available():
+            names = ", ".join(repr(name) for name in available())
+            raise UsageError(
+                f"unknown {flag} {text!r}; choose one of {names} (options after ':', e.g. replan:beam=64; a search "
+                "over a base in parentheses, e.g. argmax(learned:source=berlin_stops))."
+            ) from None
+        raise UsageError(f"{flag} {text!r}: {err}") from None
+
+
+def _fit_to_world(call: tuple[str, dict[str, Any]], cfg: EnvConfig) -> tuple[str, dict[str, Any]]:
+    """``call`` with each learned policy in it (a search's base too) sized to ``cfg``'s world
+    (:func:`uamfleet.policies.learned.for_world`: ``passenger_slots="world"`` read as its requests)."""
+    name, options = call[0], dict(call[1])
+    if name == "learned":
+        options = for_world(options, cfg.num_taxis, cfg.num_requests_max)
+    if isinstance(options.get(BASE), tuple):
+        options[BASE] = _fit_to_world(options[BASE], cfg)
+    return name, options
+
+
+def flight(
+    scenario: str, text: str, seed: int = 0, overrides: dict[str, Any] | None = None, flag: str = "--policy"
+) -> tuple[EnvConfig, EnvConfig, Any]:
+    """(the config it flies, the config it is scored against, the policy) of the policy ``text`` names on
+    ``scenario`` with config ``overrides``. A planner or dispatcher is built by
+    :func:`~uamfleet.policies.make_flown` for one flight (a planner under its own rules,
+    :func:`~uamfleet.baselines.planner_configs`); a learned policy or a search over one flies the scenario in the
+    observation layout it reads (its ``layout``), and says in one line when it cannot read that world."""
+    call = policy_call(text, flag)
+    flown, scored = planner_configs(scenario, text, **(overrides or {}))
+    if available()[call[0]][0] in ("planner", "dispatcher"):
+        return flown, scored, make_flown(text, seed, scored.num_taxis)
+    try:
+        name, options = _fit_to_world(call, scored)
+        policy = make(name, **options)
+        fitted = policy.layout(scored) if callable(getattr(policy, "layout", None)) else scored
+    except PolicyNameError as err:
+        raise UsageError(f"{flag} {text!r}: {err}") from None
+    except ValueError as err:  # e.g. more requests than the policy reads, another fleet size, no hover action
+        raise UsageError(f"{flag} {text!r} cannot fly {scored.scenario}: {' '.join(str(err).split())}") from None
+    return fitted, scored, policy
 
 
 def check_jobs(jobs: int, flag: str = "--jobs") -> int:

@@ -3,8 +3,10 @@
     uamfleet-render --scenario berlin_p4 --policy raster_replan --out berlin.html --png
     .venv/bin/python -m eval.render --scenario berlin_random --policy greedy --num-taxis 4 --out fleet.html
 
-``--policy``: a planner (single taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known),
-a fleet dispatcher (``greedy``, ``insertion``, ``batch_assignment``) or ``random``. ``--png`` also writes
+``--policy``: any name of :mod:`uamfleet.policies` in its grammar, as ``uamfleet rollout`` takes it: a planner
+(single taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), a fleet dispatcher
+(``greedy``, ``insertion``, ``batch_assignment``), ``random``, a learned policy (``learned:source=berlin_stops``)
+or a search over one (``argmax(learned)``, ``guided:top_k=4(learned)``). ``--png`` also writes
 ``<out stem>_routes.png`` (the route over the radio map, stops S1…/D1…) and ``<out stem>_sinr.png`` (SINR along
 the path over time, with the threshold). Screenshot the page with ``scripts/screenshot.sh``. ``--out`` is
 relative to the current folder; its folder must exist or be one new folder inside an existing one.
@@ -21,19 +23,19 @@ import matplotlib
 from cycler import cycler
 
 import uamfleet
-from uamfleet.baselines import planner_configs
 from uamfleet.cli._common import (
     SCENARIO_DEFAULT,
     Policy,
     Scenario,
     UsageError,
     check_outputs,
+    flight,
     fmt,
     output_path,
+    policy_call,
     run,
 )
 from uamfleet.metrics import episode_metrics
-from uamfleet.policies import make_flown
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
@@ -48,8 +50,6 @@ class Args:
     scenario: Scenario = "berlin_p4"
     """scenario name"""
     policy: Policy = "raster_replan"
-    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), a fleet
-    dispatcher (greedy, insertion, batch_assignment) or random"""
     out: Path = Path("render.html")
     """HTML file to write (relative to the current folder; its folder must exist, or be one new folder in an
     existing one)"""
@@ -83,8 +83,7 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
             trained.env.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides
         )
         return fly_episode(shown, policy, seed=args.seed), shown
-    flown, shown = planner_configs(args.scenario, args.policy, **overrides)
-    policy = make_flown(args.policy, args.seed, shown.num_taxis)
+    flown, shown, policy = flight(args.scenario, args.policy, args.seed, overrides)
     return fly_episode(flown, policy, seed=args.seed), shown
 
 
@@ -99,6 +98,8 @@ def main(args: Args) -> dict[str, Path]:
         raise UsageError(f"--seed {args.seed}: seeds are integers >= 0 (e.g. --seed 0).")
     if not args.seconds_per_step > 0:
         raise UsageError(f"--seconds-per-step {args.seconds_per_step}: give a positive playback time (e.g. 0.25).")
+    if args.checkpoint is None:
+        policy_call(args.policy)
     output_path(args.out, "--out")
     check_outputs(args.overwrite, [args.out, *(figure_paths(args.out).values() if args.png else ())])
     if args.checkpoint is not None:

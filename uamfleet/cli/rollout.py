@@ -3,6 +3,12 @@ episode's metrics.
 
     uamfleet-rollout --scenario berlin_p4 --policy raster_replan --episodes 3
     .venv/bin/python -m eval.rollout --scenario berlin_random --policy greedy --num-taxis 4
+    uamfleet-rollout --scenario berlin_p4 --policy "guided:top_k=4(learned:source=berlin_stops)" --episodes 1
+
+``--policy`` takes any name of :mod:`uamfleet.policies` (``uamfleet.policies.available()``) in its grammar: a
+planner, a fleet dispatcher, ``random``, a learned policy (``learned:source=<shipped name or checkpoint file>``)
+or a search over one (``argmax(learned)``, ``guided(...)``, ``hedge(...)``, ``finish(...)``), and the names the
+benchmarks recorded (``batch_assignment+wait=1+release``, ``learned:berlin_stops``).
 
 Undefined figures print as "–": ATT / AWT when no ride finished or began, and "(min –)" when a taxi's path
 crosses a cell the radio map has no value for (NaN: "N.C.", not computed, in a WinProp file; black in the
@@ -18,10 +24,8 @@ from typing import Annotated
 import numpy as np
 
 import uamfleet
-from uamfleet.baselines import planner_configs
-from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, fmt, run
+from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, flight, fmt, policy_call, run
 from uamfleet.metrics import episode_metrics
-from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 
 
@@ -34,8 +38,6 @@ class Args:
     num_taxis: Annotated[int | None, SCENARIO_DEFAULT] = None
     """fleet size"""
     policy: Policy = "random"
-    """a planner (one taxi: cptsp, pdpcc, raster_replan, raster_opt, straight, replan, best_known), a fleet
-    dispatcher (greedy, insertion, batch_assignment) or random"""
     episodes: int = 3
     """number of episodes (>= 1)"""
     seed: int = 0
@@ -48,6 +50,7 @@ class Args:
             raise UsageError(f"--episodes {self.episodes}: fly at least one episode (e.g. --episodes 3).")
         if self.seed < 0:
             raise UsageError(f"--seed {self.seed}: seeds are integers >= 0 (e.g. --seed 0).")
+        policy_call(self.policy)
 
 
 def main(args: Args) -> list[dict[str, float]]:
@@ -60,9 +63,8 @@ def main(args: Args) -> list[dict[str, float]]:
         )
         if v is not None
     }
-    flown, cfg = planner_configs(args.scenario, args.policy, **overrides)  # cfg: the rules it is scored against
+    flown, cfg, policy = flight(args.scenario, args.policy, args.seed, overrides)  # cfg: the rules it is scored by
     env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False)
-    policy = make_flown(args.policy, args.seed, cfg.num_taxis)
     print(
         f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
         f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"

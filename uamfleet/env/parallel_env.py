@@ -188,6 +188,8 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
         self._live = frozenset(self.possible_agents)
         self._at = [(agent, (0, i)) for i, agent in enumerate(self.possible_agents)]  # (agent, its [E, A] index)
+        # the actions of a step: the core reads them during the step only (it keeps no events of the face's steps)
+        self._batch = np.zeros((1, cfg.num_taxis), np.int64)
         self._obs_space = self.core.single_observation_space
         self._act_space = self.core.single_action_space
         self.state_space = self.core.state_space
@@ -220,17 +222,20 @@ class UAMFleetParallelEnv(ParallelEnv[AgentID, dict[str, np.ndarray], int]):
             raise ValueError(
                 f"actions must have one entry per live agent {agents}; missing {missing}, unknown {unknown}."
             )
-        n = self.cfg.num_actions
-        batch = np.array([[_action(actions[a], i, a, n) for i, a in enumerate(agents)]], dtype=np.int64)
-        obs, rewards, terminated, truncated, info = self.core.step(batch)
+        n, batch = self.cfg.num_actions, self._batch
+        row = batch[0]
+        for i, agent in enumerate(agents):
+            row[i] = _action(actions[agent], i, agent, n)
+        # no events: the face returns none, and making them for Python costs more than the step
+        obs, rewards, terminated, truncated, info = self.core.step(batch, events=False)
         if self.render_mode is not None:
             self._trails.append(self.core.state.pos_m[0].copy())
         infos = _agent_infos(agents, info)
         out_obs = self._split(obs)
         out_rew = dict(zip(agents, rewards[0].tolist(), strict=True))
-        out_term = dict.fromkeys(agents, bool(terminated[0]))
-        out_trunc = dict.fromkeys(agents, bool(truncated[0]))
-        if terminated[0] or truncated[0]:
+        ended = bool(terminated[0]), bool(truncated[0])
+        out_term, out_trunc = dict.fromkeys(agents, ended[0]), dict.fromkeys(agents, ended[1])
+        if ended[0] or ended[1]:
             self.agents = []
         return out_obs, out_rew, out_term, out_trunc, infos
 

@@ -111,16 +111,17 @@ class VectorEnv:
 
     # ---- step ----------------------------------------------------------------------------------------
     def step(
-        self, actions: np.ndarray
+        self, actions: np.ndarray, events: bool = True
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Advance all envs. ``actions`` [E, A] int headings. Returns obs, rewards [E, A], terminated [E],
         truncated [E], info (``reward_terms`` [E, A, T], ``events``, and at episode ends ``episode``,
-        ``_episode``, ``final_obs``)."""
-        rewards, terminated, truncated, info = self.sim.advance(actions)
+        ``_episode``, ``final_obs``). ``events=False``: no ``events`` (:meth:`Simulator.advance
+        <uamfleet.sim.core.Simulator.advance>`)."""
+        rewards, terminated, truncated, info = self.sim.advance(actions, events)
         # observed before the finished envs are drawn anew: their last observation is the episode's final one
         obs = self.observer.observe(self.sim.state)
-        done = terminated | truncated
-        if done.any():
+        done = info.get("_episode")  # terminated | truncated, there when an episode ended
+        if done is not None:
             info["final_obs"] = {k: v.copy() for k, v in obs.items()}
             reset_envs = self.sim.end_episodes(done)
             if reset_envs.size:

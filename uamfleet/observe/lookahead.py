@@ -27,6 +27,8 @@ from uamfleet.observe.moves import StopRows, prepare_moves
 from uamfleet.observe.tours import _nearest_rests, _shortest_rests
 from uamfleet.paths.distance_table import (
     Corners,
+    DistanceTable,
+    MissingTableRow,
     TableArrays,
     corner_distance,
     new_corners,
@@ -35,7 +37,7 @@ from uamfleet.paths.distance_table import (
 )
 from uamfleet.sim.arrays import WorldArrays
 from uamfleet.sim.motion import action_mask
-from uamfleet.sim.world import stop_of
+from uamfleet.sim.world import World, stop_of
 from uamfleet.types import DELIVERED, LOOKAHEAD_CLIP, NUM_HEADINGS, ON_BOARD, WAITING, FleetState
 
 
@@ -401,4 +403,19 @@ def _unserve(rows: StopRows, a: int, undo: np.ndarray) -> None:
             rows.carriers[p] = undo[p] - 3
 
 
-__all__ = ["heading_lookahead"]
+class LookaheadComponent:
+    """``heading_lookahead`` at ``depth`` 1 or 2; reads the rows the stop features prepared
+    (:class:`uamfleet.observe.stops.StopsComponent`)."""
+
+    def __init__(self, world: World, table: DistanceTable, depth: int) -> None:
+        self.world, self.table, self.depth = world, table, depth
+
+    def prepare(self, state: FleetState) -> None:
+        """Nothing: the stop features' rows are the ones it reads."""
+
+    def write(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
+        if not heading_lookahead(state, self.world.arrays, self.table.arrays, obs["heading_lookahead"], self.depth):
+            raise MissingTableRow("heading_lookahead")
+
+
+__all__ = ["LookaheadComponent", "heading_lookahead"]

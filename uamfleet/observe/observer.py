@@ -14,8 +14,9 @@ from gymnasium import spaces
 
 from uamfleet.config import ConfigError
 from uamfleet.observe import basic, window
-from uamfleet.observe.components import LookaheadComponent, StopsComponent, WindowComponent
+from uamfleet.observe.lookahead import LookaheadComponent
 from uamfleet.observe.legacy import check_observable, split_env_config
+from uamfleet.observe.stops import StopsComponent
 from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, ObserverSpec, observation_space
 from uamfleet.paths import table_for
 from uamfleet.sim.pretyped import PreTyped
@@ -72,7 +73,9 @@ class Observer:
             self.components.append(StopsComponent(world, self.table, "stop_rivals" in self.layout))
             if self.depth:
                 self.components.append(LookaheadComponent(world, self.table, self.depth))
-        self._window = None if self.window is None else WindowComponent(self.window, cfg.num_passengers, self.table)
+        self._window = None
+        if self.window is not None:
+            self._window = window.WindowComponent(self.window, cfg.num_passengers, self.table)
         # without a window the spec may read more rows than the world has: those are padded, masked and zero, as
         # the rows of passengers a larger state holds but has not drawn
         self._padded = [

@@ -1,8 +1,9 @@
 """The stop features (compiled; docs/rules.md "Observation", ``stop_features``): each taxi's feasible-path view of
 its stops (:func:`stop_features`: ``stop_paths``, ``stop_heading_mask``) and, in a fleet, what the other taxis
 offer for each waiting passenger (:func:`stop_rivals`: ``stop_rivals``, ``stop_claims``). The tours behind
-``STOP_TOUR_VIA_STOP`` are :mod:`uamfleet.observe.tours`'s, the moves' geometry :mod:`uamfleet.observe.moves`'s;
-:class:`uamfleet.observe.observer.Observer` is their entry point."""
+``STOP_TOUR_VIA_STOP`` are :mod:`uamfleet.observe.tours`'s, the moves' geometry :mod:`uamfleet.observe.moves`'s.
+:class:`StopsComponent` is what the observer (:class:`uamfleet.observe.observer.Observer`) runs: its ``prepare``
+fills the distance-table rows of every existing stop before any kernel reads them, its ``write`` runs the kernels."""
 
 from __future__ import annotations
 
@@ -13,9 +14,18 @@ from numba import njit
 
 from uamfleet.observe.moves import MoveGeometry, StopRows, _progress_heading_prepared, prepare_moves
 from uamfleet.observe.tours import _pending_key, _stop_distance, _update_rests
-from uamfleet.paths.distance_table import Corners, TableArrays, corner_distance, new_corners, prepare_corners
+from uamfleet.paths.distance_table import (
+    Corners,
+    DistanceTable,
+    MissingTableRow,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+)
 from uamfleet.sim.arrays import WorldArrays
-from uamfleet.sim.world import stop_of
+from uamfleet.sim.pretyped import PreTyped
+from uamfleet.sim.world import World, stop_of
 from uamfleet.types import (
     DELIVERED,
     HIDDEN,
@@ -32,7 +42,7 @@ from uamfleet.types import (
     FleetState,
 )
 
-__all__ = ["stop_features", "stop_rivals"]
+__all__ = ["StopsComponent", "stop_features", "stop_rivals", "stop_rows_missing"]
 
 
 @njit(cache=True)
@@ -212,3 +222,48 @@ def _nearest_first_claims(dist: np.ndarray, free_seats: np.ndarray, out: np.ndar
         pax_done[p] = True
         for b in range(num_taxis):
             out[b, p, STOP_CLAIMED_BY_ME if b == a else STOP_CLAIMED_BY_OTHER] = 1
+
+
+_NO_CLAIMS = np.zeros((0, 0, 0, 0), np.int8)  # 0-size: the rivals kernel writes no claims
+
+
+@njit(cache=True)
+def stop_rows_missing(s: FleetState, t: TableArrays) -> bool:
+    """True when a table row that a lookup towards an existing request's origin or destination reads is not
+    computed yet (NaN)."""
+    corners = new_corners(1)
+    for e in range(s.pax_exists.shape[0]):
+        for p in range(s.pax_exists.shape[1]):
+            if not s.pax_exists[e, p]:
+                continue
+            for stop in (s.pax_origin_m, s.pax_dest_m):
+                prepare_corners(t, stop[e, p, 0], stop[e, p, 1], corners, 0)
+                for c in range(corners.used[0]):
+                    if math.isnan(t.distance_m[corners.cells[0, c], 0]):
+                        return True
+    return False
+
+
+class StopsComponent:
+    """``stop_paths`` and ``stop_heading_mask``, with ``rivals`` also ``stop_rivals``, with ``claims`` also
+    ``stop_claims``, on the feasible-path distance table of the world."""
+
+    def __init__(self, world: World, table: DistanceTable, rivals: bool) -> None:
+        self.world, self.table, self.rivals = world, table, rivals
+        self._missing = PreTyped(stop_rows_missing)
+
+    def prepare(self, state: FleetState) -> None:
+        """Fill the table rows of the origin and destination of every existing request (a compiled lookup of
+        their rows first: nothing more when every row is there)."""
+        if self._missing(state, self.table.arrays):
+            exists = state.pax_exists
+            self.table.ensure(np.concatenate([state.pax_origin_m[exists], state.pax_dest_m[exists]]))
+
+    def write(self, state: FleetState, obs: dict[str, np.ndarray]) -> None:
+        arrays, table = self.world.arrays, self.table.arrays
+        if not stop_features(state, arrays, table, obs["stop_paths"], obs["stop_heading_mask"]):
+            raise MissingTableRow("stop_features")
+        if self.rivals:
+            claims = obs.get("stop_claims", _NO_CLAIMS)
+            if not stop_rivals(state, arrays, table, obs["stop_rivals"], claims):
+                raise MissingTableRow("stop_rivals")

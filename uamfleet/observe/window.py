@@ -26,7 +26,7 @@ from collections.abc import Iterable
 import numpy as np
 from numba import njit
 
-from uamfleet.paths.distance_table import TableArrays, table_distance
+from uamfleet.paths.distance_table import DistanceTable, MissingTableRow, TableArrays, table_distance
 from uamfleet.types import ON_BOARD, WAITING, FleetState
 
 
@@ -106,4 +106,27 @@ def take_rows(full: dict[str, np.ndarray], rows: np.ndarray, names: Iterable[str
     return out
 
 
-__all__ = ["path_distances", "straight_distances", "take_rows", "window_rows"]
+class WindowComponent:
+    """Each taxi's ``size`` rows, by feasible-path distance on the stop features' table when there is one, else by
+    straight line."""
+
+    def __init__(self, size: int, num_passengers: int, table: DistanceTable | None) -> None:
+        self.size, self.num_passengers, self.table = size, num_passengers, table
+
+    def prepare(self, state: FleetState) -> None:
+        """Nothing: the stop features' rows are the ones it reads."""
+
+    def rows(self, state: FleetState) -> np.ndarray:
+        """[E, A, K] int64: the state's passenger row in each slot of each taxi's window, -1 for an empty slot."""
+        E, A = state.num_envs, state.num_taxis
+        dist = np.full((E, A, self.num_passengers), np.inf)
+        if self.table is None:
+            straight_distances(state, dist)
+        elif not path_distances(state, self.table.arrays, dist):
+            raise MissingTableRow("the passenger window")
+        rows = np.empty((E, A, self.size), np.int64)
+        window_rows(state, dist, rows)
+        return rows
+
+
+__all__ = ["WindowComponent", "path_distances", "straight_distances", "take_rows", "window_rows"]

@@ -415,3 +415,14 @@ def corner_distance(
                 total += wa * wb * d
                 weight += wa * wb
     return _interpolated(total, weight, ax, ay, bx, by)
+
+
+class MissingTableRow(RuntimeError):
+    """A compiled observation kernel read a row of this table that its component's ``prepare`` did not compute:
+    a bug (every existing stop's rows are filled before the kernels run), never a branch to retry."""
+
+    def __init__(self, kernel: str) -> None:
+        super().__init__(
+            f"{kernel} read a distance-table row that the stop features' prepare() did not compute: a bug in "
+            "uamfleet.observe (every existing stop's rows are filled before the kernels run)."
+        )

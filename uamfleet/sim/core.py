@@ -31,6 +31,7 @@ from uamfleet.types import (
     STATE_TAXI_INDEX,
     WAITING,
     FleetState,
+    StepEvents,
 )
 
 __all__ = ["Simulator", "global_state", "global_state_size"]
@@ -93,39 +94,54 @@ class Simulator:
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Advance all envs and end the finished episodes (:meth:`advance`, then :meth:`end_episodes`)."""
         rewards, terminated, truncated, info = self.advance(actions)
-        done = terminated | truncated
-        if done.any():
-            self.end_episodes(done)
+        if "_episode" in info:  # terminated | truncated, there when an episode ended
+            self.end_episodes(info["_episode"])
         return rewards, terminated, truncated, info
 
-    def advance(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    _scratch: StepEvents | None = None  # the events arrays of advance(events=False), made by its first call
+    _scratch_kernel: PreTyped | None = None  # motion.step_into, pre-typed like _step_kernel
+
+    def advance(
+        self, actions: np.ndarray, events: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Move all envs one step, finished ones left as they ended. ``actions`` [E, A] int headings. Returns
         rewards [E, A], terminated [E], truncated [E], info (``reward_terms`` [E, A, T], ``events``, and where an
-        episode ended ``_episode`` [E] and ``episode``, its statistics)."""
+        episode ended ``_episode`` [E] and ``episode``, its statistics). ``events=False``: info holds no
+        ``events`` (the step writes them into arrays of the simulator's own, which every such step reuses: a
+        face that returns none, the PettingZoo env, saves making them)."""
         if self.needs_reset:
             raise RuntimeError("step() called before reset() (or after an episode ended with autoreset=False).")
         actions = dynamics.check_actions(actions, self.num_envs, self.num_taxis, self.cfg.num_actions)
         state, weights = self.state, self.cfg.reward
         phi_before = None if self.potential is None else self.potential(state)
 
-        events = dynamics.step(state, actions, self.world, self._step_kernel)
-        terminated = events.all_delivered  # [E]
-        truncated = (state.t >= self.cfg.time_limit_steps) & ~terminated
+        if events:
+            step_events = dynamics.step(state, actions, self.world, self._step_kernel)
+        else:
+            if self._scratch is None or self._scratch_kernel is None:
+                self._scratch = motion.new_events(state, np.zeros_like(actions))
+                self._scratch_kernel = PreTyped(motion.step_into)
+            step_events = dynamics.step(state, actions, self.world, self._scratch_kernel, into=self._scratch)
+        # [E]; a copy where the arrays are the simulator's (the caller may keep it past the next step)
+        terminated = step_events.all_delivered if events else step_events.all_delivered.copy()
+        truncated = (state.t >= self.cfg.time_limit_steps) > terminated  # on bools, a > b is a & ~b: one call less
         if self.cfg.max_block_visits is not None:
-            truncated |= np.any(events.block_visits > self.cfg.max_block_visits, axis=1) & ~terminated
+            truncated |= np.any(step_events.block_visits > self.cfg.max_block_visits, axis=1) & ~terminated
 
         shaping_values = None
         if self.potential is not None and phi_before is not None:
             phi_after = self.potential(state)
             shaping_values = reward.shaping_term(phi_before, phi_after, terminated, weights)
-        terms = reward.reward_terms(events, weights, shaping_values)  # [E, A, T]
+        terms = reward.reward_terms(step_events, weights, shaping_values)  # [E, A, T]
         self.episode_terms += terms
         rewards = reward.total_reward(terms)
 
-        info: dict[str, Any] = {"reward_terms": terms, "events": events}
-        done = terminated | truncated
-        if done.any():
-            info["_episode"] = done
+        info: dict[str, Any] = {"reward_terms": terms}
+        if events:
+            info["events"] = step_events
+        # count_nonzero, not any(): any()'s call overhead is several times larger on the few values of a step
+        if np.count_nonzero(terminated) or np.count_nonzero(truncated):
+            info["_episode"] = terminated | truncated
             info["episode"] = self.episode_stats()
         return rewards, terminated, truncated, info
 

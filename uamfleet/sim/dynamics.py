@@ -24,6 +24,7 @@ in full: ``docs/rules.md`` ("Motion", "Feasibility rules", "Release and pick-up"
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -94,9 +95,9 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int, num_action
         raise InvalidActionError(
             f"actions {actions!r} are not an array of shape (num_envs, num_taxis) = ({num_envs}, {num_taxis}): {exc}"
         ) from None
-    hint = _actions_hint(num_actions)
     if arr.dtype == np.int64 and arr.shape == (num_envs, num_taxis) and _all_valid(arr, num_actions):
         return arr  # the common case, checked in one compiled pass
+    hint = _actions_hint(num_actions)
     if arr.shape != (num_envs, num_taxis):
         raise InvalidActionError(
             f"actions have shape {arr.shape}, expected (num_envs, num_taxis) = ({num_envs}, {num_taxis}): "
@@ -121,13 +122,21 @@ def check_actions(actions: np.ndarray, num_envs: int, num_taxis: int, num_action
     return arr.astype(np.int64, copy=False)
 
 
-def step(state: FleetState, actions: np.ndarray, world: World, kernel: PreTyped | None = None) -> StepEvents:
+def step(
+    state: FleetState, actions: np.ndarray, world: World, kernel: PreTyped | None = None, into: StepEvents | None = None
+) -> StepEvents:
     """Advance every env of ``state`` by one slot, in place. ``actions`` [E, A] must be validated. With
     ``EnvConfig.separation == "shield"`` the moves are deconflicted first (:func:`motion.shield_headings`).
-    ``kernel``: the caller's pre-typed :func:`motion.step` (an env steps the same state every time), used for
-    actions of its usual type (C-contiguous, aligned, writable int64)."""
+    ``into``: events arrays to write the step's events into (every field but ``actions``; returned), None: fresh
+    ones. ``kernel``: the caller's pre-typed :func:`motion.step` (``into`` None) or :func:`motion.step_into` (an
+    env steps the same state every time), used for actions of its usual type (C-contiguous, aligned, writable
+    int64)."""
     shield = world.cfg.separation == "shield"
     flags = actions.flags
-    if kernel is not None and flags.c_contiguous and flags.aligned and flags.writeable:
-        return kernel(state, world.arrays, actions, shield)
-    return motion.step(state, world.arrays, actions, shield)
+    run: Any = kernel
+    if kernel is None or not (flags.c_contiguous and flags.aligned and flags.writeable):
+        run = motion.step if into is None else motion.step_into
+    if into is None:
+        return run(state, world.arrays, actions, shield)
+    run(state, world.arrays, actions, shield, into)
+    return into

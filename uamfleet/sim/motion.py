@@ -226,24 +226,44 @@ def _move_apart(a: int, first: int, ends: np.ndarray, resolved: np.ndarray, turn
 def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> StepEvents:
     """Advance every env of ``s`` by one slot, in place, in the order of docs/rules.md "Motion" and "Release
     and pick-up"; ``actions`` [E, A] int64 must be validated. ``shield``: resolve conflicts first
-    (:func:`shield_headings`). Returns the step's events."""
+    (:func:`shield_headings`). Returns the step's events, in arrays of their own (``actions`` is the argument)."""
+    events = new_events(s, actions)
+    step_into(s, w, actions, shield, events)
+    return events
+
+
+@njit(cache=True)
+def new_events(s: FleetState, actions: np.ndarray) -> StepEvents:
+    """Arrays for the events of a step of ``s`` (their values unset; ``actions`` is the ``actions`` field)."""
+    num_envs, num_taxis, num_pax = s.pos_m.shape[0], s.pos_m.shape[1], s.pax_status.shape[1]
+    ea, ep = (num_envs, num_taxis), (num_envs, num_pax)
+    return StepEvents(
+        np.empty(s.pos_m.shape), np.empty(s.pos_m.shape), actions, np.empty(ea, np.bool_), np.empty(ea, np.bool_),
+        np.empty(ea, np.bool_), np.empty(ea, np.int32), np.empty(ep, np.bool_), np.empty(ep, np.bool_),
+        np.empty(ep, np.bool_), np.empty(ea, np.int64), np.empty(ea, np.int64), np.empty(ea, np.bool_),
+        np.empty(ea), np.empty(num_envs, np.bool_), np.empty(num_envs, np.int64), np.empty(ea, np.int64),
+        np.empty(ea, np.bool_), np.empty(ea, np.bool_),
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def step_into(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool, events: StepEvents) -> None:
+    """:func:`step` writing the step's events into ``events``' arrays (every field but ``actions``, which it
+    leaves as it is), allocating nothing: for a caller that reads the events before the next step (the
+    PettingZoo face), where boxing fresh arrays for Python would cost more than the step itself."""
     num_envs, num_taxis = s.history_m.shape[0], s.history_m.shape[1]
-    num_pax = s.pax_status.shape[1]
     pos = s.pos_m
-    prev_pos = pos.copy()
-    moved = np.empty((num_envs, num_taxis), np.bool_)
-    blocked = np.empty((num_envs, num_taxis), np.bool_)
-    flown = np.empty((num_envs, num_taxis), np.int64)  # the heading flown, -1: stayed
-    intervened = np.zeros((num_envs, num_taxis), np.bool_)
-    hovered = np.zeros((num_envs, num_taxis), np.bool_)
-    first_visit = np.empty((num_envs, num_taxis), np.bool_)
-    block_visits = np.empty((num_envs, num_taxis), np.int32)
-    picked = np.empty((num_envs, num_pax), np.bool_)
-    dropped = np.empty((num_envs, num_pax), np.bool_)
-    released = np.empty((num_envs, num_pax), np.bool_)
-    pickups = np.zeros((num_envs, num_taxis), np.int64)
-    dropoffs = np.zeros((num_envs, num_taxis), np.int64)
-    all_delivered = np.empty(num_envs, np.bool_)
+    prev_pos = events.prev_pos_m
+    prev_pos[:] = pos
+    moved, blocked, flown = events.moved, events.blocked, events.heading_flown  # flown: -1 = stayed
+    intervened, hovered = events.shield_intervened, events.hovered
+    first_visit, block_visits = events.first_visit, events.block_visits
+    picked, dropped, released = events.picked_up, events.dropped_off, events.released
+    pickups, dropoffs, all_delivered = events.pickups, events.dropoffs, events.all_delivered
+    intervened[:] = False
+    hovered[:] = False
+    pickups[:] = 0
+    dropoffs[:] = 0
     reach = w.radius_m + 1e-9
     for e in range(num_envs):
         s.t[e] += 1
@@ -263,13 +283,10 @@ def step(s: FleetState, w: WorldArrays, actions: np.ndarray, shield: bool) -> St
         all_delivered[e] = _all_delivered(s, e)
     # 6. the mask of the new positions, separation, and the SINR along the flown segments
     action_mask(pos.reshape(num_envs * num_taxis, 2), w, s.action_mask.reshape(num_envs * num_taxis, NUM_HEADINGS))
-    separation_out = np.empty((num_envs, num_taxis), np.bool_)
-    separation(pos, w.min_separation_m, separation_out)
-    seg = _segment_sinr(w, prev_pos, pos)
-    return StepEvents(
-        prev_pos, pos.copy(), actions, moved, blocked, first_visit, block_visits, picked, dropped, released, pickups,
-        dropoffs, separation_out, seg, all_delivered, s.t.copy(), flown, intervened, hovered,
-    )  # fmt: skip
+    separation(pos, w.min_separation_m, events.separation_violation)
+    _segment_sinr(w, prev_pos, pos, events.segment_min_sinr_db)
+    events.pos_m[:] = pos
+    events.t[:] = s.t
 
 
 @njit(cache=True)
@@ -390,17 +407,15 @@ def _all_delivered(s: FleetState, e: int) -> bool:
 
 
 @njit(cache=True)
-def _segment_sinr(w: WorldArrays, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """[E, A] the lowest raster SINR (dB) along each taxi's segment of this step."""
+def _segment_sinr(w: WorldArrays, prev_pos: np.ndarray, pos: np.ndarray, seg: np.ndarray) -> None:
+    """seg[e, a] = the lowest raster SINR (dB) along each taxi's segment of this step."""
     num_envs, num_taxis = pos.shape[0], pos.shape[1]
-    seg = np.empty((num_envs, num_taxis))
     ox, oy = w.raster_origin[0], w.raster_origin[1]
     for e in range(num_envs):
         for a in range(num_taxis):
             seg[e, a] = segment_min(
                 w.raster, ox, oy, w.raster_res, prev_pos[e, a, 0], prev_pos[e, a, 1], pos[e, a, 0], pos[e, a, 1]
             )
-    return seg
 
 
 @njit(cache=True)
