@@ -15,7 +15,7 @@ from conftest import small_config
 
 import uamfleet
 from uamfleet.config import Request
-from uamfleet.observe.spec import layout_to_dict, observation_layout
+from uamfleet.observe.spec import ObserverSpec, layout_to_dict, observation_layout
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.trainer import Checkpoint, TrainArgs, load_policy, read_progress, train, upgrade_checkpoint
 
@@ -95,13 +95,16 @@ def test_an_old_pickled_checkpoint_is_refused_and_can_be_upgraded(tmp_path):
     old["obs_normalizer"] = {k: {"mean": v["mean"].numpy(), "var": v["var"].numpy(), "count": np.float64(v["count"])}
                              for k, v in old["obs_normalizer"].items()}  # fmt: skip
     old["args"] = {**old["args"], "scenario": "berlin_p4"}  # upgrade needs a named scenario for the obs layout
-    for key in ("obs_shapes", "format", "cuda_rng"):
+    for key in ("obs_shapes", "format", "cuda_rng", "obs_layout", "observer", "world"):
         old.pop(key, None)
     path.write_bytes(_torch_bytes(old))
     with pytest.raises(ValueError, match=r"numpy.*upgrade_checkpoint"):
         Checkpoint.load(path)
     upgrade_checkpoint(path)
     assert Checkpoint.load(path).numpy_rng["name"] == "MT19937"
+    upgraded = torch.load(path, weights_only=True)  # the current format: what it reads and its world stored
+    assert upgraded["format"] == 3 and upgraded["world"]["scenario"] == "berlin_p4"
+    assert ObserverSpec.from_dict(upgraded["observer"]) == ObserverSpec(slots_per_taxi=4.0, time_scale_steps=30)
 
 
 def test_resume_with_another_architecture_or_layout_names_what_differs(tmp_path):

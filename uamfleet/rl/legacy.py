@@ -56,8 +56,9 @@ TRUST_WARNING = (
 
 
 def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *, trust: bool = False) -> Path:
-    """Re-save a checkpoint of format 1 (NumPy RNG state and statistics pickled inside) in the safe format, in
-    place (pass the ``env_config`` it was trained on, if not its named scenario).
+    """Re-save a checkpoint of format 1 (NumPy RNG state and statistics pickled inside) in the current format, in
+    place (pass the ``env_config`` it was trained on, if not its named scenario), with what it reads and the world
+    it was evaluated in rebuilt from its training arguments.
 
     It reads the file with ``torch.load(weights_only=True)`` allowing NumPy arrays and scalars only
     (:data:`NUMPY_GLOBALS`): no code of the file runs, and a file holding anything else is refused. ``trust=True``
@@ -70,12 +71,15 @@ def upgrade_checkpoint(path: str | Path, env_config: EnvConfig | None = None, *,
     if not isinstance(old, dict) or "numpy_rng" not in old or "args" not in old:
         raise CheckpointError(f"{path} is not a uamfleet training checkpoint (no numpy_rng or args).")
     _to_plain_values(old)
-    layout = observation_layout(_evaluation_config(old["args"], env_config))  # the spec: no env is built
+    cfg = _evaluation_config(old["args"], env_config)
+    layout = observation_layout(cfg)  # the spec: no env is built
     old["obs_shapes"] = {k: list(spec.shape) for k, spec in layout.items()}
     old["obs_layout"] = layout_to_dict(layout)
     names = {f.name for f in dataclasses.fields(Checkpoint)} - {"format"}
     upgraded = Checkpoint(**{k: v for k, v in old.items() if k in names})
     upgraded.net_config = with_input_flags(upgraded.net_config, upgraded.obs_shapes)
+    upgraded.observer = trained_spec(cfg, upgraded.net_config, str(path)).to_dict()
+    upgraded.world = world_record(cfg.world)
     upgraded.validate(str(path))
     upgraded.save(path)
     return path
