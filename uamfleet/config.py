@@ -438,6 +438,29 @@ def heading_vectors() -> np.ndarray:
 
 
 # The checks and size bounds live in uamfleet.checks, the demand in uamfleet.demand; both import from here too.
+def world_record(world: WorldConfig) -> dict[str, Any]:
+    """The plain fields of ``world`` (numbers, strings, booleans, None, lists and dicts of them): a checkpoint's
+    record of the world it trained in, read by ``torch.load(weights_only=True)``. The radio map is named, never
+    stored (``"radio"``: its name; ``"scenario"``: the preset it came from); demand, reward and fixed requests as
+    dicts of their fields."""
+    record: dict[str, Any] = {}
+    for f in dataclasses.fields(WorldConfig):
+        value = getattr(world, f.name)
+        record[f.name] = value.name if f.name == "radio" else _plain_value(value)
+    return record
+
+
+def _plain_value(value: Any) -> Any:
+    """``value`` with dataclasses as dicts of their fields, tuples as lists and NumPy scalars as Python numbers."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, list | tuple):
+        return [_plain_value(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
 __all__ = [
     "DETROIT_SLOT_S",
     "DETROIT_STEP_M",

@@ -170,14 +170,13 @@ def make_fleet_instance(
     every start (the env's component rule and the dispatchers' distance fields); a draw that fails is redrawn.
     ``max_passengers`` pads the passenger axis; ``separation``: "none" (as every recorded table) or "shield";
     ``hover_action``: action 16 hovers; None: as the family's ``*_fleet`` preset has it (on: a fleet policy waits with
-    it), False: the 16 headings alone (as every table before issue 21's hover, where idle taxis zig-zag)."""
+    it), False: the 16 headings alone (idle taxis zig-zag)."""
     seed, num_taxis, num_requests, num_vertiports = _check_fleet_args(
         family, seed, num_taxis, num_requests, num_vertiports, arrival_window_s
     )
     fam = FAMILIES[family]
-    if hover_action is None:
+    if hover_action is None:  # the family's fleet preset's rule: a fleet policy waits with the hover
         hover_action = make_config(f"{family}_fleet").hover_action
-
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
     base = make_config(

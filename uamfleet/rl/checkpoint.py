@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from uamfleet.config import EnvConfig, WorldConfig
+from uamfleet.config import EnvConfig, world_record
 from uamfleet.observe.legacy import split_env_config
 from uamfleet.observe.spec import Layout, ObserverSpec, layout_differences, layout_from_dict
 from uamfleet.io import PathError, os_error_message, shown_path, write_bytes_atomic
@@ -350,29 +350,6 @@ def trained_spec(cfg: EnvConfig, net_config: Mapping[str, Any], source: str = "t
     return dataclasses.replace(spec, hover=hover, fleet_rows=fleet_rows)
 
 
-def world_record(world: WorldConfig) -> dict[str, Any]:
-    """The plain fields of ``world`` (numbers, strings, booleans, None, lists and dicts of them): a checkpoint's
-    record of the world it trained in, read by ``torch.load(weights_only=True)``. The radio map is named, never
-    stored (``"radio"``: its name; ``"scenario"``: the preset it came from); demand, reward and fixed requests as
-    dicts of their fields."""
-    record: dict[str, Any] = {}
-    for f in dataclasses.fields(WorldConfig):
-        value = getattr(world, f.name)
-        record[f.name] = value.name if f.name == "radio" else _plain_value(value)
-    return record
-
-
-def _plain_value(value: Any) -> Any:
-    """``value`` with dataclasses as dicts of their fields, tuples as lists and NumPy scalars as Python numbers."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, list | tuple):
-        return [_plain_value(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def with_input_flags(net_config: dict[str, Any], obs_shapes: Mapping[str, Any]) -> dict[str, Any]:
     """``net_config`` with the input flags of :class:`NetConfig` that a file written before them lacks, derived
     once, here, from the fields it was trained on (``obs_shapes``): the network it builds reads what it read then.
@@ -583,19 +560,6 @@ def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
     return cfg if like is None else cfg.with_layout_of(_with_own_window(like, init_args))
 
 
-def numpy_rng_state() -> dict[str, Any]:
-    """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
-    name, keys, pos, has_gauss, cached = np.random.get_state()
-    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
-            "cached_gaussian": float(cached)}  # fmt: skip
-
-
-def set_numpy_rng_state(state: dict[str, Any]) -> None:
-    """Restore what :func:`numpy_rng_state` saved."""
-    keys = np.array(state["keys"], dtype=np.uint32)
-    np.random.set_state((state["name"], keys, state["pos"], state["has_gauss"], state["cached_gaussian"]))
-
-
 __all__ = [
     "ARCHITECTURE_FIELDS",
     "CHECKPOINT_FORMAT",
@@ -610,11 +574,9 @@ __all__ = [
     "check_network",
     "check_state_dict",
     "checkpoint_source",
-    "numpy_rng_state",
     "pretrained_path",
     "read_checkpoint_file",
     "run_config",
-    "set_numpy_rng_state",
     "trained_spec",
     "with_input_flags",
     "world_record",

@@ -19,6 +19,8 @@ Under ``torchrun`` every rank runs this loop on its share of the envs, data-para
 
 from __future__ import annotations
 
+from typing import Any
+
 import copy
 import dataclasses
 import math
@@ -39,8 +41,6 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     check_state_dict,
-    numpy_rng_state,
-    set_numpy_rng_state,
     trained_spec,
     world_record,
 )
@@ -359,6 +359,19 @@ def _result(run: Run, counters: Counters, rows: list[dict[str, float]], interrup
         losses=[{k: v for k, v in r.items() if k.startswith("losses/")} for r in rows], interrupted=interrupted,
         rank=run.ranks.rank,
     )  # fmt: skip
+
+
+def numpy_rng_state() -> dict[str, Any]:
+    """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
+    name, keys, pos, has_gauss, cached = np.random.get_state()
+    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
+            "cached_gaussian": float(cached)}  # fmt: skip
+
+
+def set_numpy_rng_state(state: dict[str, Any]) -> None:
+    """Restore what :func:`numpy_rng_state` saved."""
+    keys = np.array(state["keys"], dtype=np.uint32)
+    np.random.set_state((state["name"], keys, state["pos"], state["has_gauss"], state["cached_gaussian"]))
 
 
 __all__ = [
