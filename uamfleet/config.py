@@ -437,7 +437,6 @@ def heading_vectors() -> np.ndarray:
     return np.stack([np.cos(angles), np.sin(angles)], axis=-1)
 
 
-# The checks and size bounds live in uamfleet.checks, the demand in uamfleet.demand; both import from here too.
 def world_record(world: WorldConfig) -> dict[str, Any]:
     """The plain fields of ``world`` (numbers, strings, booleans, None, lists and dicts of them): a checkpoint's
     record of the world it trained in, read by ``torch.load(weights_only=True)``. The radio map is named, never
@@ -461,6 +460,7 @@ def _plain_value(value: Any) -> Any:
     return value
 
 
+# The checks and size bounds live in uamfleet.checks, the demand in uamfleet.demand; both import from here too.
 __all__ = [
     "DETROIT_SLOT_S",
     "DETROIT_STEP_M",

@@ -337,6 +337,14 @@ def _is_plain(value: object, depth: int = 0) -> bool:
     return False
 
 
+def plain_numpy_rng(state: tuple[Any, ...]) -> dict[str, Any]:
+    """NumPy's global generator state (``np.random.get_state()``'s tuple) as the plain values a checkpoint stores
+    (it loads with ``weights_only=True``)."""
+    name, keys, pos, has_gauss, cached = state
+    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
+            "cached_gaussian": float(cached)}  # fmt: skip
+
+
 def trained_spec(cfg: EnvConfig, net_config: Mapping[str, Any], source: str = "the checkpoint") -> ObserverSpec:
     """What a network of ``net_config`` trained on ``cfg`` (its evaluation config) reads: the observer of ``cfg``
     (:func:`~uamfleet.observe.legacy.split_env_config`) with ``hover`` its network's hover logit
@@ -574,6 +582,7 @@ __all__ = [
     "check_network",
     "check_state_dict",
     "checkpoint_source",
+    "plain_numpy_rng",
     "pretrained_path",
     "read_checkpoint_file",
     "run_config",

@@ -26,6 +26,7 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     _load_error,
+    plain_numpy_rng,
     run_config,
     trained_spec,
     with_input_flags,
@@ -105,9 +106,7 @@ def _read_format1(path: Path, trust: bool) -> Any:
 def _to_plain_values(old: dict[str, Any]) -> None:
     """In place: the NumPy RNG state as plain values, the normalisers' statistics as tensors and floats."""
     if not isinstance(old["numpy_rng"], dict):
-        name, keys, pos, has_gauss, cached = old["numpy_rng"]
-        old["numpy_rng"] = {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos),
-                            "has_gauss": int(has_gauss), "cached_gaussian": float(cached)}  # fmt: skip
+        old["numpy_rng"] = plain_numpy_rng(old["numpy_rng"])
     for key in ("obs_normalizer", "reward_scaler"):
         if old.get(key) is not None:
             fields = old[key] if key == "obs_normalizer" else {"_": old[key]}

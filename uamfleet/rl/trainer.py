@@ -19,13 +19,12 @@ Under ``torchrun`` every rank runs this loop on its share of the envs, data-para
 
 from __future__ import annotations
 
-from typing import Any
-
 import copy
 import dataclasses
 import math
 import time
 from collections.abc import Callable
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -41,6 +40,7 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     check_state_dict,
+    plain_numpy_rng,
     trained_spec,
     world_record,
 )
@@ -363,9 +363,7 @@ def _result(run: Run, counters: Counters, rows: list[dict[str, float]], interrup
 
 def numpy_rng_state() -> dict[str, Any]:
     """NumPy's global generator state as plain values (a checkpoint loads with ``weights_only=True``)."""
-    name, keys, pos, has_gauss, cached = np.random.get_state()
-    return {"name": str(name), "keys": [int(k) for k in keys], "pos": int(pos), "has_gauss": int(has_gauss),
-            "cached_gaussian": float(cached)}  # fmt: skip
+    return plain_numpy_rng(cast(tuple[Any, ...], np.random.get_state()))  # legacy=True (the default): a tuple
 
 
 def set_numpy_rng_state(state: dict[str, Any]) -> None:
