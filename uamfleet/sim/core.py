@@ -58,6 +58,10 @@ class Simulator:
         self.num_taxis = cfg.num_taxis
         self.world = World(cfg)
         self._step_kernel = PreTyped(motion.step)  # the step without numba typing the state on every call
+        # advance(events=False): the events arrays it reuses and its pre-typed motion.step_into, made by its first
+        # call (a core that always returns events never compiles or allocates them)
+        self._scratch: StepEvents | None = None
+        self._scratch_kernel: PreTyped | None = None
         self.source = generator.InstanceSource(self.world)
         self.single_action_space = spaces.Discrete(cfg.num_actions)  # 16 headings (+ the hover, cfg.hover_action)
         self.state_size = global_state_size(cfg)
@@ -97,9 +101,6 @@ class Simulator:
         if "_episode" in info:  # terminated | truncated, there when an episode ended
             self.end_episodes(info["_episode"])
         return rewards, terminated, truncated, info
-
-    _scratch: StepEvents | None = None  # the events arrays of advance(events=False), made by its first call
-    _scratch_kernel: PreTyped | None = None  # motion.step_into, pre-typed like _step_kernel
 
     def advance(
         self, actions: np.ndarray, events: bool = True
