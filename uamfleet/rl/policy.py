@@ -277,6 +277,28 @@ class GreedyPolicy(PolicyBase):
             fitted.loop_guard = None
         return fitted
 
+    def reading(self, spec: ObserverSpec) -> GreedyPolicy:
+        """A copy of this policy (the same network, weights and normaliser) that reads ``spec`` instead of its own,
+        fitted at each ``reset`` like it (:meth:`fit`): e.g. a passenger window it did not train with,
+        ``policy.reading(dataclasses.replace(policy.spec, passenger_window=24, time_scale_steps=None))``. The
+        network's own needs stay its own: ConfigError when ``spec`` drops the hover action it takes or reads the
+        other taxis otherwise than it does (``hover``, ``fleet_rows``)."""
+        if self.spec is None:
+            raise ConfigError("this policy has no observer spec to replace: load it with load_policy.")
+        if (spec.hover, spec.fleet_rows) != (self.spec.hover, self.spec.fleet_rows):
+            raise ConfigError(
+                f"hover={spec.hover}, fleet_rows={spec.fleet_rows}: this policy's network takes hover="
+                f"{self.spec.hover} and fleet_rows={self.spec.fleet_rows}; keep them: "
+                "dataclasses.replace(policy.spec, ...)."
+            )
+        if spec == self.spec:
+            return self
+        other = copy.copy(self)
+        other.spec = spec
+        other._fitted, other._fits = None, {}
+        other.loop_guard = LoopGuard() if self.loop_guard is not None else None
+        return other
+
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
         """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
         :func:`uamfleet.metrics.episode_metrics`."""
