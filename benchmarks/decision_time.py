@@ -2,7 +2,7 @@
 
 A call is what a deployed planner does every step: normalise the observation, run the network, take the
 greedy heading (``GreedyPolicy.__call__``), for a batch of taxis at once. Observations come from real episodes of
-the policy's own layout (Berlin instances, random demand), and the policy's first calls (allocations) are not
+the policy's own observer (Berlin instances, random demand), and the policy's first calls (allocations) are not
 timed. The observation itself (the stop features and, for the look-ahead policy, ``heading_lookahead``) is built by
 the env's step, outside the call: it is timed apart (``Observer.observe`` inside each step), and the last column adds
 the two, what a deployed planner spends per decision. Run on one core, with the shipped Berlin generalist or any
@@ -60,8 +60,8 @@ def main(args: Args) -> list[dict[str, float]]:
           f"{'p50 ms/obs':>11} {'p50 obs+call':>13}")  # fmt: skip
     rows = []
     for batch in args.batch:
-        cfg = policy.layout(make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis))
-        env = VectorEnv(cfg, num_envs=batch)
+        cfg = make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis)
+        env = VectorEnv(cfg, num_envs=batch, observer=policy.spec)  # observed as the policy reads
         observe_times: list[float] = []
         env.observer.observe = _timed(env.observer.observe, observe_times)  # type: ignore[method-assign]
         obs, _ = env.reset(seed=0)
@@ -104,8 +104,8 @@ def paired(policy, args: Args) -> list[dict[str, float]]:  # type: ignore[no-unt
     rows = []
     print(f"{'taxis per call':>15} {'eager p50 ms':>13} {'traced p50 ms':>14} {'same actions':>13}")
     for batch in args.batch:
-        cfg = policy.layout(make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis))
-        env = VectorEnv(cfg, num_envs=batch)
+        cfg = make_config("berlin_instances", sinr_min_db=-5.0, num_taxis=policy.trained_on.num_taxis)
+        env = VectorEnv(cfg, num_envs=batch, observer=policy.spec)  # observed as the policy reads
         obs, _ = env.reset(seed=0)
         eager_s, traced_s, same = [], [], True
         for i in range(args.calls + 10):

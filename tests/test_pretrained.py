@@ -58,8 +58,11 @@ def test_the_berlin_fleet_policy_serves_a_fleet_instance() -> None:
     cfg = make_fleet_instance("berlin", 2_000_000, num_taxis=4, num_requests=8)
     m = episode_metrics(fleet.fly(cfg), cfg.radio)
     assert m.num_requests == 8 and m.pr_pct == 100.0
-    with pytest.raises(ValueError, match="4"):
-        fleet.layout(uamfleet.make_config("berlin_fleet", num_taxis=2))
+    # any fleet its spec reads (6 rows per taxi, no window): 12 rows at 2 taxis, a 13th request refused in one line
+    two = make_fleet_instance("berlin", 2_000_000, num_taxis=2, num_requests=4)
+    assert episode_metrics(fleet.fly(two), two.radio).pr_pct == 100.0
+    with pytest.raises(ValueError, match="the world has 13 passenger rows; this policy reads 12"):
+        fleet.fly(make_fleet_instance("berlin", 2_000_000, num_taxis=2, num_requests=13))
 
 
 def test_the_shipped_fleet_policy_serves_any_fleet_size_and_asks_for_the_hover_action() -> None:
@@ -68,14 +71,11 @@ def test_the_shipped_fleet_policy_serves_any_fleet_size_and_asks_for_the_hover_a
     fleet = uamfleet.pretrained("berlin_fleet")
     assert fleet.passenger_window == 24 and fleet.net.cfg.hover_logit  # the window comes with the checkpoint
     for taxis, requests in ((8, 16), (2, 30)):  # 30 > its 24 rows: the window reads the nearest
-        policy = fleet.for_fleet(taxis)
         cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=taxis, num_requests=requests, hover_action=True)
-        m = episode_metrics(policy.fly(cfg), cfg.radio)
+        m = episode_metrics(fleet.fly(cfg), cfg.radio)
         assert m.num_requests == requests and m.pr_pct == 100.0
     with pytest.raises(ValueError, match=r"hover_action=True"):
-        fleet.for_fleet(2).layout(
-            make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4, hover_action=False)
-        )
+        fleet.fly(make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4, hover_action=False))
 
 
 def test_a_fleet_instance_has_its_fleet_presets_hover_so_the_shipped_fleet_policy_flies_it_as_made() -> None:
@@ -85,7 +85,7 @@ def test_a_fleet_instance_has_its_fleet_presets_hover_so_the_shipped_fleet_polic
         assert uamfleet.make_config(f"{family}_fleet").hover_action is True
     cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4)
     assert cfg.hover_action is True and cfg.num_actions == 17
-    m = episode_metrics(uamfleet.pretrained("berlin_fleet").for_fleet(2).fly(cfg), cfg.radio)
+    m = episode_metrics(uamfleet.pretrained("berlin_fleet").fly(cfg), cfg.radio)
     assert m.num_requests == 4 and m.pr_pct == 100.0
     assert make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=4, hover_action=False).num_actions == 16
 
@@ -96,7 +96,6 @@ def test_the_first_shipped_fleet_policy_serves_its_own_and_other_fleet_sizes() -
     fleet = uamfleet.pretrained("berlin_fleet_v1")
     assert fleet.num_taxis == 4
     for taxis, requests in ((4, 8), (2, 4)):
-        policy = fleet.for_fleet(taxis)
         cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=taxis, num_requests=requests)
-        m = episode_metrics(policy.fly(cfg), cfg.radio)
+        m = episode_metrics(fleet.fly(cfg), cfg.radio)
         assert m.num_requests == requests and m.pr_pct == 100.0

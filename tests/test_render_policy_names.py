@@ -3,6 +3,8 @@ a name it cannot read is one line and exit 2 before anything is written."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import uamfleet
@@ -14,9 +16,11 @@ def test_a_recorded_learned_name_flies_and_is_drawn(tmp_path: Path, capsys) -> N
     out = tmp_path / "stops.html"
     assert render.cli(["--policy", "learned:berlin_stops", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    # learned:<stem> reads every request of the world: berlin_p4's 4, one taxi (GreedyPolicy.for_fleet)
+    # learned:<stem> reads every request of the world: berlin_p4's 4 rows for its one taxi
     cfg = uamfleet.make_config("berlin_p4")
-    own = uamfleet.pretrained("berlin_stops").for_fleet(1, passenger_slots=4).fly(cfg, seed=0)
+    stops = uamfleet.pretrained("berlin_stops")
+    assert stops.spec is not None and stops.spec.slots_per_taxi == 6
+    own = stops.reading(dataclasses.replace(stops.spec, slots_per_taxi=4)).fly(cfg, seed=0)
     m = episode_metrics(own, cfg.radio, threshold_db=cfg.sinr_min_db)
     assert "berlin_p4 · learned:berlin_stops · 1 taxi · γ_T = -3 dB" in printed
     assert f": {own.num_steps} steps (all delivered), 4/4 delivered, TD {m.td_m:.0f} m" in printed, printed

@@ -52,6 +52,7 @@ from uamfleet.config import (
     fleet_window_steps,
 )
 from uamfleet.env.mixture import MixtureVectorEnv
+from uamfleet.observe.legacy import observed_config, split_env_config
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
 from uamfleet.presets import make_config
@@ -280,10 +281,11 @@ def family_of(scenario: str) -> str:
 
 
 def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
-    """Instance ``seed`` of ``family`` laid out as the config ``like`` a policy trained on: its rule, passenger
-    axis, stop features, reward and time limit (the observation's time feature is a fraction of the limit). A
-    fleet config (``*_fleet``) gets the fleet instance of ``seed`` with its taxis, its demand's request count and
-    its separation rule and hover action (a policy trained under the shield is evaluated under it)."""
+    """Instance ``seed`` of ``family`` under the rules of the config ``like`` a policy trains on (its feasibility
+    rule, passenger rows, reward and, without a passenger window, its time limit), observed as ``like`` observes
+    (:func:`~uamfleet.observe.legacy.split_env_config`). A fleet config (``*_fleet``) gets the fleet instance of
+    ``seed`` with its taxis, its demand's request count and its separation rule and hover action (a policy trained
+    under the shield is evaluated under it)."""
     if like.scenario.endswith("_fleet"):
         cfg = make_fleet_instance(
             family, seed, like.num_taxis, like.demand.max_requests, feasibility=like.feasibility,
@@ -291,7 +293,10 @@ def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
         )  # fmt: skip
     else:
         cfg = make_instance(family, seed, feasibility=like.feasibility, max_passengers=like.num_passengers)
-    return cfg.with_layout_of(like).replace(reward=like.reward)
+    rules: dict[str, object] = {"reward": like.reward}
+    if like.passenger_window is None:  # a run without a window reads time as a share of its own limit
+        rules["time_limit_steps"] = like.time_limit_steps
+    return observed_config(cfg.replace(**rules).world, split_env_config(like)[1])[0]
 
 
 _BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig], MixtureVectorEnv] = {}

@@ -105,17 +105,22 @@ def test_the_layout_builds_no_world(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_shipped_fleet_policy_resizes_without_building_an_env(monkeypatch: pytest.MonkeyPatch) -> None:
     import uamfleet
+    from uamfleet.instances import make_fleet_instance
+
+    two = make_fleet_instance("berlin", 3, num_taxis=2, num_requests=4).world
 
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("built a VectorEnv to learn shapes")
 
     monkeypatch.setattr("uamfleet.env.vector_env.VectorEnv.__init__", refuse)
-    policy = uamfleet.pretrained("berlin_fleet_v1").for_fleet(2)  # 6 requests per taxi: 12 rows for 2 taxis
-    assert policy.obs_shapes is not None
-    assert policy.obs_shapes["others"] == (1, 3) and policy.obs_shapes["stop_claims"] == (12, 2)
-    windowed = uamfleet.pretrained("berlin_fleet").for_fleet(2)  # its 24-row window, whatever the fleet size
-    assert windowed.obs_shapes is not None
-    assert windowed.obs_shapes["others"] == (1, 3) and windowed.obs_shapes["stop_claims"] == (24, 2)
+    policy = uamfleet.pretrained("berlin_fleet_v1")
+    policy.fit(two)  # 6 requests per taxi: 12 rows for 2 taxis
+    shapes = policy.fitted()[2]
+    assert shapes is not None and shapes["others"] == (1, 3) and shapes["stop_claims"] == (12, 2)
+    windowed = uamfleet.pretrained("berlin_fleet")
+    windowed.fit(two)  # its 24-row window, whatever the fleet size
+    shapes = windowed.fitted()[2]
+    assert shapes is not None and shapes["others"] == (1, 3) and shapes["stop_claims"] == (24, 2)
 
 
 # ---- kinds, and the normaliser that reads them ---------------------------------------------------------------

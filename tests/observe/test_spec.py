@@ -78,7 +78,7 @@ def test_the_split_of_a_config_gives_back_its_layout(taxis: int, flags: tuple, w
 
 
 def test_a_spec_without_a_window_reads_its_slots_per_taxi_of_another_fleet() -> None:
-    spec = ObserverSpec(slots_per_taxi=6.0)  # for_fleet's rule: 24 slots for 4 taxis -> 12 rows at 2 taxis
+    spec = ObserverSpec(slots_per_taxi=6.0)  # 24 slots trained for 4 taxis -> 12 rows at 2 taxis
     assert spec.layout(world(num_taxis=2))["passengers"].shape[0] == 12
     assert spec.layout(world(num_taxis=1))["passenger_mask"].shape == (6,)
     assert ObserverSpec(slots_per_taxi=7 / 3).layout(world(num_taxis=3))["passengers"].shape[0] == 7

@@ -13,6 +13,7 @@ import torch
 from conftest import small_config
 
 import uamfleet
+from uamfleet.policies import make
 from uamfleet.config import ConfigError, EnvConfig, Request
 from uamfleet.observe import spec as layout_module
 from uamfleet.observe.spec import PASSENGER_AXIS_FIELDS, computed_layout, observation_layout
@@ -141,11 +142,11 @@ def test_a_window_must_hold_the_taxis_riders() -> None:
 
 
 def fly_steps(policy: GreedyPolicy, cfg: EnvConfig, steps: int) -> tuple[dict[str, tuple[int, ...]], int]:
-    """``policy`` flown on ``cfg`` laid out for it, ``steps`` steps or to the episode's end: its observation shapes
-    (the same at every step) and the passengers delivered."""
-    cfg = policy.layout(cfg)
-    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    """``policy`` flown on the world ``cfg`` observed by its spec, ``steps`` steps or to the episode's end: its
+    observation shapes (the same at every step) and the passengers delivered."""
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=policy.spec)
     obs, _ = env.reset(seed=0)
+    policy.reset(env.sim)
     shapes = {k: v.shape for k, v in obs.items()}
     for _ in range(steps):
         obs, _, done, trunc, _ = env.step(policy(obs))
@@ -180,8 +181,8 @@ def test_one_policy_reads_24_and_200_requests_with_the_same_shapes() -> None:
     """The shipped fleet policy, which reads its 24 trained rows as a window (no argument needed), on 8 taxis and 24
     or 200 requests released over 30 minutes (600 steps of 3 s) on a drawn open map: the first 40 steps (the whole
     episodes on Berlin: below)."""
-    policy = uamfleet.pretrained("berlin_fleet").for_fleet(8)
-    assert policy.passenger_window == 24
+    policy = uamfleet.pretrained("berlin_fleet")
+    assert policy.spec is not None and policy.spec.passenger_window == 24
     starts = tuple((100.0 * i + 50.0, 100.0 * (i % 3) + 50.0) for i in range(8))
     shapes = []
     for count in (24, 200):
@@ -196,12 +197,12 @@ def test_one_policy_reads_24_and_200_requests_with_the_same_shapes() -> None:
 def test_one_policy_flies_8_taxis_over_a_30_minute_window_at_24_and_200_requests(requests: int) -> None:
     """Issue 21's "any load": the shipped fleet policy, as a user flies it (the hover action of the fleet presets,
     the shield), delivers everyone of a 30-minute shift on Berlin; berlin_fleet_v1 as it was measured."""
-    policy = uamfleet.pretrained("berlin_fleet").for_fleet(8)
+    policy = uamfleet.pretrained("berlin_fleet")
     cfg = make_fleet_instance("berlin", 3, 8, requests, arrival_window_s=1800.0, separation="shield", hover_action=True)
-    assert policy.layout(cfg).num_passengers == requests  # the instance's own passenger axis and time limit
+    assert cfg.num_passengers == requests and cfg.time_limit_steps > 600  # the instance's own rows and time limit
     _, delivered = fly_steps(policy, cfg, steps=cfg.time_limit_steps)
     assert delivered == requests
-    first = uamfleet.pretrained("berlin_fleet_v1").for_fleet(8, passenger_window=24)
-    cfg = make_fleet_instance("berlin", 3, 8, requests, arrival_window_s=1800.0)
+    first = make("learned", source="berlin_fleet_v1", passenger_window=24)
+    cfg = make_fleet_instance("berlin", 3, 8, requests, arrival_window_s=1800.0, hover_action=False)
     _, delivered = fly_steps(first, cfg, steps=cfg.time_limit_steps)
     assert delivered == requests  # as measured (docs/results.md, issue 21 part 2)

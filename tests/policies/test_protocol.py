@@ -101,8 +101,8 @@ def test_finish_takes_the_window_of_the_worlds_family() -> None:
 
 def test_hedge_takes_the_demand_model_of_the_worlds_family() -> None:
     hedge = policies.make("hedge", futures=1, first_headings=1, samples=0, top_k=1, tail=0)
-    cfg = hedge.layout(make_instance("berlin", 3))
-    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    cfg = make_instance("berlin", 3)  # 4 passenger rows: the hedge pads its own futures to the 6 it samples
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=hedge.spec)  # observed as its policy reads
     env.reset(seed=0)
     hedge.reset(env.sim)
     fam = FAMILIES["berlin"]

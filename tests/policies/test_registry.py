@@ -95,7 +95,9 @@ def test_learned_policies_and_their_fleet_options() -> None:
     assert isinstance(shipped, GreedyPolicy) and shipped.num_taxis == 1
     assert shipped.thresholds_db == pretrained("berlin").thresholds_db
     fleet = make("learned", source="berlin_fleet", taxis=4, passenger_window=24)
-    assert fleet.num_taxis == 4 and fleet.passenger_window == 24
+    assert fleet.spec.passenger_window == 24 and fleet.spec.time_scale_steps is None  # any fleet, any shift
+    slots = make("learned", source="berlin_fleet_v1", taxis=2, passenger_slots=10)
+    assert slots.spec.slots_per_taxi == 5 and slots.spec.passenger_window is None  # 10 rows for 2 taxis
     unguarded = make("learned", loop_guard=False)
     assert unguarded.loop_guard is None and make("learned").loop_guard is not None  # the cached one is untouched
     with pytest.raises(PolicyNameError, match="passenger_slots='world' is read against a world"):

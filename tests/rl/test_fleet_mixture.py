@@ -4,6 +4,8 @@ sizes and loads under a passenger window (``TrainArgs.fleet_mixture``, ``num_req
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import numpy as np
@@ -79,9 +81,11 @@ def test_padding_leaves_the_shipped_fleet_policy_s_decisions_unchanged() -> None
     obs, _ = mix.reset(seed=3)
     lone, _ = VectorEnv(cfgs[0], num_envs=1).reset(seed=3)
     shipped = pretrained("berlin_fleet_v1")
-    for_three, for_one = shipped.for_fleet(3, passenger_window=24), shipped.for_fleet(1, passenger_window=24)
-    padded = for_three.logits_of(for_three.network_input({k: v[:1] for k, v in obs.items()}))[0]
-    unpadded = for_one.logits_of(for_one.network_input(lone))[0]
+    windowed = shipped.reading(dataclasses.replace(shipped.spec, passenger_window=24, time_scale_steps=None))
+    windowed.fit(cfgs[1].world)  # three taxis: the mixture's padded rows
+    padded = windowed.logits_of(windowed.network_input({k: v[:1] for k, v in obs.items()}))[0]
+    windowed.fit(cfgs[0].world)  # one taxi, unpadded
+    unpadded = windowed.logits_of(windowed.network_input(lone))[0]
     torch.testing.assert_close(padded, unpadded, rtol=1e-5, atol=1e-5)
 
 
@@ -129,7 +133,7 @@ def test_a_fine_tune_of_the_shipped_fleet_on_a_mixture_starts_from_its_actor_and
     )
     assert policy.num_taxis == 2 and policy.passenger_window == 24 and policy.net.cfg.critic_state_dim is None
     cfg = make_config("berlin_fleet", num_taxis=3, sinr_min_db=-5.0, time_limit_steps=12)
-    assert len(policy.for_fleet(3).fly(cfg).stacked("actions")) == 12
+    assert len(policy.fly(cfg).stacked("actions")) == 12
     # and it resumes from last.pt: one more iteration
     more = train(_mixture_args(tmp_path, total_timesteps=96, resume=True))
     assert more.iterations == 3 and more.global_step == 96

@@ -2,16 +2,24 @@
 
 from __future__ import annotations
 
+import dataclasses
+import re
+
 import numpy as np
 import pytest
 import torch
 
 from uamfleet.checks import ConfigError
+from conftest import small_config
+
+from uamfleet.config import Request, WorldConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
 from uamfleet.metrics import episode_metrics
+from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.presets import make_config
 from uamfleet.rl.buffer import ObservationNormalizer
+from uamfleet.rl.checkpoint import trained_spec
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, observed_inputs
 from uamfleet.rl.trainer import GreedyPolicy
 
@@ -51,28 +59,31 @@ def _untrained_fleet_policy(taxis: int, variant: str = "de_msfea") -> GreedyPoli
         ),
     ).eval()
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    return GreedyPolicy(net, None, torch.device("cpu"), shapes, taxis, cfg.num_passengers, cfg)
+    spec = trained_spec(cfg, dataclasses.asdict(net.cfg))
+    return GreedyPolicy(net, None, torch.device("cpu"), shapes, taxis, cfg.num_passengers, cfg, spec=spec)
 
 
 def test_a_two_taxi_policy_flies_one_and_three_taxis() -> None:
     """The untrained stop head flies its prior (nearest stop, another taxi's claims avoided), which serves
-    everyone: resized, it reads one taxi (no rivals, 6 slots) and three (18 slots) and delivers every passenger."""
+    everyone: fitted at reset, it reads one taxi (no rivals, 6 slots) and three (18 slots) and delivers every
+    passenger; the world flown is the instance as made (its own 2 requests per taxi, padded to the rows read)."""
     policy = _untrained_fleet_policy(2)
-    assert policy.for_fleet(2) is policy
     for taxis in (1, 3):
-        resized = policy.for_fleet(taxis)
-        assert resized.num_taxis == taxis and resized.passenger_slots == 6 * taxis
-        assert resized.obs_shapes is not None and resized.obs_shapes["stop_claims"] == (6 * taxis, 2)
         cfg = make_fleet_instance("berlin", 1_000_000, num_taxis=taxis, num_requests=2 * taxis)
-        m = episode_metrics(resized.fly(cfg), cfg.radio)
+        traj = policy.fly(cfg)
+        assert policy.fitted()[2] is not None and policy.fitted()[2]["stop_claims"] == (6 * taxis, 2)
+        assert policy.obs_shapes is not None and policy.obs_shapes["stop_claims"] == (12, 2)  # as built
+        m = episode_metrics(traj, cfg.radio)
         assert m.num_requests == 2 * taxis and m.pr_pct == 100.0
-    with pytest.raises(ValueError, match="3 taxi"):
-        policy.layout(make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=2))
+    with pytest.raises(ConfigError, match="the world has 19 passenger rows; this policy reads 18"):
+        policy.fly(make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=19))
 
 
 def test_a_policy_that_reads_the_sets_by_position_keeps_its_size() -> None:
-    with pytest.raises(ValueError, match="designed variant"):
-        _untrained_fleet_policy(2, variant="le").for_fleet(3)
+    policy = _untrained_fleet_policy(2, variant="le")
+    with pytest.raises(ConfigError, match=r"by position \(1 rows\), but the world has 3 taxis: fly it with 2 taxis"):
+        policy.fly(make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=3))
+    assert policy.fly(make_fleet_instance("berlin", 1_000_000, num_taxis=2, num_requests=2)).num_steps > 0
 
 
 def test_the_fleet_design_trains_end_to_end_and_flies_another_size(tmp_path) -> None:
@@ -91,21 +102,31 @@ def test_the_fleet_design_trains_end_to_end_and_flies_another_size(tmp_path) -> 
     head = policy.net.stop_head
     assert head is not None and head.claims and head.hovers
     cfg = make_fleet_instance("berlin", 1_000_000, num_taxis=3, num_requests=3)
-    traj = policy.for_fleet(3).fly(cfg)
+    traj = policy.fly(cfg)
     assert traj.num_steps > 0 and traj.start_pos_m.shape == (3, 2)
 
 
-def test_for_fleet_names_the_fleet_sizes_its_passenger_axis_fits() -> None:
+def test_the_spec_names_the_fleet_sizes_its_passenger_axis_fits() -> None:
     """6 passenger rows per taxi (12 on 2 taxis) and at most 1024 rows: fleets of 1 to 170 taxis (6 x 170 = 1020,
     6 x 171 = 1026); a window or explicit slots fly a larger fleet."""
     policy = _untrained_fleet_policy(2)
-    fits = r"it reads 6 passenger rows per taxi, so fleets of 1 to 170 taxi\(s\) fit .* at most 1024 rows"
+    assert policy.spec is not None
+    fits = r"this policy reads 6 passenger rows per taxi, so fleets of 1 to 170 taxi\(s\) fit .* at most 1024 rows"
     for taxis in (171, 1024):
-        with pytest.raises(ConfigError, match=rf"^num_taxis={taxis} is out of range for this policy: {fits}"):
-            policy.for_fleet(taxis)
-    assert policy.for_fleet(170).passenger_slots == 1020
-    assert policy.for_fleet(171, passenger_slots=1024).passenger_slots == 1024
-    assert policy.for_fleet(171, passenger_window=12).passenger_slots == 12
+        world = dataclasses.replace(policy.spec, fleet_rows=None)
+        refusal = world.reads(_fleet_world(taxis))
+        assert refusal is not None and re.match(rf"^the world has {taxis} taxis and {fits}", refusal)
+    assert policy.spec.reads(_fleet_world(170)) is None and policy.spec.rows(_fleet_world(170)) == 1020
+    slots = spec_of(policy, LearnedOptions(taxis=171, passenger_slots=1024))
+    assert slots.reads(_fleet_world(171)) is None and slots.rows(_fleet_world(171)) == 1024
+    window = spec_of(policy, LearnedOptions(passenger_window=12))
+    assert window.reads(_fleet_world(171)) is None and window.rows(_fleet_world(171)) == 12
+
+
+def _fleet_world(taxis: int) -> WorldConfig:
+    """A world of ``taxis`` taxis and one request (no env is built: the spec reads its sizes)."""
+    return small_config("\n".join(["......."] * 7), starts_m=None, num_taxis=taxis,
+                        requests=(Request(0, (250.0, 250.0), (550.0, 450.0)),)).world  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -120,6 +141,6 @@ def test_for_fleet_names_the_fleet_sizes_its_passenger_axis_fits() -> None:
         ("passenger_window", float("nan"), r"^passenger_window=nan must be a whole number"),
     ],
 )
-def test_for_fleet_checks_its_passenger_axis(option, value, message) -> None:
+def test_the_learned_options_check_the_passenger_axis(option, value, message) -> None:
     with pytest.raises(ConfigError, match=message):
-        _untrained_fleet_policy(2).for_fleet(3, **{option: value})
+        LearnedOptions(taxis=3, **{option: value})

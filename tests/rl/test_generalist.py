@@ -176,11 +176,11 @@ def test_load_policy_flies_another_threshold_and_fewer_passengers(generalist_run
     p4 = make_config("berlin_p4", sinr_min_db=-5.0)
     policy, args = load_policy(generalist_run, env_config=p4.replace(max_passengers=6, stop_features=True))
     assert args.env.thresholds == (-7.0, -3.0)
-    laid_out = policy.layout(p4)
-    assert laid_out.sinr_min_db == -5.0 and laid_out.num_passengers == 6 and laid_out.stop_features
-    assert laid_out.requests == p4.requests and laid_out.starts_m == p4.starts_m
-    traj = policy.fly(p4)
+    traj = policy.fly(p4)  # the world as given, its 4 passenger rows read as the 6 the policy reads (padded)
+    shapes = policy.fitted()[2]
+    assert shapes is not None and shapes["passengers"][0] == 6 and "stop_paths" in shapes
     assert traj.sinr_min_db == -5.0  # the threshold of the config given, never the checkpoint's
+    np.testing.assert_array_equal(traj.start_pos_m, np.array(p4.starts_m))
     m = episode_metrics(traj, p4.radio, threshold_db=-5.0)
     assert m.num_requests == 4
     # a held-out instance with 2 requests (another start and threshold) flies too
@@ -194,5 +194,5 @@ def test_load_policy_names_what_differs(generalist_run: Path) -> None:
         load_policy(generalist_run, env_config=make_config("berlin_instances", max_passengers=8))
     policy, _ = load_policy(generalist_run)
     too_many = make_config("berlin_random", num_taxis=1, max_passengers=None)  # 12 requests
-    with pytest.raises(ValueError, match="12 requests"):
-        policy.layout(too_many)
+    with pytest.raises(ValueError, match="the world has 12 passenger rows; this policy reads 6"):
+        policy.fly(too_many)

@@ -131,7 +131,7 @@ def _open_search(policy_seed: int, top_k: int):
     cfg = small_config(OPEN_7, starts_m=((150.0, 150.0),), requests=requests, time_limit_steps=40,
                        stop_features=True, max_passengers=3)  # fmt: skip
     guided = GuidedSearchPolicy(_policy(cfg, policy_seed), top_k=top_k, samples=0, horizon=1)
-    env = VectorEnv(guided.layout(cfg), 1)
+    env = VectorEnv(cfg, 1)
     env.reset(seed=0)
     guided.reset(env.sim)
     return cfg, guided, env
@@ -175,7 +175,7 @@ def test_a_cut_candidate_is_ranked_by_moves_plus_its_tour_bound() -> None:
     assert len(guided.queue) == 1
     by_hand = {}  # heading -> 1 move + straight legs from its end: to the origin (unless within reach) and on
     for heading in np.flatnonzero(env.observer.observe(env.state)["action_mask"][0, 0]):
-        probe = VectorEnv(guided.layout(cfg), 1)
+        probe = VectorEnv(cfg, 1)
         probe.reset(seed=0)
         probe.step(np.array([[heading]]))
         q = probe.state.pos_m[0, 0]
@@ -242,7 +242,7 @@ def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> N
     prior = _prior(cfg)
     policy = _policy(cfg, 3)
     hedge = AnticipatingGuidedSearch(policy, prior, first_headings=3, futures=4, tail=None, seed=5)
-    env = VectorEnv(hedge.layout(cfg), 1, autoreset=False)
+    env = VectorEnv(cfg, 1, autoreset=False)
     env.reset(seed=0)
     hedge.reset(env.sim)
     first, means = hedge.scores[0]

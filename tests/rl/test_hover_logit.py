@@ -15,6 +15,7 @@ import torch
 import uamfleet
 from uamfleet.config import ConfigError
 from uamfleet.instances import make_fleet_instance
+from uamfleet.policies import make
 from uamfleet.rl.checkpoint import Checkpoint
 from uamfleet.rl.networks import NetConfig, obs_to_torch
 from uamfleet.rl.policy import GreedyPolicy, load_policy
@@ -25,22 +26,26 @@ CLOSED = -1e3  # a log-probability below this is a closed component / masked act
 
 def _switched(policy: GreedyPolicy) -> GreedyPolicy:
     """``policy`` with hover_logit on and the same weights (the option adds no parameter)."""
-    switched = copy.deepcopy(policy.net)  # the shapes as flown, its own modules
+    switched = copy.deepcopy(policy.fitted()[0])  # the shapes as flown, its own modules
     switched.cfg = dataclasses.replace(switched.cfg, hover_logit=True)
     assert switched.stop_head is not None
     switched.stop_head.hover_logit = True
-    fitted = copy.copy(policy)
-    fitted.net = switched
+    assert policy.spec is not None
+    fitted = copy.copy(policy)  # its normaliser fitted to the flight's world, the network's hover in its spec
+    fitted.net, fitted.normalizer, fitted.obs_shapes = switched, policy.fitted()[1], policy.fitted()[2]
+    fitted.spec = dataclasses.replace(policy.spec, hover=True)
+    fitted._fitted, fitted._fits = None, {}
     return fitted
 
 
 @pytest.fixture(scope="module")
 def flown() -> tuple[GreedyPolicy, dict[str, np.ndarray]]:
     """The shipped fleet policy at 4 taxis with window 24, and the network inputs of 40 steps of its own flight."""
-    policy = uamfleet.pretrained("berlin_fleet_v1").for_fleet(4, passenger_window=24)
-    cfg = policy.layout(make_fleet_instance("berlin", 0, 4, 48, separation="shield", hover_action=True))
-    env = uamfleet.VectorEnv(cfg, num_envs=1)
+    policy = make("learned", source="berlin_fleet_v1", passenger_window=24)
+    cfg = make_fleet_instance("berlin", 0, 4, 48, separation="shield", hover_action=True)
+    env = uamfleet.VectorEnv(cfg, num_envs=1, observer=policy.spec)
     obs, _ = env.reset(seed=0)
+    policy.reset(env.sim)
     rows = []
     for _ in range(40):
         rows.append(policy.network_input(obs))
@@ -105,17 +110,18 @@ def test_where_the_hover_component_dominates_the_greedy_policy_hovers(flown) -> 
     assert (choice[hover_weight < 0.01] < NUM_HEADINGS).all(), "a taxi whose hover has no mass flies"
 
 
-def test_the_greedy_policy_flies_action_16_through_the_loop_guard_and_for_fleet(flown) -> None:
+def test_the_greedy_policy_flies_action_16_through_the_loop_guard_at_another_fleet_size(flown) -> None:
     policy = flown[0]
     switched = _switched(policy)
-    resized = switched.for_fleet(8)  # the same weights at another fleet size keep the option
-    assert resized.net.cfg.hover_logit and resized.net.num_actions == NUM_HEADINGS + 1
-    cfg = resized.layout(make_fleet_instance("berlin", 1, 8, 96, separation="shield", hover_action=True))
-    traj = resized.fly(cfg, seed=1)
+    cfg = make_fleet_instance("berlin", 1, 8, 96, separation="shield", hover_action=True)
+    traj = switched.fly(cfg, seed=1)  # the same weights at another fleet size keep the option
+    fitted = switched.fitted()[0]
+    assert fitted.cfg.hover_logit and fitted.num_actions == NUM_HEADINGS + 1
+    assert switched.fitted()[2]["others"] == (7, 3)  # fitted to 8 taxis
     actions = traj.stacked("actions")
     assert (actions == HOVER_ACTION).any() and actions.max() <= HOVER_ACTION
-    with pytest.raises(ValueError, match="hover_action=True"):
-        resized.layout(make_fleet_instance("berlin", 1, 8, 96, separation="shield", hover_action=False))
+    with pytest.raises(ConfigError, match="hover_action=True"):
+        switched.fly(make_fleet_instance("berlin", 1, 8, 96, separation="shield", hover_action=False))
 
 
 def test_action_16_is_never_masked_and_ppo_reads_17_actions(flown) -> None:

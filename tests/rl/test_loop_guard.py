@@ -141,7 +141,7 @@ def test_a_policy_that_circled_under_segment_raster_no_longer_does(guarded: bool
     (docs/results.md); guarded it delivers everyone."""
     policy = uamfleet.pretrained("berlin_lookahead1")
     assert policy.trained_on is not None
-    cfg = policy.layout(instance_for_policy("berlin", 2000015, policy.trained_on.replace(feasibility="segment_raster")))
+    cfg = instance_for_policy("berlin", 2000015, policy.trained_on.replace(feasibility="segment_raster"))
     if not guarded:
         policy.loop_guard = None
     trajectory = policy.fly(cfg)

@@ -12,6 +12,8 @@ import torch
 import uamfleet
 from uamfleet.config import ConfigError
 from uamfleet.rl.trainer import TrainArgs, train
+from uamfleet.policies import make
+from uamfleet.policies.learned import LearnedOptions
 from uamfleet.zoo import pretrained, pretrained_path
 
 
@@ -21,17 +23,10 @@ def fleet_policy():
 
 
 @pytest.mark.parametrize("size", [0, -1, 2.5, True, "4", 10**6])
-def test_for_fleet_names_the_fleet_size(fleet_policy, size):
-    with pytest.raises(ConfigError, match=rf"^num_taxis={size!r} .*1024") as err:
-        fleet_policy.for_fleet(size)
+def test_the_learned_options_name_the_fleet_size(size):
+    with pytest.raises(ConfigError, match=rf"^taxis={size!r} .*1024") as err:
+        LearnedOptions(source="berlin_fleet_v1", taxis=size, passenger_slots=24)
     assert "max_requests" not in str(err.value)  # the old message blamed the demand
-
-
-def test_a_resized_policy_on_another_fleet_names_both_sizes(fleet_policy):
-    eight = fleet_policy.for_fleet(8)
-    with pytest.raises(ValueError, match=r"2 taxi\(s\); this policy is laid out for 8 \(its weights were trained "
-                       r"with 4\).*for_fleet\(2\)"):  # fmt: skip
-        eight.layout(uamfleet.make_config("berlin_fleet", num_taxis=2))
 
 
 def trained_thresholds(name: str) -> tuple[float, float]:
@@ -47,19 +42,20 @@ def test_pretrained_warns_once_outside_its_training_thresholds():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # inside the range: silent
         for inside in (-7.0, -5.0, -3.0):
-            planner.layout(uamfleet.make_config("berlin_p4", sinr_min_db=inside))
+            planner.fit(uamfleet.make_config("berlin_p4", sinr_min_db=inside).world)
     with pytest.warns(UserWarning, match=r"sinr_min_db=-8 dB lies outside .* \(-7 \.\.\. -3 dB\)"):
-        planner.layout(uamfleet.make_config("berlin_p4", sinr_min_db=-8.0))
+        planner.fit(uamfleet.make_config("berlin_p4", sinr_min_db=-8.0).world)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # once per policy: a sweep does not repeat it
-        planner.layout(uamfleet.make_config("berlin_p4", sinr_min_db=-2.0))
+        planner.fit(uamfleet.make_config("berlin_p4", sinr_min_db=-2.0).world)
     with pytest.warns(UserWarning, match=r"sinr_min_db=-2 dB"):  # a fresh policy warns again
-        pretrained("berlin").layout(uamfleet.make_config("berlin_p4", sinr_min_db=-2.0))
+        pretrained("berlin").fly(uamfleet.make_config("berlin_p4", sinr_min_db=-2.0))
 
 
 def test_a_fleet_sized_policy_keeps_the_threshold_range(fleet_policy):
     trained = trained_thresholds("berlin_fleet_v1")
-    assert fleet_policy.for_fleet(2).thresholds_db == fleet_policy.thresholds_db == trained
+    windowed = make("learned", source="berlin_fleet_v1", passenger_window=24)
+    assert windowed is not fleet_policy and windowed.thresholds_db == fleet_policy.thresholds_db == trained
 
 
 def test_minibatches_that_do_not_divide_the_batch_are_refused_before_a_run_starts(tmp_path: Path):

@@ -1,19 +1,35 @@
 """A learned policy fits itself to the world it is reset in, never the world to itself: it reads the world with its
 observer spec (a world built with ``observer=policy.spec``), refuses in one line a world its spec cannot read, and
 flies another fleet size with the rows its spec reads there and its normaliser's set statistics pooled, exactly as
-the policy resized for that fleet (``for_fleet``) flies the world laid out for it."""
+a policy built by hand for that fleet's shapes (the same weights, the statistics resized) flies a world sized to it."""
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 import pytest
 
 import uamfleet
 from uamfleet.checks import ConfigError
+from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance
 from uamfleet.metrics import episode_metrics
+from uamfleet.observe.legacy import observed_config
 from uamfleet.observe.spec import ObserverSpec
+from uamfleet.rl.policy import GreedyPolicy
+
+
+def _built_for(policy: GreedyPolicy, cfg: EnvConfig) -> GreedyPolicy:
+    """``policy``'s weights built by hand for the observation shapes of ``cfg`` (its own observer): no spec, so it
+    acts with these shapes and statistics whatever it is reset in."""
+    shapes = {k: tuple(v.shape or ()) for k, v in VectorEnv(cfg).single_observation_space.spaces.items()}
+    shapes = {k: v for k, v in shapes.items() if k in (policy.obs_shapes or {})}
+    net = copy.copy(policy.net)
+    net.shapes = shapes
+    normalizer = policy.normalizer.resized(shapes) if policy.normalizer is not None else None
+    return GreedyPolicy(net, normalizer, policy.device, shapes, cfg.num_taxis, cfg.num_passengers, cfg)
 
 
 def _actions(env: VectorEnv, policy, steps: int) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
@@ -32,9 +48,11 @@ def _actions(env: VectorEnv, policy, steps: int) -> list[np.ndarray]:  # type: i
 @pytest.mark.parametrize("requests", [12, 8])  # 8: the observer pads to the 12 rows the spec reads at 2 taxis
 def test_a_fleet_policy_reset_in_a_smaller_fleet_flies_as_the_policy_resized_for_it(requests: int) -> None:
     policy = uamfleet.pretrained("berlin_fleet_v1")  # 4 taxis, 24 rows (6 per taxi), no window
-    instance = make_fleet_instance("berlin", 3, num_taxis=2, num_requests=requests)
-    resized = policy.for_fleet(2)
-    old = VectorEnv(resized.layout(instance), autoreset=False)
+    instance = make_fleet_instance("berlin", 3, num_taxis=2, num_requests=requests, hover_action=False)
+    assert policy.spec is not None
+    sized = observed_config(instance.replace(max_passengers=12).world, policy.spec)[0]  # a world of 12 rows
+    resized = _built_for(policy, sized)
+    old = VectorEnv(sized, autoreset=False)
     new = VectorEnv(instance, observer=policy.spec, autoreset=False)  # the world as it is: its own time limit
     assert new.cfg.num_passengers == requests and new.single_observation_space == old.single_observation_space
     expected = _actions(old, resized, 60)
@@ -51,7 +69,9 @@ def test_a_fleet_policy_reset_in_a_smaller_fleet_flies_as_the_policy_resized_for
         np.testing.assert_array_equal(mine[name], theirs[name], err_msg=name)
     assert (policy.obs_shapes["passengers"], policy.passenger_slots, policy.num_taxis) == ((24, 12), 24, 4)  # as built
     # back in a world of its trained shape it reads its trained rows and statistics again
-    trained = VectorEnv(make_fleet_instance("berlin", 3, num_taxis=4, num_requests=24), observer=policy.spec)
+    trained = VectorEnv(
+        make_fleet_instance("berlin", 3, num_taxis=4, num_requests=24, hover_action=False), observer=policy.spec
+    )
     obs, _ = trained.reset(seed=0)
     policy.reset(trained.sim)
     fresh = uamfleet.pretrained("berlin_fleet_v1").network_input(obs)
@@ -87,7 +107,9 @@ def test_rollout_flies_a_world_as_made_observed_by_the_policys_spec() -> None:
     cfg = make_fleet_instance("berlin", 2_000_001, num_taxis=2, num_requests=6)  # the fleet preset's hover
     shipped = uamfleet.pretrained("berlin_fleet")  # trained on up to 8 taxis, a 24-row window
     flown = fly(cfg, shipped)  # no resize, no layout: the policy fits itself at reset
-    laid_out = shipped.for_fleet(2).fly(cfg)
+    assert shipped.spec is not None
+    laid_out = fly(observed_config(cfg.world, shipped.spec)[0], _built_for(shipped, observed_config(cfg.world,
+                   shipped.spec)[0]))  # fmt: skip
     assert flown.num_steps == laid_out.num_steps and flown.truncated == laid_out.truncated
     np.testing.assert_array_equal(flown.stacked("actions"), laid_out.stacked("actions"))
     assert episode_metrics(flown, cfg.radio).delivered == 6

@@ -23,6 +23,7 @@ from uamfleet.config import FEASIBILITY_RULES, EnvConfig
 from uamfleet.policies import available, make, make_flown, parse
 from uamfleet.policies.learned import for_world
 from uamfleet.policies.registry import BASE, PolicyNameError
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.presets import SCENARIOS
 from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.rl.distributed import RankZeroError
@@ -177,8 +178,8 @@ def flight(
     """(the config it flies, the config it is scored against, the policy) of the policy ``text`` names on
     ``scenario`` with config ``overrides``. A planner or dispatcher is built by
     :func:`~uamfleet.policies.make_flown` for one flight (a planner under its own rules,
-    :func:`~uamfleet.baselines.planner_configs`); a learned policy or a search over one flies the scenario in the
-    observation layout it reads (its ``layout``), and says in one line when it cannot read that world."""
+    :func:`~uamfleet.baselines.planner_configs`); a learned policy or a search over one flies the scenario's world as
+    it is, observed by its spec, and says in one line when it cannot read that world (``ObserverSpec.reads``)."""
     call = policy_call(text, flag)
     flown, scored = planner_configs(scenario, text, **(overrides or {}))
     if available()[call[0]][0] in ("planner", "dispatcher"):
@@ -186,12 +187,15 @@ def flight(
     try:
         name, options = _fit_to_world(call, scored)
         policy = make(name, **options)
-        fitted = policy.layout(scored) if callable(getattr(policy, "layout", None)) else scored
+        spec = getattr(policy, "spec", None)
+        refusal = spec.reads(scored.world) if isinstance(spec, ObserverSpec) else None
+        if refusal is not None:  # e.g. more requests than the policy reads, another fleet size, no hover action
+            raise ValueError(refusal)
     except PolicyNameError as err:
         raise UsageError(f"{flag} {text!r}: {err}") from None
-    except ValueError as err:  # e.g. more requests than the policy reads, another fleet size, no hover action
+    except ValueError as err:
         raise UsageError(f"{flag} {text!r} cannot fly {scored.scenario}: {' '.join(str(err).split())}") from None
-    return fitted, scored, policy
+    return scored, scored, policy
 
 
 def check_jobs(jobs: int, flag: str = "--jobs") -> int:

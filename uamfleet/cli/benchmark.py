@@ -222,13 +222,12 @@ def flown(method: str, job: Job, cfg: EnvConfig, name: str) -> tuple[EnvConfig, 
     overrides = planner_env_overrides(method) if method in PLANNERS else {}
     run_cfg = cfg.replace(**overrides) if overrides else cfg
     policy = make(call[0], **call[1])
-    if method.startswith("learned"):  # the policy's passenger axis: pad the instance's to it
-        windowed = getattr(policy, "passenger_window", None) is not None  # reads any number of requests
-        if not windowed and run_cfg.num_passengers > policy.passenger_slots:
+    if method.startswith("learned"):  # the world as it is, observed by the policy's spec (rows beyond it padded)
+        windowed = policy.spec.passenger_window is not None  # reads any number of requests
+        if not windowed and run_cfg.num_passengers > policy.spec.slots(run_cfg.world):
             print(f"learned skipped on {name}: {run_cfg.num_passengers} passengers, the policy was trained on "
-                  f"{policy.passenger_slots} slots", flush=True)  # fmt: skip
+                  f"{policy.spec.slots(run_cfg.world)} slots", flush=True)  # fmt: skip
             return None
-        run_cfg = policy.layout(run_cfg)
     return run_cfg, policy
 
 

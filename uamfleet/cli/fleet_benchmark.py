@@ -7,10 +7,10 @@ Instances come from :func:`uamfleet.instances.make_fleet_instance` (``--split te
 :data:`uamfleet.instances.FLEET_SETTINGS`, or any ``<taxis>x<requests>`` such as the loaded ``4x48`` and ``8x96``:
 taxis x requests per episode, released over the first 10 minutes, or ``--arrival-window-s``). A learned fleet reads
 every request of the episode on its passenger axis: it is flown with as many passenger slots as the setting has
-requests (``for_fleet(taxis, passenger_slots=requests)``; the light settings' own default), or with
+requests (``learned:source=<file>,taxis=<n>,passenger_slots=<requests>``; the light settings' own default), or with
 ``--passenger-window K`` each taxi reads K rows, its riders and nearest waiting requests, for any number of requests
-(``for_fleet(taxis, passenger_window=K)``, flown as ``learned:<name>+window<K>``; docs/rules.md "Passenger
-window"). Every dispatcher is flown
+(``learned:...,passenger_window=K``, flown as ``learned:<name>+window<K>``; docs/rules.md "Passenger window"); it
+flies each instance's world as made, observed by its spec. Every dispatcher is flown
 through the same env and scored by :mod:`uamfleet.metrics`. Episodes run seed by seed across the settings, so an
 interrupted run still covers every setting. Per setting and dispatcher the table gives means with 95 % intervals (normal
 approximation, 1.96 standard errors over episodes) of the service rate, the episode's wait p50 and p95, the ride
@@ -41,16 +41,16 @@ import numpy as np
 from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.baselines.fleet_dispatch import shared_fields
-from uamfleet.checks import check_number
+from uamfleet.checks import ConfigError, check_number
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
 from uamfleet.cli.benchmark import _ci, command_header
 from uamfleet.cli.docs_tables import REFRESH_HINT
+from uamfleet.config import WorldConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.policies import PolicyNameError, available, make, make_flown, parse
-from uamfleet.policies.learned import learned_policy
 from uamfleet.rollout import fly
 
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
@@ -89,8 +89,8 @@ class Args:
     hover_action: bool = False
     """EnvConfig.hover_action of every episode: idle dispatcher taxis hover (action 16) instead of zig-zagging"""
     passenger_window: int | None = None
-    """fly the learned fleets with EnvConfig.passenger_window=K (for_fleet(taxis, passenger_window=K); the trained
-    passenger slot count is the K to choose): any number of requests; default: one slot per request"""
+    """fly the learned fleets reading a passenger window of K rows (the learned policy's passenger_window option; the
+    trained passenger slot count is the K to choose): any number of requests; default: one slot per request"""
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     """requests are released over the first this many seconds of each episode (the episode's time limit follows)"""
     jobs: int = 2
@@ -147,15 +147,20 @@ def learned_name(checkpoint: Path, passenger_window: int | None = None) -> str:
 
 @functools.lru_cache(maxsize=16)
 def _learned(checkpoint: Path, taxis: int, requests: int, passenger_window: int | None = None) -> Any:
-    """The greedy policy of a checkpoint for ``taxis`` taxis and ``requests`` passenger slots (or a passenger window
-    of K rows): as trained, or resized zero-shot (:meth:`~uamfleet.rl.policy.GreedyPolicy.for_fleet`); None when it
-    cannot read that fleet."""
+    """The greedy policy of a checkpoint reading ``requests`` passenger slots for ``taxis`` taxis (or a passenger
+    window of K rows): the same weights for any fleet its spec reads, fitted to each world at reset."""
     rows = {"passenger_window": passenger_window} if passenger_window is not None else {"passenger_slots": requests}
-    make("learned", source=str(checkpoint))  # a file it cannot read is refused here, not skipped
+    return make("learned", source=str(checkpoint), taxis=taxis, **rows)
+
+
+def refusal(policy: Any, world: WorldConfig) -> str | None:
+    """None when ``policy`` flies ``world`` (its spec reads it and its network fits it), else the one line why
+    not (e.g. another fleet size for a policy that reads the other taxis by position)."""
     try:
-        return make("learned", source=str(checkpoint), taxis=taxis, **rows)
-    except ValueError:
-        return None
+        policy.fit(world)
+    except ConfigError as err:
+        return str(err)
+    return None
 
 
 def dispatcher(name: str, taxis: int, value_path: Path | None, arrival_window_s: float | None) -> Any:
@@ -198,8 +203,8 @@ def run_episode_set(job: Job) -> list[dict[str, Any]]:
     ]
     for checkpoint in checkpoints:
         policy = _learned(checkpoint, taxis, requests, window)
-        if policy is not None:
-            flights.append((learned_name(checkpoint, window), policy.layout(cfg), policy))
+        if refusal(policy, cfg.world) is None:
+            flights.append((learned_name(checkpoint, window), cfg, policy))
     for name, flown, policy in flights:
         start = time.perf_counter()
         traj = fly(flown, policy)
@@ -315,7 +320,7 @@ def check_args(args: Args) -> list[Job]:
     if args.passenger_window is not None and not args.checkpoints:
         raise UsageError(f"--passenger-window {args.passenger_window} applies to learned fleets: give --checkpoints.")
     for checkpoint in args.checkpoints:
-        _check_checkpoint_flies(checkpoint, args.settings, args.passenger_window)
+        _check_checkpoint_flies(checkpoint, args)
     output_paths({"--out-csv": args.out_csv, "--out-md": args.out_md})
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
@@ -367,17 +372,24 @@ def _kind(name: str) -> str | None:
         raise
 
 
-def _check_checkpoint_flies(checkpoint: Path, settings: Sequence[str], passenger_window: int | None = None) -> None:
-    """A learned policy must fly at least one of the settings (its fleet size, or any for a designed variant);
-    says which it skips."""
-    if passenger_window is not None:  # a window it cannot read (fewer rows than seats) is refused with the reason
-        learned_policy(checkpoint).for_fleet(setting_size(settings[0])[0], passenger_window=passenger_window)
-    flies = [s for s in settings if _learned(checkpoint, *setting_size(s), passenger_window) is not None]
+def _check_checkpoint_flies(checkpoint: Path, args: Args) -> None:
+    """A learned policy must fly the first instance of at least one of the settings (its fleet size, or any for a
+    designed variant); says which it skips."""
+    settings, passenger_window = list(args.settings), args.passenger_window
+    make("learned", source=str(checkpoint))  # a file it cannot read is refused here, not skipped
+    reasons = {}
+    for setting in settings:
+        taxis, requests = setting_size(setting)
+        world = make_fleet_instance(
+            args.family, split_seeds(args.split, 1, args.first)[0], taxis, requests,
+            arrival_window_s=args.arrival_window_s, separation=args.separation, hover_action=args.hover_action,
+        ).world  # fmt: skip
+        reasons[setting] = refusal(_learned(checkpoint, taxis, requests, passenger_window), world)
+    flies = [s for s in settings if reasons[s] is None]
     if not flies:
         raise UsageError(
-            f"--checkpoints {checkpoint} cannot fly any of the settings {list(settings)} (it reads "
-            f"{learned_policy(checkpoint).num_taxis} taxi(s) by position); give a fleet policy of a designed "
-            "variant or settings of its fleet size."
+            f"--checkpoints {checkpoint} cannot fly any of the settings {settings}: {reasons[settings[0]]} Give a "
+            "fleet policy of a designed variant, settings of its fleet size, or the world it reads."
         )
     if len(flies) < len(settings):
         name = learned_name(checkpoint, passenger_window)

@@ -39,7 +39,7 @@ from uamfleet.presets import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.legacy import checkpoint_args
-from uamfleet.rl.trainer import GreedyPolicy, TrainArgs, load_policy, train
+from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
 
 
@@ -102,10 +102,6 @@ class Args:
 def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics:
     """Metrics of one Berlin P4 episode of ``policy`` (a planner flies under its own rules, as everywhere)."""
     flown, scored = planner_configs("berlin_p4", getattr(policy, "planner", ""), sinr_min_db=threshold, **overrides)
-    if isinstance(policy, GreedyPolicy):
-        # the observation it reads: passenger slots, stop fields and the time limit it trained with (the time
-        # feature is a fraction of the limit)
-        flown = policy.layout(flown)
     traj = fly_episode(flown, policy)  # type: ignore[arg-type]
     return episode_metrics(traj, scored.radio, threshold_db=scored.sinr_min_db)
 

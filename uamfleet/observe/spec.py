@@ -256,6 +256,14 @@ class ObserverSpec:
     def reads(self, world: WorldConfig) -> str | None:
         """None when this spec can observe ``world``, else the one line that says which part of it it cannot read
         and the fix. The world is never changed."""
+        if self.passenger_window is None and self.slots_per_taxi is not None and self.slots(world) > MAX_PASSENGERS:
+            per_taxi = self.slots_per_taxi
+            most = max(n for n in range(1, MAX_TAXIS + 1) if math.ceil(round(per_taxi * n, 6)) <= MAX_PASSENGERS)
+            return (
+                f"the world has {world.num_taxis} taxis and this policy reads {per_taxi:g} passenger rows per taxi, so "
+                f"fleets of 1 to {most} taxi(s) fit the passenger axis of at most {MAX_PASSENGERS} rows: fly a larger "
+                "fleet with a passenger window (e.g. 24)"
+            )
         if self.passenger_window is None and world.num_passengers > self.slots(world):
             return (
                 f"the world has {world.num_passengers} passenger rows; this policy reads {self.slots(world)}: give "

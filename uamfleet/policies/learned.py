@@ -15,12 +15,14 @@ with ``torch.load(weights_only=True)`` like every checkpoint.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from uamfleet.checks import MAX_TAXIS, check_integer
+from uamfleet.checks import MAX_PASSENGERS, MAX_TAXIS, check_integer
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
 from uamfleet.rl.legacy import with_stored_spec
@@ -29,7 +31,7 @@ from uamfleet.rl.policy import GreedyPolicy, load_policy
 
 def pretrained(name: str = "berlin", device: str = "cpu") -> GreedyPolicy:
     """The shipped policy ``name`` (:data:`PRETRAINED`) as a greedy planner: call it on observations, or
-    ``.fly(cfg)`` any config of its map (``.layout(cfg)`` fits the passenger axis and features to it). Flown at a
+    ``.fly(cfg)`` any world of its map its observer spec reads (it fits itself at ``reset``). Flown at a
     threshold outside those it trained on (its training arguments' ``thresholds``, else ``sinr_min_db``), it
     warns once."""
     policy, args = load_policy(pretrained_path(name), device=device)
@@ -82,7 +84,8 @@ class LearnedOptions:
     """``learned``: the greedy policy of ``source`` (a :data:`PRETRAINED` name or a checkpoint file) on ``device``.
     ``taxis``, ``passenger_slots`` (rows of the passenger axis; ``"world"``: as many as the world has requests,
     resolved by :func:`for_world`) and ``passenger_window`` (K rows per taxi, any number of requests; exclusive
-    with ``passenger_slots``) fly it zero-shot on another fleet (``GreedyPolicy.for_fleet``); ``loop_guard``
+    with ``passenger_slots``) change the rows it reads (:func:`spec_of`); any fleet size its spec reads flies
+    zero-shot, fitted at ``reset``; ``loop_guard``
     false: the argmax alone; ``traced``: its actor traced (a copy, for searches)."""
 
     source: str = "berlin"
@@ -100,9 +103,11 @@ class LearnedOptions:
                 "the passenger axis; give one."
             )
         if self.passenger_window is not None:
-            check_integer("passenger_window", self.passenger_window, 1)
-        if isinstance(self.passenger_slots, int):
-            check_integer("passenger_slots", self.passenger_slots, 1)
+            fix = " (the passenger rows each taxi reads, e.g. 24)"
+            check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=fix)
+        if self.passenger_slots is not None and self.passenger_slots != "world":
+            fix = " (the passenger rows of the whole fleet; at most MAX_PASSENGERS)"
+            check_integer("passenger_slots", self.passenger_slots, 1, MAX_PASSENGERS, fix=fix)
         if self.taxis is not None:
             check_integer("taxis", self.taxis, 1, MAX_TAXIS)
 
@@ -118,8 +123,23 @@ def for_world(options: dict[str, Any], taxis: int, requests: int) -> dict[str, A
     return out
 
 
+def spec_of(policy: GreedyPolicy, options: LearnedOptions) -> ObserverSpec:
+    """What ``policy`` reads under ``options``: its own spec; with ``passenger_window=K`` a window of K rows (the
+    time feature then over each world's own limit, as a windowed policy trains); with ``passenger_slots=S`` and no
+    window, S rows for a fleet of ``taxis`` (the same number of rows per taxi in a fleet of another size)."""
+    assert policy.spec is not None, "load_policy gives every policy its spec"
+    spec = policy.spec
+    if options.passenger_window is not None:
+        return dataclasses.replace(spec, passenger_window=options.passenger_window, time_scale_steps=None)
+    if isinstance(options.passenger_slots, int) and spec.passenger_window is None:
+        taxis = options.taxis if options.taxis is not None else policy.num_taxis or 1
+        return dataclasses.replace(spec, slots_per_taxi=options.passenger_slots / taxis)
+    return spec
+
+
 def load(options: LearnedOptions) -> GreedyPolicy:
-    """The greedy policy ``options`` name, loaded once per process and source (a fitted copy when resized)."""
+    """The greedy policy ``options`` name, loaded once per process and source (a copy reading another spec when
+    the options resize its passenger axis, :func:`spec_of`)."""
     if options.source in PRETRAINED:
         policy = _shipped(options.source, options.device, options.traced)
     else:
@@ -133,10 +153,7 @@ def load(options: LearnedOptions) -> GreedyPolicy:
             "learned: passenger_slots='world' is read against a world; resolve it with "
             "uamfleet.policies.learned.for_world(options, taxis, requests) or give a number."
         )
-    if options.taxis is not None or options.passenger_window is not None or options.passenger_slots is not None:
-        slots = options.passenger_slots if isinstance(options.passenger_slots, int) else None
-        taxis = options.taxis if options.taxis is not None else policy.num_taxis or 1
-        policy = policy.for_fleet(taxis, passenger_slots=slots, passenger_window=options.passenger_window)
+    policy = policy.reading(spec_of(policy, options))
     if not options.loop_guard:
         policy = copy.copy(policy)
         policy.loop_guard = None
@@ -154,5 +171,6 @@ __all__ = [
     "load",
     "pretrained",
     "pretrained_path",
+    "spec_of",
     "traced_policy",
 ]

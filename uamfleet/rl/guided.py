@@ -44,6 +44,7 @@ from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.sim.core import Simulator
+from uamfleet.sim.generator import pad_passengers
 from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
 
 MAX_SAMPLES = 1024
@@ -101,13 +102,9 @@ class GuidedSearchPolicy(PolicyBase):
         """The policy's passenger axis (an instance with more requests cannot be flown)."""
         return self.policy.passenger_slots
 
-    def layout(self, cfg: EnvConfig) -> EnvConfig:
-        """``cfg`` laid out for the policy (:meth:`GreedyPolicy.layout`)."""
-        return self.policy.layout(cfg)
-
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
-        """One recorded episode on ``cfg`` laid out for the policy."""
-        return fly(self.layout(cfg), self, seed=seed)
+        """One recorded episode on the world ``cfg`` as given, observed by the policy's spec."""
+        return fly(cfg, self, seed=seed)
 
     def reset(self, sim: Simulator) -> None:
         if sim.num_envs != 1 or sim.num_taxis != 1:
@@ -117,7 +114,8 @@ class GuidedSearchPolicy(PolicyBase):
         self.sim = sim
         self.policy.reset(sim)  # its loop guard, for the steps it flies after a plan
         if self.scratch is None or self.scratch.cfg is not sim.cfg:
-            self.scratch = VectorEnv(sim.cfg, num_envs=self.top_k + self.samples, autoreset=True)
+            # observed as the policy reads (its spec), whatever the world's own observer fields
+            self.scratch = VectorEnv(sim.cfg, num_envs=self.top_k + self.samples, autoreset=True, observer=self.spec)
             self.scratch.reset(seed=0)
             self.search = StepSearch(sim.cfg) if self.expert_beam else None
         self.queue, self.plans, self.search_won = [], [], []
@@ -292,6 +290,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.seed = seed
         self._priors: dict[tuple[str, float, str], DemandPrior] = {}
         self._futures_envs: dict[int, VectorEnv] = {}
+        self._futures_world: EnvConfig | None = None  # the world its futures envs were built for
         self.hedged: list[bool] = []  # per search over futures: a first heading other than the policy's won
         self.waited: list[bool] = []  # per search over futures: waiting in place won
         self.scores: list[tuple[np.ndarray, np.ndarray]] = []  # per search over futures: (first headings, mean moves)
@@ -305,24 +304,35 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             if key not in self._priors:
                 self._priors[key] = DemandPrior.of_family(family, sim.cfg)
             self.prior = self._priors[key]
-        rows = int(sim.state.pax_exists.shape[1])
-        if rows < self.prior.max_requests:
-            raise ValueError(
-                f"AnticipatingGuidedSearch samples up to {self.prior.max_requests} requests of its demand model, "
-                f"but the env has {rows} passenger rows: lay the instance out with max_passengers >= "
-                f"{self.prior.max_requests} (the policy's layout does for a policy trained on that family)."
-            )
+        self._check_rows(sim.cfg)
         self.rng_futures = np.random.default_rng(self.seed)
         self.hedged, self.waited, self.scores = [], [], []
         self._next_search_t = 0  # the step of the next search over futures, between releases
         self._known_search_done = False
         super().reset(sim)  # its search at the start runs through _search below
 
+    def _check_rows(self, cfg: EnvConfig) -> None:
+        """ValueError when its policy cannot read the futures it samples: up to the demand model's most requests."""
+        rows = max(cfg.num_passengers, self.prior.max_requests)
+        spec = self.spec
+        if spec is not None:
+            reads = rows if spec.reads(cfg.replace(max_passengers=rows).world) is None else spec.rows(cfg.world)
+        else:
+            reads = self.policy.passenger_slots if self.policy.passenger_slots is not None else rows
+        if reads < rows:
+            raise ValueError(
+                f"AnticipatingGuidedSearch samples up to {self.prior.max_requests} requests of its demand model, "
+                f"but its policy reads {reads} passenger rows: give it a policy trained with max_passengers >= "
+                f"{self.prior.max_requests} (or one that reads a passenger window)."
+            )
+
     def _search(self) -> list[int]:
         assert self.sim is not None
+        # the sampled requests need rows: the known state on a passenger axis the demand model's count fits in
         known = released_only(self.sim.state)
         if not known.pax_exists.any():
             return []
+        known = pad_passengers(known, max(known.pax_exists.shape[1], self.prior.max_requests))
         samples = [self.prior.sample(known, self.rng_futures) for _ in range(self.futures)]
         if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
             self._known_search_done = True
@@ -387,8 +397,15 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         """The scratch env of ``num_envs`` rows for one search (made once per size and config)."""
         assert self.sim is not None
         env = self._futures_envs.get(num_envs)
-        if env is None or env.cfg is not self.sim.cfg:
-            env = self._futures_envs[num_envs] = VectorEnv(self.sim.cfg, num_envs=num_envs, autoreset=True)
+        if env is None or self._futures_world is not self.sim.cfg:
+            if self._futures_world is not self.sim.cfg:
+                self._futures_envs.clear()
+            self._futures_world = self.sim.cfg
+            # the world's rules on a passenger axis its sampled requests fit in, observed as the policy reads
+            rows = max(self.sim.cfg.num_passengers, self.prior.max_requests)
+            env = self._futures_envs[num_envs] = VectorEnv(
+                self.sim.cfg.replace(max_passengers=rows), num_envs=num_envs, autoreset=True, observer=self.spec
+            )
             env.reset(seed=0)
         return env
 

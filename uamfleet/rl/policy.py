@@ -7,7 +7,6 @@ spec (:class:`uamfleet.observe.spec.ObserverSpec`), never from a built env. Load
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import warnings
 from pathlib import Path
@@ -16,8 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from uamfleet.checks import MAX_PASSENGERS, ConfigError
-from uamfleet.config import MAX_TAXIS, EnvConfig, WorldConfig, check_integer
+from uamfleet.checks import ConfigError
+from uamfleet.config import EnvConfig, WorldConfig
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.observe.spec import (
     PASSENGER_AXIS_FIELDS,
@@ -28,7 +27,6 @@ from uamfleet.observe.spec import (
     observation_layout,
     observation_space,
 )
-from uamfleet.observe.legacy import split_env_config
 from uamfleet.presets import PRESETS
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config, trained_spec
@@ -47,9 +45,9 @@ class GreedyPolicy(PolicyBase):
     is what it reads, as its checkpoint stores it; ``obs_shapes`` (one agent's observation shapes, the fields its
     network takes) are checked on every observation; ``num_taxis`` and ``passenger_slots`` (the
     training env's fleet size and passenger axis) let it refuse, with a message, an env of another layout;
-    ``trained_on`` (the config it was evaluated on while training) lets :meth:`layout` fit another config to it;
-    ``thresholds_db`` (lowest, highest threshold it trained on), when given, makes :meth:`layout` warn once about a
-    threshold outside them.
+    ``trained_on`` is the config it was evaluated on while training; ``thresholds_db`` (lowest, highest threshold it
+    trained on), when given, makes :meth:`fit` warn once about a threshold outside them. It flies any world its spec
+    reads (:meth:`fit` at ``reset``); :meth:`reading` gives a copy that reads another spec (a passenger window).
 
     Greedy decoding keeps one rule besides the argmax (:class:`uamfleet.rl.loop_guard.LoopGuard`, docs/rules.md
     "Greedy decoding of a trained policy"): a taxi does not fly back to a point it stood on since its last event
@@ -71,7 +69,6 @@ class GreedyPolicy(PolicyBase):
         self.spec = spec
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
-        self.trained_num_taxis = num_taxis  # the fleet its weights trained with (for_fleet keeps it)
         # fitted to the world of the last reset (None: as built): the network, normaliser and shapes it acts with,
         # and the fits to each world shape met (per network, so a network swapped in is fitted afresh)
         self._fitted: tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]]] | None = None
@@ -139,7 +136,7 @@ class GreedyPolicy(PolicyBase):
         net, normalizer = self._fits[key][:2]
         self._fitted = (net, normalizer, fitted)
 
-    def _acting(self) -> tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]] | None]:
+    def fitted(self) -> tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]] | None]:
         """The network, normaliser and field shapes it acts with: fitted to the world of the last reset, else as
         built."""
         return self._fitted if self._fitted is not None else (self.net, self.normalizer, self.obs_shapes)
@@ -156,126 +153,11 @@ class GreedyPolicy(PolicyBase):
                 stacklevel=4,
             )
 
-    def layout(self, cfg: EnvConfig) -> EnvConfig:
-        """``cfg`` (any threshold, map, start and requests) with the observation layout this policy reads: its
-        passenger axis (the instance's requests padded to it), its stop features and its time limit (the
-        observation's time feature is a fraction of the limit); with a passenger window (:attr:`passenger_window`)
-        the window instead, and the instance's own requests and time limit (:meth:`EnvConfig.with_layout_of`). The
-        rules, threshold and instance are kept. Raises ValueError when the instance has more requests than the
-        policy has passenger slots (without a window), or another fleet size. Warns (once per policy) when
-        ``cfg``'s threshold lies outside :attr:`thresholds_db`."""
-        self._warn_threshold(cfg.sinr_min_db)
-        if self.net.cfg.hover_logit and not cfg.hover_action:
-            raise ValueError(
-                "this policy's network takes the hover action (16; NetConfig.hover_logit), which the config lacks: "
-                "fly it with EnvConfig(hover_action=True) (the *_fleet presets have it)."
-            )
-        if self.trained_on is None:
-            return cfg
-        like = self.trained_on
-        if like.passenger_window is None and cfg.num_requests_max > like.num_passengers:
-            raise ValueError(
-                f"the instance has {cfg.num_requests_max} requests; this policy reads {like.num_passengers} "
-                "passenger slots: give it at most that many requests (or train one with a larger max_passengers)."
-            )
-        if cfg.num_taxis != like.num_taxis:
-            raise ValueError(
-                f"the config has {cfg.num_taxis} taxi(s); this policy is laid out for {like.num_taxis} (its weights "
-                f"were trained with {self.trained_num_taxis}): set num_taxis={like.num_taxis}, or fly "
-                f"policy.for_fleet({cfg.num_taxis}) (a designed variant reads any fleet size zero-shot), or train a "
-                "policy for this fleet."
-            )
-        return cfg.with_layout_of(like)
-
     @property
     def passenger_window(self) -> int | None:
-        """The passenger window it reads (``EnvConfig.passenger_window``): with one it flies any number of
-        requests; None: it reads every request of an episode, at most :attr:`passenger_slots`."""
+        """The passenger window it trained with (``ObserverSpec.passenger_window`` of its checkpoint): None: it
+        trained on a fixed passenger axis, row p read as request p."""
         return self.trained_on.passenger_window if self.trained_on is not None else None
-
-    def for_fleet(
-        self, num_taxis: int, passenger_slots: int | None = None, passenger_window: int | None = None
-    ) -> GreedyPolicy:
-        """This policy for a fleet of ``num_taxis`` (zero-shot: the same weights). The network reads the other
-        taxis and the passenger rows as sets, so only the observation layout changes: ``passenger_slots``
-        (default: as many per taxi as in training) and the normaliser's statistics of those two sets, pooled over
-        their rows (:meth:`ObservationNormalizer.resized`). Raises ValueError for a network that reads them by
-        position (the linear encoder) or a policy without its training config.
-
-        ``passenger_window=K`` flies it with ``EnvConfig.passenger_window=K`` instead: each taxi reads its riders
-        and nearest waiting requests, K rows, so it flies any number of requests and any shift
-        (docs/rules.md "Passenger window"); a policy trained with a window keeps it (K overrides it). A policy
-        trained without one reads row p as request p; under a window the rows are ordered by nearness instead,
-        so their normaliser statistics are pooled over the rows even at the trained row count (which is the K to
-        choose: its training read that many rows)."""
-        num_taxis = check_integer("num_taxis", num_taxis, 1, MAX_TAXIS, fix=" (the fleet size to fly)")
-        if passenger_slots is not None:
-            fix = " (the passenger rows of the whole fleet; at most MAX_PASSENGERS)"
-            passenger_slots = check_integer("passenger_slots", passenger_slots, 1, MAX_PASSENGERS, fix=fix)
-        if passenger_window is not None:
-            fix = " (the passenger rows each taxi reads, e.g. 24)"
-            passenger_window = check_integer("passenger_window", passenger_window, 1, MAX_PASSENGERS, fix=fix)
-        if passenger_slots is not None and passenger_window is not None:
-            raise ValueError(
-                f"passenger_slots={passenger_slots} and passenger_window={passenger_window}: give one (the window "
-                "sets the passenger axis to K rows for any number of requests)."
-            )
-        window = passenger_window if passenger_window is not None else self.passenger_window
-        if window is not None:
-            slots = window
-        else:
-            per_taxi = (self.passenger_slots or 1) / (self.num_taxis or 1)
-            slots = passenger_slots or math.ceil(per_taxi * num_taxis)
-            if slots > MAX_PASSENGERS:  # the passenger axis grows with the fleet: name the fleet sizes that fit
-                most = max(n for n in range(1, MAX_TAXIS + 1) if math.ceil(per_taxi * n) <= MAX_PASSENGERS)
-                raise ConfigError(
-                    f"num_taxis={num_taxis} is out of range for this policy: it reads {per_taxi:g} passenger rows per "
-                    f"taxi, so fleets of 1 to {most} taxi(s) fit the passenger axis of at most {MAX_PASSENGERS} rows; "
-                    "for a larger fleet give passenger_slots=<rows> or passenger_window=<K> (e.g. 24)."
-                )
-        if num_taxis == self.num_taxis and slots == self.passenger_slots and window == self.passenger_window:
-            return self
-        if self.trained_on is None or not isinstance(self.net.torso, DesignedTorso):
-            raise ValueError(
-                "only a policy of a designed variant ('de', 'de_msfea', 'full') with its training config flies "
-                f"another fleet size or passenger window; this one flies num_taxis={self.num_taxis} and "
-                f"{self.passenger_slots} passenger slots only."
-            )
-        # the layout's own random demand must fit its passenger axis
-        demand, most = self.trained_on.demand, min(self.trained_on.demand.max_requests, slots)
-        demand = dataclasses.replace(
-            demand, max_requests=most, min_requests=min(demand.min_requests, most),
-            num_initial=min(demand.num_initial, most),
-        )  # fmt: skip
-        like = self.trained_on.replace(
-            num_taxis=num_taxis, max_passengers=slots, starts_m=None, requests=None, demand=demand,
-            passenger_window=window,
-        )  # fmt: skip
-        layout = observation_layout(like)  # the spec: no env is built
-        read = self.obs_shapes or layout_shapes(layout)  # the fields this policy reads
-        missing = sorted(set(read) - set(layout))
-        if missing:
-            raise ValueError(
-                f"a fleet of {num_taxis} taxi(s) laid out as in training does not observe {missing}, which the "
-                f"policy reads (its fields: {sorted(read)}); train one for this layout."
-            )
-        shapes = {k: layout[k].shape for k in read}
-        net = copy.copy(self.net)  # the same modules and weights; only the shapes it checks differ
-        net.shapes = shapes
-        normalizer = self.normalizer
-        if normalizer is not None and window is not None and self.passenger_window is None:
-            normalizer = normalizer.resized(_one_row(shapes))  # rows no longer mean request indices: pool them
-        normalizer = normalizer.resized(shapes) if normalizer is not None else None
-        spec = None
-        if self.spec is not None:  # what the fitted copy reads: its layout's observer, the network's own options
-            spec = dataclasses.replace(
-                split_env_config(like)[1], hover=self.spec.hover, fleet_rows=self.spec.fleet_rows
-            )
-        fitted = GreedyPolicy(net, normalizer, self.device, shapes, num_taxis, slots, like, self.thresholds_db, spec)
-        fitted.trained_num_taxis = self.trained_num_taxis
-        if self.loop_guard is None:
-            fitted.loop_guard = None
-        return fitted
 
     def reading(self, spec: ObserverSpec) -> GreedyPolicy:
         """A copy of this policy (the same network, weights and normaliser) that reads ``spec`` instead of its own,
@@ -300,13 +182,13 @@ class GreedyPolicy(PolicyBase):
         return other
 
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
-        """One recorded episode of this policy on ``cfg`` laid out for it (:meth:`layout`); score it with
-        :func:`uamfleet.metrics.episode_metrics`."""
-        return fly(self.layout(cfg), self, seed=seed)
+        """One recorded episode of this policy on the world ``cfg`` as given (observed by its :attr:`spec`); score
+        it with :func:`uamfleet.metrics.episode_metrics`."""
+        return fly(cfg, self, seed=seed)
 
     def check_layout(self, obs: dict[str, np.ndarray]) -> None:
         """ValueError naming every observation field whose shape differs from the training env's."""
-        shapes = self._acting()[2]
+        shapes = self.fitted()[2]
         if shapes is None:
             return
         diffs = [
@@ -315,15 +197,16 @@ class GreedyPolicy(PolicyBase):
             if k not in obs or tuple(obs[k].shape[2:]) != tuple(shape)
         ]
         if diffs:
+            window = self.spec.passenger_window if self.spec is not None else self.passenger_window
             axis = (
-                f"passenger_window={self.passenger_window}" if self.passenger_window is not None else
+                f"passenger_window={window}" if window is not None else
                 f"max_passengers={self.passenger_slots} (a smaller instance is padded by max_passengers)"
             )  # fmt: skip
             raise ValueError(
                 f"this env's observations differ from the policy's training env ({self.num_taxis} taxi(s), "
                 f"{self.passenger_slots} passenger slot(s)): " + ", ".join(diffs) + ". Fly it on an env with "
-                f"num_taxis={self.num_taxis} and {axis} (policy.layout(cfg) fits the passenger axis), or train a "
-                "policy for this one."
+                f"num_taxis={self.num_taxis} and {axis} (reset the policy with the simulator: it fits itself to the "
+                "world its spec reads), or train a policy for this one."
             )
 
     def network_input(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -331,7 +214,7 @@ class GreedyPolicy(PolicyBase):
         fields it was trained on, normalised."""
         self.check_layout(obs)
         E, A = obs["action_mask"].shape[:2]
-        _, normalizer, shapes = self._acting()
+        _, normalizer, shapes = self.fitted()
         known = shapes or obs  # a field the policy was not trained on is not read
         flat = {k: v.reshape(E * A, *v.shape[2:]) for k, v in obs.items() if k in known}
         return normalizer(flat) if normalizer is not None else flat
@@ -353,7 +236,7 @@ class GreedyPolicy(PolicyBase):
         rows (needs no critic state). Under inference mode, not only no_grad: less overhead per call, which a lone
         taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`, through a trace."""
         x = obs_to_torch(inputs, self.device)
-        net = self._acting()[0]
+        net = self.fitted()[0]
         if not self.traced:
             return net.masked_logits(x)
         keys = tuple(sorted(x))

@@ -289,6 +289,37 @@ def allocate_state(world: World, num_envs: int) -> FleetState:
     )
 
 
+def pad_passengers(state: FleetState, rows: int) -> FleetState:
+    """A copy of ``state`` on a passenger axis of ``rows`` (at least its own): the rows added are empty, as
+    :func:`allocate_state` makes them (no passenger, no stop distances known), and each taxi's cached tours are
+    marked stale (their key -1) because their stop axis grew; every other field is copied."""
+    P = state.pax_exists.shape[1]
+    if rows < P:
+        raise ValueError(f"rows={rows} is fewer than the state's {P} passenger rows; give at least {P}.")
+    if rows == P:
+        return state.copy()
+    E, A = state.pos_m.shape[:2]
+
+    def grown(name: str, fill: float | int) -> np.ndarray:
+        old = getattr(state, name)
+        out = np.full((E, rows, *old.shape[2:]), fill, old.dtype)
+        out[:, :P] = old
+        return out
+
+    fields = {name: np.array(getattr(state, name)) for name in FleetState._fields}
+    for name in ("pax_exists", "pax_release", "pax_origin_m", "pax_dest_m", "pax_status"):
+        fields[name] = grown(name, 0)
+    for name in ("pax_taxi", "pax_pickup_step", "pax_dropoff_step"):
+        fields[name] = grown(name, -1)
+    if state.stop_pair_m.shape[1]:  # with the stop features: [E, 2P, 2P] and [E, A, 2P]
+        pairs = np.full((E, 2 * rows, 2 * rows), np.nan)
+        pairs[:, : 2 * P, : 2 * P] = state.stop_pair_m
+        fields["stop_pair_m"] = pairs
+        fields["stop_tour_m"] = np.full((E, A, 2 * rows), np.nan)
+        fields["stop_tour_key"] = np.full((E, A), -1, np.int64)
+    return FleetState(**fields)
+
+
 def write_instance(state: FleetState, e: int, world: World, starts_m: np.ndarray, requests: Sequence[Request]) -> None:
     """Reset env ``e`` of ``state`` in place to the given instance (validated by the caller)."""
     cfg = world.cfg
