@@ -21,6 +21,7 @@ from uamfleet.rl.checkpoint import Checkpoint
 from uamfleet.rl.collector import make_run
 from uamfleet.rl.distributed import Ranks
 from uamfleet.rl.learner import with_init_architecture
+from uamfleet.rl.legacy import spec_of, with_stored_spec
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 
 BERLIN = ObserverSpec(
@@ -80,6 +81,12 @@ def test_the_generalist_fine_tuned_on_p4_reads_its_spec_in_the_p4_world(tmp_path
         assert layout_from_dict(saved.obs_layout or {}) == BERLIN.layout(run.cfg)
     policy, _ = load_policy(tmp_path / "p4" / "best.pt")
     assert policy.spec == BERLIN
+    # the same file as format 2 wrote it (no spec stored) is rebuilt through its chain of start files, as it was
+    # then: the spec of the start, read in the world laid out as the start's (6 passengers, 600 steps)
+    old = dataclasses.replace(saved, observer=None, world=None, format=2)
+    assert spec_of(old, "format 2") == BERLIN
+    world = with_stored_spec(old, "format 2").world
+    assert world is not None and (world["max_passengers"], world["time_limit_steps"]) == (6, 600)
 
 
 def test_a_run_window_replaces_the_start_window_and_keeps_the_run_world(tmp_path: Path) -> None:
