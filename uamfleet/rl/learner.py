@@ -166,15 +166,15 @@ def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
     trained on; ConfigError naming every field whose meaning differs from this run's."""
     start, _ = load_policy(source, device=str(run.device))
     assert start.trained_on is not None and start.spec is not None, "load_policy gives its config and spec"
-    trained_on, trained_spec = start.trained_on, start.spec
+    trained_on, start_spec = start.trained_on, start.spec
     try:
         # the hover logit a run switches on (--hover-logit) is the run's, not what the start's network takes
-        start = start.reading(dataclasses.replace(run.spec, hover=trained_spec.hover))
+        start = start.reading(dataclasses.replace(run.spec, hover=start_spec.hover))
         start.fit(run.cfg)
     except ValueError as err:
         raise ConfigError(f"--init-from={run.args.net.init_from!r} cannot fly this run's layout: {err}") from None
     shapes = start._acting()[2] or {}
-    trained = trained_spec.layout(trained_on)  # what its weights read, as they trained
+    trained = start_spec.layout(trained_on)  # what its weights read, as they trained
     read = {k: dataclasses.replace(trained[k], shape=shape) for k, shape in shapes.items() if k in trained}
     differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})
     if differences:
