@@ -17,6 +17,7 @@ from uamfleet.presets import make_config
 from uamfleet.env.mixture import OTHER_TAXI_FIELDS, MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path, run_config
+from uamfleet.rl.collector import observed, run_observer
 from uamfleet.types import STATE_PASSENGER_FEATURES, STATE_TAXI_FEATURES
 from uamfleet.rl.runs import read_progress
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
@@ -171,11 +172,13 @@ def test_a_run_with_its_own_window_keeps_its_own_requests_and_time_limit() -> No
             time_limit_steps=700,
         )
     )
-    cfg = run_config(windowed, training=True)
+    cfg = observed(windowed, run_config(windowed, training=True), run_observer(windowed, run_config(windowed)))
     assert (cfg.passenger_window, cfg.num_passengers, cfg.demand.max_requests) == (24, 48, 48)
     assert cfg.time_limit_steps == 700 and cfg.observed_passengers == 24
-    with pytest.raises(ConfigError, match="max_passengers=24 is smaller than the 48 requests"):
-        run_config(TrainArgs.from_flat(dict(scenario="berlin_fleet", init_from="berlin_fleet_v1", num_requests=48)))
+    unwindowed = TrainArgs.from_flat(dict(scenario="berlin_fleet", init_from="berlin_fleet_v1", num_requests=48))
+    own = run_config(unwindowed)
+    with pytest.raises(ConfigError, match=r"the world has 48 passenger rows; this policy reads 24: give it at most"):
+        observed(unwindowed, own, run_observer(unwindowed, own))
 
 
 @pytest.mark.parametrize(

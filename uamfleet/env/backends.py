@@ -26,6 +26,8 @@ from uamfleet.config import ConfigError, EnvConfig, RewardConfig
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.env.workers import ShardedVectorEnv
+from uamfleet.observe.legacy import observed_config
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.paths import table_for
 from uamfleet.paths.distance_table import cache_dir
 from uamfleet.sim.world import World
@@ -132,10 +134,12 @@ def resolve_backend(backend: str, num_configs: int, workers: int) -> str:
 
 def make_vector(
     cfgs: EnvConfig | Sequence[EnvConfig], num_envs: int, backend: str = "auto", *, workers: int = 0,
-    global_state: bool = False, fill_tables: bool = False, copy: bool = True,
+    global_state: bool = False, fill_tables: bool = False, copy: bool = True, observer: ObserverSpec | None = None,
 ) -> VectorBackend:  # fmt: skip
     """``num_envs`` envs over ``cfgs`` (one config or a list: one group of envs each), stepped by ``backend``
-    (module docstring; ``workers`` processes for ``"workers"``).
+    (module docstring; ``workers`` processes for ``"workers"``), each observed by ``observer`` (an
+    :class:`~uamfleet.observe.spec.ObserverSpec`; None: each config's own observer fields). The worlds are the
+    configs' own: a spec that cannot read one raises :class:`~uamfleet.config.ConfigError` in one line.
 
     ``fill_tables``: every env's feasible-path distance tables computed now (or loaded from the disk cache) instead
     of a few Dijkstras per new episode; worker processes load them from the disk cache, filled here once.
@@ -146,13 +150,15 @@ def make_vector(
     if chosen == "workers":
         if fill_tables and cache_dir() is not None:  # without a disk cache each worker fills its own
             for cfg in cfgs:
-                table_for(World(cfg)).fill()
-        return ShardedVectorEnv(cfgs, num_envs, workers, global_state=global_state, fill_tables=fill_tables, copy=copy)
+                table_for(World(observed_config(cfg, observer)[0])).fill()
+        return ShardedVectorEnv(
+            cfgs, num_envs, workers, global_state=global_state, fill_tables=fill_tables, copy=copy, observer=observer
+        )
     venv: VectorBackend
     if chosen == "inline":
-        venv = InlineVectorEnv(cfgs[0], num_envs=num_envs)
+        venv = InlineVectorEnv(cfgs[0], num_envs=num_envs, observer=observer)
     else:
-        venv = MixtureVectorEnv(cfgs, num_envs=num_envs)
+        venv = MixtureVectorEnv(cfgs, num_envs=num_envs, observer=observer)
     if fill_tables:
         for env in venv.envs:
             table_for(env.world).fill()

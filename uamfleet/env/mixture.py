@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 from uamfleet.config import EnvConfig, RewardConfig
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.observe.spec import ObserverSpec
 
 OTHER_TAXI_FIELDS: tuple[str, ...] = ("others", "others_mask")
 """The observation fields whose rows are the other taxis (``max(A - 1, 1)`` rows, docs/rules.md "Observation"): the
@@ -56,12 +57,13 @@ class MixtureVectorEnv:
 
     Every config must give the same observation layout up to the fleet size (e.g. the same scenario at several
     thresholds, fleet sizes or loads); configs of several fleet sizes are padded to the largest (module docstring).
-    ``reset(seed)`` seeds global env e with ``seed + e`` as :class:`VectorEnv` does."""
+    ``observer``: every group's envs observe by this spec (:class:`VectorEnv`'s ``observer``); None: each config's
+    own. ``reset(seed)`` seeds global env e with ``seed + e`` as :class:`VectorEnv` does."""
 
-    def __init__(self, cfgs: Sequence[EnvConfig], num_envs: int) -> None:
+    def __init__(self, cfgs: Sequence[EnvConfig], num_envs: int, observer: ObserverSpec | None = None) -> None:
         cfgs = checked_configs("MixtureVectorEnv", cfgs, num_envs)
         sizes = group_sizes(len(cfgs), num_envs)
-        self.envs = [VectorEnv(cfg, num_envs=n) for cfg, n in zip(cfgs, sizes, strict=True)]
+        self.envs = [VectorEnv(cfg, num_envs=n, observer=observer) for cfg, n in zip(cfgs, sizes, strict=True)]
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])
         largest = max(self.envs, key=lambda env: env.num_taxis)
         for cfg, env in zip(cfgs, self.envs, strict=True):

@@ -40,15 +40,18 @@ from gymnasium import spaces
 
 from uamfleet.config import REWARD_TERMS, EnvConfig, RewardConfig
 from uamfleet.env.mixture import checked_configs, group_sizes
+from uamfleet.observe.spec import ObserverSpec
 
 
 @dataclass(frozen=True)
 class _Piece:
-    """A worker's share of one config's envs: global envs ``lo .. lo + num_envs - 1``."""
+    """A worker's share of one config's envs: global envs ``lo .. lo + num_envs - 1``, observed by ``observer``
+    (None: the config's own)."""
 
     cfg: EnvConfig
     lo: int
     num_envs: int
+    observer: ObserverSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -60,9 +63,11 @@ class _ArraySpec:
     dtype: str
 
 
-def shard_pieces(cfgs: Sequence[EnvConfig], num_envs: int, workers: int) -> list[list[_Piece]]:
+def shard_pieces(
+    cfgs: Sequence[EnvConfig], num_envs: int, workers: int, observer: ObserverSpec | None = None
+) -> list[list[_Piece]]:
     """Each worker's pieces: the envs cut into contiguous shares as equal as possible (``workers`` of them),
-    each share cut again where a config's group ends."""
+    each share cut again where a config's group ends; every piece observed by ``observer``."""
     sizes = group_sizes(len(cfgs), num_envs)
     bounds = np.concatenate([[0], np.cumsum(sizes)])
     shares = np.concatenate([[0], np.cumsum(group_sizes(workers, num_envs))])
@@ -73,7 +78,7 @@ def shard_pieces(cfgs: Sequence[EnvConfig], num_envs: int, workers: int) -> list
         for g, cfg in enumerate(cfgs):
             a, b = max(lo, int(bounds[g])), min(hi, int(bounds[g + 1]))
             if a < b:
-                pieces.append(_Piece(cfg, a, b - a))
+                pieces.append(_Piece(cfg, a, b - a, observer))
         out.append(pieces)
     return out
 
@@ -136,7 +141,7 @@ def _worker_main(conn: Connection, pieces: list[_Piece], fill_tables: bool) -> N
         from uamfleet.env.vector_env import VectorEnv
         from uamfleet.paths.distance_table import table_for
 
-        envs = [VectorEnv(p.cfg, num_envs=p.num_envs) for p in pieces]
+        envs = [VectorEnv(p.cfg, num_envs=p.num_envs, observer=p.observer) for p in pieces]
         if fill_tables:
             for env in envs:
                 if env.cfg.stop_features and env.cfg.requests is None:
@@ -233,7 +238,8 @@ class ShardedVectorEnv:
     ``episode`` and ``final_obs`` for every env; read them where ``_episode``), ``global_state()`` (with
     ``global_state=True``), ``set_reward_weights``, ``close``, the spaces, ``num_envs``, ``num_taxis`` (one fleet
     size: ``taxis_per_env`` all ``num_taxis``, ``mixed_sizes`` False), and ``envs`` empty (the envs live in the
-    workers): the backend interface of :mod:`uamfleet.env.backends`.
+    workers): the backend interface of :mod:`uamfleet.env.backends`. ``observer``: every env observes by this spec
+    (:class:`~uamfleet.env.vector_env.VectorEnv`'s ``observer``); None: each config's own.
 
     ``copy=True`` (as Gymnasium's ``AsyncVectorEnv``): the observations returned are copies. ``copy=False`` returns
     views of the shared buffers, which the next ``step`` or ``reset`` overwrites: for a caller that copies them on
@@ -242,7 +248,7 @@ class ShardedVectorEnv:
 
     def __init__(
         self, cfgs: Sequence[EnvConfig], num_envs: int, workers: int, global_state: bool = False,
-        fill_tables: bool = False, copy: bool = True,
+        fill_tables: bool = False, copy: bool = True, observer: ObserverSpec | None = None,
     ) -> None:  # fmt: skip
         cfgs = checked_configs("ShardedVectorEnv", cfgs, num_envs)
         self.num_taxis = _one_fleet_size(cfgs, num_envs, workers)
@@ -251,7 +257,7 @@ class ShardedVectorEnv:
         self.taxis_per_env = np.full(self.num_envs, self.num_taxis)  # one fleet size: no padded taxis
         self.mixed_sizes = False
         self.envs: list[Any] = []  # the envs live in the workers: none here to fill tables of
-        self.pieces = shard_pieces(cfgs, self.num_envs, self.num_workers)
+        self.pieces = shard_pieces(cfgs, self.num_envs, self.num_workers, observer)
         self._closed = True
         self._finalizer: weakref.finalize[Any, Any]
         self._start_workers(fill_tables)

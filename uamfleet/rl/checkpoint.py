@@ -345,15 +345,28 @@ def plain_numpy_rng(state: tuple[Any, ...]) -> dict[str, Any]:
             "cached_gaussian": float(cached)}  # fmt: skip
 
 
-def trained_spec(cfg: EnvConfig, net_config: Mapping[str, Any], source: str = "the checkpoint") -> ObserverSpec:
-    """What a network of ``net_config`` trained on ``cfg`` (its evaluation config) reads: the observer of ``cfg``
-    (:func:`~uamfleet.observe.legacy.split_env_config`) with ``hover`` its network's hover logit
+def trained_spec(
+    cfg: EnvConfig, net_config: Mapping[str, Any], source: str = "the checkpoint", observer: ObserverSpec | None = None
+) -> ObserverSpec:
+    """What a network of ``net_config`` trained on ``cfg`` (its evaluation config) reads: ``observer`` (None: the
+    observer of ``cfg``, :func:`~uamfleet.observe.legacy.split_env_config`) with, without a passenger window, the
+    rows and time scale it read in ``cfg``'s world pinned where it leaves them to the world (``slots_per_taxi``:
+    the world's passengers per taxi; ``time_scale_steps``: its time limit), ``hover`` its network's hover logit
     (``net_config["hover_logit"]``, not the world's rule) and, for the linear encoder (variant ``"le"``), which
     reads the other taxis by position, ``fleet_rows`` its fleet's taxis less one."""
     hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
     if not isinstance(hover, bool):
         raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
     world, spec = split_env_config(cfg)
+    if observer is not None:
+        spec = observer
+        if spec.passenger_window is None:
+            spec = dataclasses.replace(
+                spec,
+                slots_per_taxi=world.num_passengers / world.num_taxis if spec.slots_per_taxi is None
+                else spec.slots_per_taxi,
+                time_scale_steps=world.time_limit_steps if spec.time_scale_steps is None else spec.time_scale_steps,
+            )  # fmt: skip
     fleet_rows = world.num_taxis - 1 if net_config.get("variant") == "le" else None
     return dataclasses.replace(spec, hover=hover, fleet_rows=fleet_rows)
 
@@ -525,47 +538,12 @@ def checkpoint_source(name_or_path: str | Path) -> Path:
     return path
 
 
-_INIT_CHAIN_MAX = 8  # a run fine-tuned from a run fine-tuned from ...: deeper than this is a loop of files
-
-
 def run_config(args: TrainArgs, scenario: str | EnvConfig | None = None, training: bool = True) -> EnvConfig:
-    """The env config a run trains (``training``) or is evaluated on: :func:`~uamfleet.rl.options.make_env_config`
-    of ``scenario`` (default ``args.env.scenario``), laid out as the policy it starts from (``args.net.init_from``)
-    reads its observation: passenger axis, stop fields, look-ahead, patch, history and time limit
-    (:meth:`EnvConfig.with_layout_of`). Training, evaluating and loading a fine-tuned run all go through here, so
-    its checkpoint loads like any other.
-
-    A run that sets its own ``--passenger-window`` reads that window whatever its start read: a windowed observation
-    does not depend on the number of requests, so the run keeps its own requests and time limit (a start trained
-    without a window is fitted to it as ``GreedyPolicy.for_fleet`` flies it: its passenger statistics pooled)."""
-    cfg = make_env_config(args.env.scenario if scenario is None else scenario, args, training=training)
-    like = _init_layout(args, depth=0)
-    return cfg if like is None else cfg.with_layout_of(_with_own_window(like, args))
-
-
-def _with_own_window(like: EnvConfig, args: TrainArgs) -> EnvConfig:
-    """The start's layout ``like`` with the run's own passenger window, when it sets one."""
-    return (
-        like
-        if args.observer.passenger_window is None
-        else like.replace(passenger_window=args.observer.passenger_window)
-    )
-
-
-def _init_layout(args: TrainArgs, depth: int) -> EnvConfig | None:
-    """The config (layout) the policy of ``args.net.init_from`` was evaluated on; None without one."""
-    if args.net.init_from is None:
-        return None
-    if depth >= _INIT_CHAIN_MAX:
-        raise ValueError(
-            f"--init-from={args.net.init_from!r} starts a chain of more than {_INIT_CHAIN_MAX} runs, each fine-tuned "
-            "from the next: the files point at each other; start from a shipped policy or a run trained from scratch."
-        )
-    source = checkpoint_source(args.net.init_from)
-    init_args = TrainArgs.from_saved(Checkpoint.load(source, map_location="cpu").args)
-    cfg = make_env_config(init_args.env.scenario, init_args, training=False)
-    like = _init_layout(init_args, depth + 1)
-    return cfg if like is None else cfg.with_layout_of(_with_own_window(like, init_args))
+    """The world a run trains (``training``) or is evaluated in, with its own observer fields:
+    :func:`~uamfleet.rl.options.make_env_config` of ``scenario`` (default ``args.env.scenario``). A run from
+    ``--init-from`` flies this world too; what it observes there is its observer spec (the start's, stored in its
+    checkpoint), never a rewrite of the world."""
+    return make_env_config(args.env.scenario if scenario is None else scenario, args, training=training)
 
 
 __all__ = [

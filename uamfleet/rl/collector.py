@@ -1,7 +1,8 @@
 """The collector of PPO's rollouts: the run's envs and buffer (:class:`Run`), and :func:`collect_rollout`.
 
-:func:`make_run` builds one rank's share of a run from its options: the config, the training envs (one config, a
-mixture over ``--thresholds`` and ``--fleet-mixture``, or env workers), the rollout buffer and the agents' rows.
+:func:`make_run` builds one rank's share of a run from its options: its world, what it observes there (its observer
+spec: :func:`run_observer`), the training envs (one config, a mixture over ``--thresholds`` and ``--fleet-mixture``,
+or env workers, all observed by that spec), the rollout buffer and the agents' rows.
 :func:`collect_rollout` flies the acting network (with its observation normaliser and reward scaler) for
 ``num_steps`` steps of those envs into the buffer; it never sees the optimiser, so the learner
 (:mod:`uamfleet.rl.learner`) and the loop (:mod:`uamfleet.rl.trainer`) build on it, never it on them.
@@ -9,6 +10,7 @@ mixture over ``--thresholds`` and ``--fleet-mixture``, or env workers), the roll
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,10 +20,12 @@ import torch
 from torch.distributions import Categorical
 
 from uamfleet.config import REWARD_TERMS, ConfigError, EnvConfig
-from uamfleet.observe.spec import Layout, layout_shapes, observation_layout
 from uamfleet.env.backends import VectorBackend, make_vector
+from uamfleet.observe.legacy import observed_config, split_env_config
+from uamfleet.observe.spec import Layout, ObserverSpec, layout_shapes
 from uamfleet.rl.buffer import EpisodeSums, ObservationNormalizer, RewardScaler, RolloutBuffer
-from uamfleet.rl.checkpoint import Checkpoint, run_config
+from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source, run_config
+from uamfleet.rl.legacy import spec_of
 from uamfleet.rl.distributed import Ranks, sample_actions
 from uamfleet.rl.networks import VARIANTS, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
@@ -51,11 +55,12 @@ class Run:
     ranks: Ranks
     device: torch.device
     folder: Path
-    cfg: EnvConfig
-    eval_cfg: EnvConfig
+    cfg: EnvConfig  # the run's world (its largest fleet in a mixture), joined with the fields its spec observes
+    eval_cfg: EnvConfig  # the world of its greedy evaluation, joined likewise
+    spec: ObserverSpec  # what every env of the run observes (run_observer)
     venv: VectorBackend  # inline, a mixture or env workers (uamfleet.env.backends)
     obs_shapes: dict[str, tuple[int, ...]]
-    layout: Layout  # the spec of one taxi's observation (stored in checkpoints)
+    layout: Layout  # one taxi's observation in the run's world: spec.layout(cfg) (stored in checkpoints)
     buffer: RolloutBuffer
     env_offset: int
     num_agents: int  # this rank's agents per step
@@ -111,11 +116,14 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
         raise ValueError(f"variant={args.net.variant!r} is unknown; use one of {VARIANTS}.")
     env_offset, local_envs = ranks.shard(args.env.num_envs)
     base: str | EnvConfig = env_config if env_config is not None else args.env.scenario
-    cfg = run_config(args, base, training=True)
-    venv = _training_envs(args, cfg, base, local_envs)
+    own = run_config(args, base, training=True)
+    spec = run_observer(args, own)
+    cfg = observed(args, own, spec)
+    eval_cfg = observed(args, run_config(args, base, training=False), spec)
+    venv = _training_envs(args, cfg, spec, base, local_envs)
     taxis = cfg.num_taxis  # taxis per env (a mixture of fleet sizes: its largest, padded; --num-taxis)
     shapes = {k: tuple(s.shape or ()) for k, s in venv.single_observation_space.spaces.items()}
-    layout = observation_layout(cfg)
+    layout = spec.layout(cfg)
     assert layout_shapes(layout) == shapes, "the env's observation is built from its spec"
     state_dim = _critic_state_dim(args, venv)
     rows = None
@@ -132,12 +140,52 @@ def make_run(args: TrainArgs, env_config: EnvConfig | None, ranks: Ranks, device
     batch = args.ppo.num_steps * total_agents
     _check_batch(args, batch, taxis)
     return Run(
-        args=args, ranks=ranks, device=device, folder=args.run.run_dir / args.name, cfg=cfg,
-        eval_cfg=run_config(args, base, training=False), venv=venv, obs_shapes=shapes, layout=layout,
+        args=args, ranks=ranks, device=device, folder=args.run.run_dir / args.name, cfg=cfg, eval_cfg=eval_cfg,
+        spec=spec, venv=venv, obs_shapes=shapes, layout=layout,
         buffer=RolloutBuffer(args.ppo.num_steps, local_agents, shapes, state_dim), env_offset=env_offset,
         num_agents=local_agents, agent_offset=env_offset * taxis, total_agents=total_agents,
         num_iterations=max(1, args.ppo.total_timesteps // batch), state_dim=state_dim, agent_rows=rows,
     )  # fmt: skip
+
+
+def run_observer(args: TrainArgs, cfg: EnvConfig) -> ObserverSpec:
+    """What a run's envs observe, ``cfg`` being its own config (:func:`~uamfleet.rl.checkpoint.run_config`).
+
+    Without ``--init-from``: the observer fields of ``cfg`` (:func:`~uamfleet.observe.legacy.split_env_config`),
+    each world read with its own passenger rows and time limit, as every env of the run always read them. With it:
+    the spec the start reads (stored in its checkpoint; rebuilt for a file of format 2,
+    :func:`~uamfleet.rl.legacy.spec_of`), with the run's own ``--passenger-window`` K when given
+    (``passenger_window=K``, ``time_scale_steps=None``). ``hover`` is the network's: ``--hover-logit``, or the
+    start's hover logit."""
+    if args.net.init_from is None:
+        own = split_env_config(cfg)[1]
+        return dataclasses.replace(own, slots_per_taxi=None, time_scale_steps=None, hover=args.net.hover_logit)
+    source = checkpoint_source(args.net.init_from)
+    spec = spec_of(Checkpoint.load(source, map_location="cpu"), str(source))
+    window = args.observer.passenger_window
+    if window is not None:
+        spec = dataclasses.replace(spec, passenger_window=window, time_scale_steps=None)
+    return dataclasses.replace(spec, hover=spec.hover or args.net.hover_logit)
+
+
+def observed(args: TrainArgs, world: EnvConfig, spec: ObserverSpec) -> EnvConfig:
+    """``world`` (a config of the run: its world is kept) joined with the fields ``spec`` observes
+    (:func:`~uamfleet.observe.legacy.observed_config`); ConfigError in one line naming the flag when ``spec``
+    cannot read the world (:meth:`~uamfleet.observe.spec.ObserverSpec.reads`)."""
+    if spec.hover and not world.hover_action:
+        raise ConfigError(HOVER_WITHOUT_ACTION)
+    refusal = spec.reads(world)
+    if refusal is not None:
+        start = f"--init-from={args.net.init_from!r}" if args.net.init_from is not None else "the run's observer"
+        raise ConfigError(f"{start} cannot read this run's world: {refusal}.")
+    return observed_config(world, spec)[0]
+
+
+HOVER_WITHOUT_ACTION = (
+    "--hover-logit makes the network take the hover action (16), which this run's env lacks: train on a scenario "
+    "with EnvConfig.hover_action (a *_fleet preset), or drop --hover-logit (and start from a policy without it)."
+)
+"""The refusal of a network that takes the hover action in a world without it."""
 
 
 def _critic_state_dim(args: TrainArgs, venv: VectorBackend) -> int:
@@ -155,17 +203,19 @@ def _critic_state_dim(args: TrainArgs, venv: VectorBackend) -> int:
     return int(venv.state_space.shape[0]) + venv.num_taxis
 
 
-def _training_envs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local_envs: int) -> VectorBackend:
-    """This rank's training envs: one config, or a mixture over ``--thresholds`` and ``--fleet-mixture``, stepped by
-    ``--vector-backend`` (auto: env workers with ``--env-workers``, else a mixture with either option, else one
-    config's envs); tables filled if asked."""
-    cfgs = training_configs(args, cfg, base)
+def _training_envs(
+    args: TrainArgs, cfg: EnvConfig, spec: ObserverSpec, base: str | EnvConfig, local_envs: int
+) -> VectorBackend:
+    """This rank's training envs, observed by ``spec``: one config, or a mixture over ``--thresholds`` and
+    ``--fleet-mixture``, stepped by ``--vector-backend`` (auto: env workers with ``--env-workers``, else a mixture
+    with either option, else one config's envs); tables filled if asked."""
+    cfgs = [observed(args, c, spec) for c in training_configs(args, cfg, base)]
     # Random demand reads every row of the distance tables within minutes: compute them now (or load them from the
     # disk cache), instead of a few Dijkstras in every new episode's reset.
     fill = args.env.fill_tables and cfg.stop_features and cfg.requests is None
     backend = args.chosen_backend()
     if backend != "workers":
-        return make_vector(cfgs, local_envs, backend, fill_tables=fill)
+        return make_vector(cfgs, local_envs, backend, fill_tables=fill, observer=spec)
     if args.env.env_workers > local_envs:
         raise ConfigError(
             f"--env-workers={args.env.env_workers} exceeds this rank's {local_envs} envs; give at most "
@@ -175,15 +225,15 @@ def _training_envs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig, local
         # copy=False: collect_rollout copies each observation into its buffer before it steps again
         return make_vector(
             cfgs, local_envs, backend, workers=args.env.env_workers, global_state=args.net.centralised_critic,
-            fill_tables=fill, copy=False,
+            fill_tables=fill, copy=False, observer=spec,
         )  # fmt: skip
     except ValueError as err:
         raise ConfigError(f"--env-workers={args.env.env_workers}: {err}") from err
 
 
 def training_configs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig) -> list[EnvConfig]:
-    """The configs of the training envs' groups: ``cfg`` (the run's config) at each ``--thresholds`` value, in each
-    ``--fleet-mixture`` setting (threshold-major); ``[cfg]`` without either."""
+    """The worlds of the training envs' groups: ``cfg`` (the run's) at each ``--thresholds`` value, in each
+    ``--fleet-mixture`` setting (threshold-major); ``[cfg]`` without either. The run's observer reads them all."""
     settings = [cfg]
     if args.env.fleet_mixture:
         if not isinstance(base, str):
@@ -194,7 +244,7 @@ def training_configs(args: TrainArgs, cfg: EnvConfig, base: str | EnvConfig) -> 
         settings = [
             run_config(args.with_options(num_taxis=taxis, num_requests=requests, fleet_mixture=()), base)
             for taxis, requests in args.fleet_settings()
-        ]  # the run's own options (window, time limit, reward, the start's layout) in each setting
+        ]  # the run's own options (window, time limit, reward) in each setting
     if not args.env.thresholds:
         return settings
     return [c.replace(sinr_min_db=t) for t in args.env.thresholds for c in settings]
@@ -297,6 +347,6 @@ def restore_counters(ckpt: Checkpoint) -> Counters:
 
 
 __all__ = [
-    "Counters", "RolloutStats", "Run", "collect_rollout", "make_run", "normalise", "restore_counters",
-    "training_configs",
+    "HOVER_WITHOUT_ACTION", "Counters", "RolloutStats", "Run", "collect_rollout", "make_run", "normalise",
+    "observed", "restore_counters", "run_observer", "training_configs",
 ]  # fmt: skip

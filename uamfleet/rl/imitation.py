@@ -38,6 +38,7 @@ from uamfleet.baselines.step_planner import SearchSettings
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import family_of, validation_metrics
+from uamfleet.observe.legacy import observed_config
 from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
 from uamfleet.rl.heads import PRIOR_FLOOR
@@ -54,7 +55,7 @@ from uamfleet.rl.options import Flat, flat_options, grouped_from_flat, option_gr
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy
-from uamfleet.observe.spec import layout_to_dict, observation_layout
+from uamfleet.observe.spec import LookaheadSpec, ObserverSpec, layout_to_dict
 from uamfleet.types import NUM_HEADINGS
 
 
@@ -264,10 +265,13 @@ class Dataset:
         return obs, np.concatenate(self.labels), np.concatenate(self.corrected)
 
 
-def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False, lookahead_rule: float = 0.0) -> GreedyPolicy:
-    """The policy with a zero heading residual added to its stop head (it still flies exactly as before); with
-    ``lookahead``, also a zero correction from the ``heading_lookahead`` field, which it then observes, and the rule
-    term ``lookahead_rule`` (``NetConfig.lookahead_rule``; with it the policy flies the least look-ahead heading)."""
+def with_heading_residual(
+    policy: GreedyPolicy, lookahead: bool = False, lookahead_rule: float = 0.0, lookahead_depth: int = 1
+) -> GreedyPolicy:
+    """The policy with a zero heading residual added to its stop head (it still flies exactly as before), reading
+    what it reads (its :attr:`~GreedyPolicy.spec`); with ``lookahead``, also a zero correction from the
+    ``heading_lookahead`` field, which it then observes (at ``lookahead_depth``), and the rule term
+    ``lookahead_rule`` (``NetConfig.lookahead_rule``; with it the policy flies the least look-ahead heading)."""
     net = policy.net
     shapes = dict(net.shapes)
     if lookahead:
@@ -279,12 +283,14 @@ def with_heading_residual(policy: GreedyPolicy, lookahead: bool = False, lookahe
     if unexpected or any(not k.startswith("stop_head.residual_") for k in missing):
         raise ValueError(f"the initial network does not carry over: missing {missing}, unexpected {unexpected}.")
     new.eval()
-    trained_on = policy.trained_on
+    trained_on, spec = policy.trained_on, policy.spec
     if lookahead and trained_on is not None:
-        trained_on = trained_on.replace(heading_lookahead=True)
+        trained_on = trained_on.replace(heading_lookahead=True, lookahead_depth=lookahead_depth)
+    if lookahead and spec is not None:
+        spec = dataclasses.replace(spec, lookahead=LookaheadSpec(depth=lookahead_depth))
     return GreedyPolicy(
         new, policy.normalizer, policy.device, {**(policy.obs_shapes or {}), **shapes}, policy.num_taxis,
-        policy.passenger_slots, trained_on,
+        policy.passenger_slots, trained_on, None, spec,
     )  # fmt: skip
 
 
@@ -382,10 +388,15 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
     if args.observer.lookahead:
         source_args = source_args.with_options(heading_lookahead=True, lookahead_depth=args.observer.lookahead_depth)
     prior, _ = load_policy(init)
-    policy = with_heading_residual(prior, lookahead=args.observer.lookahead, lookahead_rule=args.net.lookahead_rule)
+    policy = with_heading_residual(
+        prior, lookahead=args.observer.lookahead, lookahead_rule=args.net.lookahead_rule,
+        lookahead_depth=args.observer.lookahead_depth,
+    )  # fmt: skip
+    assert policy.spec is not None, "load_policy gives the spec the policy reads"
     family = family_of(source_args.env.scenario)
-    eval_like = run_config(source_args, training=False)
-    groups = _groups(args, run_config(source_args, training=True), family)
+    # the source's worlds, observed as the policy reads them
+    eval_like = observed_config(run_config(source_args, training=False), policy.spec)[0]
+    groups = _groups(args, run_config(source_args, training=True), family, policy.spec)
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.net.train), lr=args.fit.learning_rate)
     claim.clear()  # every option checked: an earlier run replaced with --overwrite goes now
     first = validation_metrics(policy, family, args.eval.eval_instances, eval_like)
@@ -410,12 +421,13 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
     return best
 
 
-def _groups(args: ImitationArgs, base: EnvConfig, family: str) -> list[Group]:
-    """One group of ``envs_per_threshold`` envs (tables filled) and its expert per training threshold."""
+def _groups(args: ImitationArgs, base: EnvConfig, family: str, spec: ObserverSpec) -> list[Group]:
+    """One group of ``envs_per_threshold`` envs (tables filled), observed by ``spec``, and its expert per training
+    threshold."""
     groups = []
     for i, threshold in enumerate(args.env.thresholds):
-        cfg = base.replace(sinr_min_db=threshold)
-        venv = VectorEnv(cfg, num_envs=args.env.envs_per_threshold)
+        cfg = observed_config(base.replace(sinr_min_db=threshold), spec)[0]
+        venv = VectorEnv(cfg, num_envs=args.env.envs_per_threshold, observer=spec)
         table_for(venv.world).fill()
         obs, _ = venv.reset(seed=args.fit.seed + 1000 * i)
         expert: ReplanExpert | AnticipatingExpert
@@ -461,9 +473,10 @@ def _val(m: dict[str, float]) -> dict[str, float]:
 def _save(
     path: Path, source: Checkpoint, policy: GreedyPolicy, args: ImitationArgs, row: dict[str, float], like: EnvConfig
 ) -> None:
-    """The source checkpoint with this policy's network and observation (``like``, the config it is evaluated
-    on): loads with load_policy like any trained checkpoint."""
-    layout = observation_layout(like)
+    """The source checkpoint with this policy's network and what it reads (its spec, in ``like``, the world it is
+    evaluated in): loads with load_policy like any trained checkpoint."""
+    assert policy.spec is not None
+    layout = policy.spec.layout(like)
     read = {k: spec for k, spec in layout.items() if k in policy.net.shapes}
     extra = (
         {"heading_lookahead": True, "lookahead_depth": args.observer.lookahead_depth} if args.observer.lookahead else {}
@@ -474,7 +487,7 @@ def _save(
         net_config=dataclasses.asdict(policy.net.cfg),
         obs_shapes={k: list(spec.shape) for k, spec in read.items()},
         obs_layout=layout_to_dict(read),
-        observer=trained_spec(like, dataclasses.asdict(policy.net.cfg)).to_dict(),
+        observer=trained_spec(like, dataclasses.asdict(policy.net.cfg), observer=policy.spec).to_dict(),
         world=world_record(like.world),
         format=CHECKPOINT_FORMAT,
         args={**source.args, **extra, "imitation": {k: _plain(v) for k, v in args.flat().items()}},

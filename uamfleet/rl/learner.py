@@ -1,6 +1,6 @@
 """The learner of PPO: the network, its optimiser and statistics (:class:`Learner`), and the update.
 
-:func:`make_learner` builds it for a run (afresh, or from an ``--init-from`` policy fitted to the run's layout);
+:func:`make_learner` builds it for a run (afresh, or from an ``--init-from`` policy fitted to the run's world);
 :func:`set_schedules` sets the iteration's learning rate and shaping weight, :func:`compute_advantages` computes
 GAE over the collected rollout (bootstrapping truncated episodes from their real final observation) and
 :func:`ppo_update` runs the clipped PPO loss (:mod:`uamfleet.rl.ppo`) over its minibatches, data-parallel under
@@ -18,10 +18,10 @@ import numpy as np
 import torch
 
 from uamfleet.config import ConfigError, EnvConfig
-from uamfleet.observe.spec import layout_differences, observation_layout
+from uamfleet.observe.spec import layout_differences
 from uamfleet.rl.buffer import ObservationNormalizer, RewardScaler, compute_gae
 from uamfleet.rl.checkpoint import ARCHITECTURE_FIELDS, Checkpoint, checkpoint_source
-from uamfleet.rl.collector import Run, _critic_input, _tensor, normalise
+from uamfleet.rl.collector import HOVER_WITHOUT_ACTION, Run, _critic_input, _tensor, normalise
 from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.networks import MSHAActorCritic, NetConfig, obs_to_torch, observed_inputs
 from uamfleet.rl.options import TrainArgs
@@ -69,32 +69,33 @@ def _learner_from(run: Run, source: Path) -> Learner:
     reward scaler starts afresh (the new task's rewards), and with ``--kl-to-init`` a frozen copy is the
     reference.
 
-    The start is fitted to this run's layout as :meth:`GreedyPolicy.for_fleet` flies it at another fleet size or
-    passenger window (the same weights: the network reads the other taxis and the passengers as sets; their
-    normaliser statistics pooled over the rows). Its actor and torso are always loaded; its critic when it reads
-    this run's input (own features, or a global state of the same fleet and passenger count), else only with
-    ``--reinit-critic``, which starts it afresh and says so."""
+    The start reads the run's spec (:attr:`Run.spec`: its own, with the run's window) and fits itself to the run's
+    world (:meth:`GreedyPolicy.fit`: the same weights; the network reads the other taxis and the passengers as sets,
+    their normaliser statistics pooled over the rows when their number differs). Its actor and torso are always
+    loaded; its critic when it reads this run's input (own features, or a global state of the same fleet and
+    passenger count), else only with ``--reinit-critic``, which starts it afresh and says so."""
     args = run.args
     start, trained_on = _fitted_start(run, source)
-    if set(start.obs_shapes or {}) != set(run.obs_shapes):
-        unread = sorted(set(run.obs_shapes) - set(start.obs_shapes or {}))
+    start_net, normalizer, shapes = start._acting()
+    if set(shapes or {}) != set(run.obs_shapes):
+        unread = sorted(set(run.obs_shapes) - set(shapes or {}))
         raise ConfigError(
-            f"--init-from={args.net.init_from!r} reads {sorted(start.obs_shapes or {})}, but this run's env also "
+            f"--init-from={args.net.init_from!r} reads {sorted(shapes or {})}, but this run's env also "
             f"observes {unread}, which its network has no weights for; train that policy from scratch, or use a "
             "scenario without those fields."
         )
-    hover_logit = start.net.cfg.hover_logit or args.net.hover_logit  # an untrained switch keeps every weight
-    net_cfg = dataclasses.replace(start.net.cfg, critic_state_dim=run.state_dim or None, hover_logit=hover_logit)
+    hover_logit = start_net.cfg.hover_logit or args.net.hover_logit  # an untrained switch keeps every weight
+    net_cfg = dataclasses.replace(start_net.cfg, critic_state_dim=run.state_dim or None, hover_logit=hover_logit)
     _check_hover_logit(net_cfg, run.cfg)
     net = MSHAActorCritic(run.venv.single_observation_space, net_cfg).to(run.device)
-    _load_start(run, net, start.net, trained_on)
+    _load_start(run, net, start_net, trained_on)
     net.train()
     reference = None
     if args.net.kl_to_init > 0:
         reference = copy.deepcopy(net).eval().requires_grad_(False)
     return Learner(
         net=net, optimizer=torch.optim.Adam(net.parameters(), lr=args.ppo.learning_rate, eps=1e-5), net_cfg=net_cfg,
-        normalizer=start.normalizer if args.ppo.norm_obs else None,
+        normalizer=normalizer if args.ppo.norm_obs else None,
         scaler=RewardScaler(run.num_agents, args.ppo.gamma) if args.ppo.norm_reward else None, reference=reference,
     )  # fmt: skip
 
@@ -146,7 +147,7 @@ def with_init_architecture(args: TrainArgs) -> TrainArgs:
             f"({start.net.centralised_critic}): its critic reads {reads}; set --centralised-critic "
             f"{start.net.centralised_critic}, or add --reinit-critic to start the critic afresh."
         )
-    # (the env's layout, look-ahead included, follows the start through run_config, not through these flags)
+    # (what the run observes, look-ahead included, is the start's spec (collector.run_observer), not these flags)
     taken = [name for name in ARCHITECTURE_FIELDS if not (args.net.reinit_critic and name == "centralised_critic")]
     return dataclasses.replace(
         args, net=dataclasses.replace(args.net, **{name: getattr(start.net, name) for name in taken})
@@ -156,27 +157,25 @@ def with_init_architecture(args: TrainArgs) -> TrainArgs:
 def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
     """ConfigError when the network takes the hover action (``NetConfig.hover_logit``) but the run's env has none."""
     if net_cfg.hover_logit and not cfg.hover_action:
-        raise ConfigError(
-            "--hover-logit makes the network take the hover action (16), which this run's env lacks: train on a "
-            "scenario with EnvConfig.hover_action (a *_fleet preset), or drop --hover-logit."
-        )
+        raise ConfigError(HOVER_WITHOUT_ACTION)
 
 
 def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
-    """The ``--init-from`` policy laid out for this run (its fleet size and passenger window or axis: the largest
-    fleet of a mixture), and the config it trained on; ConfigError naming every field whose meaning differs from
-    this run's."""
+    """The ``--init-from`` policy reading this run's spec, fitted to its world (the largest fleet of a mixture;
+    :meth:`GreedyPolicy._acting` gives the network, normaliser and shapes it flies there), and the config it
+    trained on; ConfigError naming every field whose meaning differs from this run's."""
     start, _ = load_policy(source, device=str(run.device))
-    assert start.trained_on is not None, "load_policy always gives the config it trained on"
-    trained_on = start.trained_on
-    window = run.cfg.passenger_window
-    slots = None if window is not None else run.cfg.num_passengers
+    assert start.trained_on is not None and start.spec is not None, "load_policy gives its config and spec"
+    trained_on, start_spec = start.trained_on, start.spec
     try:
-        start = start.for_fleet(run.cfg.num_taxis, passenger_slots=slots, passenger_window=window)
+        # the hover logit a run switches on (--hover-logit) is the run's, not what the start's network takes
+        start = start.reading(dataclasses.replace(run.spec, hover=start_spec.hover))
+        start.fit(run.cfg)
     except ValueError as err:
         raise ConfigError(f"--init-from={run.args.net.init_from!r} cannot fly this run's layout: {err}") from None
-    assert start.trained_on is not None
-    read = observation_layout(start.trained_on)
+    shapes = start._acting()[2] or {}
+    trained = start_spec.layout(trained_on)  # what its weights read, as they trained
+    read = {k: dataclasses.replace(trained[k], shape=shape) for k, shape in shapes.items() if k in trained}
     differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})
     if differences:
         raise ConfigError(

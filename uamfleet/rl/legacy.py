@@ -4,7 +4,8 @@
 reading only NumPy arrays and scalars (:data:`NUMPY_GLOBALS`); unpickling anything else happens only with
 ``trust=True``, which warns what it means. :func:`checkpoint_args` reads the options a checkpoint was trained with
 (stored flat, one key per option) as a :class:`~uamfleet.rl.options.TrainArgs`. :func:`spec_of_checkpoint` says what
-a checkpoint of format 2 reads, as an :class:`~uamfleet.observe.spec.ObserverSpec`, from those arguments.
+a checkpoint of format 2 reads, as an :class:`~uamfleet.observe.spec.ObserverSpec`, from those arguments (for a run
+fine-tuned from another, through the chain of start files it followed); :func:`spec_of` reads any checkpoint's.
 """
 
 from __future__ import annotations
@@ -26,13 +27,13 @@ from uamfleet.rl.checkpoint import (
     Checkpoint,
     CheckpointError,
     _load_error,
+    checkpoint_source,
     plain_numpy_rng,
-    run_config,
     trained_spec,
     with_input_flags,
     world_record,
 )
-from uamfleet.rl.options import TrainArgs
+from uamfleet.rl.options import TrainArgs, make_env_config
 
 try:  # NumPy 2 renamed numpy.core to numpy._core
     from numpy._core import multiarray as _multiarray
@@ -142,7 +143,7 @@ def with_stored_spec(ckpt: Checkpoint, source: str = "the checkpoint") -> Checkp
     if ckpt.observer is not None:
         return ckpt
     spec = spec_of_checkpoint(ckpt.args, ckpt.net_config, ckpt.obs_layout, source)
-    world = run_config(TrainArgs.from_saved(ckpt.args), training=False).world
+    world = _evaluated_config(TrainArgs.from_saved(ckpt.args), depth=0).world
     return dataclasses.replace(ckpt, observer=spec.to_dict(), world=world_record(world), format=CHECKPOINT_FORMAT)
 
 
@@ -155,16 +156,17 @@ def spec_of_checkpoint(
     """What a checkpoint of format 2 reads, from its flat ``args``, its ``net_config`` and, when it has one, its
     ``obs_layout`` (the parts ``torch.load(weights_only=True)`` gives).
 
-    The config it is evaluated on is rebuilt as :func:`~uamfleet.rl.policy.load_policy` rebuilds it
-    (:func:`~uamfleet.rl.checkpoint.run_config`: its scenario through the presets with its options, laid out as the
-    policy its ``init_from`` names), then split (:func:`~uamfleet.observe.legacy.split_env_config`). ``hover`` is
-    the network's hover logit (``net_config["hover_logit"]``), not the world's rule; a network of the linear
-    encoder (variant ``"le"``) reads the other taxis by position, so ``fleet_rows`` is its fleet's taxis less one.
+    The config it is evaluated on is rebuilt as it was when the file was written: its scenario through the presets
+    with its options (:func:`~uamfleet.rl.options.make_env_config`), laid out as the policy its ``init_from`` names
+    (a run fine-tuned then took its start's observation through a chain of files), then split
+    (:func:`~uamfleet.observe.legacy.split_env_config`). ``hover`` is the network's hover logit
+    (``net_config["hover_logit"]``), not the world's rule; a network of the linear encoder (variant ``"le"``) reads
+    the other taxis by position, so ``fleet_rows`` is its fleet's taxis less one.
 
     A file with ``obs_layout`` must read what it stored: the spec's layout in the rebuilt world equals it field for
     field, else :class:`CheckpointError` naming the first field that differs. A file without one reads what its
     scenario's preset gives now (an edit of the preset changes it)."""
-    cfg = run_config(TrainArgs.from_saved(args), training=False)
+    cfg = _evaluated_config(TrainArgs.from_saved(args), depth=0)
     spec = trained_spec(cfg, net_config, source)
     world = cfg.world
     if obs_layout is not None:
@@ -183,10 +185,56 @@ def spec_of_checkpoint(
     return spec
 
 
+def spec_of(ckpt: Checkpoint, source: str = "the checkpoint") -> ObserverSpec:
+    """What the policy of ``ckpt`` reads: its stored spec (format 3), else the one rebuilt from its arguments
+    (:func:`spec_of_checkpoint`)."""
+    stored = ckpt.spec(source)
+    if stored is not None:
+        return stored
+    return spec_of_checkpoint(ckpt.args, ckpt.net_config, ckpt.obs_layout, source)
+
+
+_INIT_CHAIN_MAX = 8  # a run fine-tuned from a run fine-tuned from ...: deeper than this is a loop of files
+
+
+def _evaluated_config(args: TrainArgs, depth: int) -> EnvConfig:
+    """The config a run of format 2 was evaluated on: its scenario with its options and, with ``init_from``, the
+    observation layout of the policy it started from, followed through the chain of start files
+    (:func:`_followed`); the start's layout takes the run's own passenger window when it set one."""
+    cfg = make_env_config(args.env.scenario, args, training=False)
+    if args.net.init_from is None:
+        return cfg
+    if depth >= _INIT_CHAIN_MAX:
+        raise CheckpointError(
+            f"init_from={args.net.init_from!r} starts a chain of more than {_INIT_CHAIN_MAX} runs, each fine-tuned "
+            "from the next: the files point at each other; load a run trained from scratch."
+        )
+    source = checkpoint_source(args.net.init_from)
+    like = _evaluated_config(TrainArgs.from_saved(Checkpoint.load(source, map_location="cpu").args), depth + 1)
+    window = args.observer.passenger_window
+    return _followed(cfg, like if window is None else like.replace(passenger_window=window))
+
+
+def _followed(cfg: EnvConfig, like: EnvConfig) -> EnvConfig:
+    """``cfg`` laid out as a format-2 fine-tuned run read it: ``like``'s passenger axis, stop fields, patch and
+    history, and, without a window in ``like``, its passenger rows and time limit written into the world (a
+    windowed layout keeps ``cfg``'s own requests and time limit)."""
+    windowed = like.passenger_window is not None
+    return cfg.replace(
+        max_passengers=cfg.max_passengers if windowed else like.num_passengers,
+        passenger_window=like.passenger_window, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
+        stop_claims=like.stop_claims, heading_lookahead=like.heading_lookahead,
+        lookahead_depth=like.lookahead_depth,
+        time_limit_steps=cfg.time_limit_steps if windowed else like.time_limit_steps,
+        patch_size=like.patch_size, history_len=like.history_len,
+    )  # fmt: skip
+
+
 __all__ = [
     "NUMPY_GLOBALS",
     "TRUST_WARNING",
     "checkpoint_args",
+    "spec_of",
     "spec_of_checkpoint",
     "upgrade_checkpoint",
     "with_stored_spec",

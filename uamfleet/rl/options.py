@@ -137,10 +137,11 @@ class NetOptions:
     init_from: str | None = None
     """start from this policy's weights and observation statistics: a shipped name (e.g. berlin, see
     uamfleet.zoo.PRETRAINED) or a checkpoint file. Its network options replace --variant, --d-model and the other
-    architecture flags, and the run's env takes its observation layout (passenger slots, stop fields, look-ahead,
-    patch, history and time limit: EnvConfig.with_layout_of), so e.g. the Berlin generalist is fine-tuned on
-    Berlin P4 with --scenario berlin_p4 --init-from berlin. A greedy evaluation of the start comes first, so
-    best.pt is never worse than it on the evaluation"""
+    architecture flags, and the run's envs observe what it reads (its observer spec, stored in its checkpoint:
+    passenger rows, stop fields, look-ahead, patch, history and time scale; --passenger-window replaces its
+    window) in the run's own world, so e.g. the Berlin generalist is fine-tuned on Berlin P4 with --scenario
+    berlin_p4 --init-from berlin. A greedy evaluation of the start comes first, so best.pt is never worse than it
+    on the evaluation"""
     reinit_critic: bool = False
     """with --init-from: start the critic afresh, the actor and its torso from the start. Needed when the start's
     critic cannot read this run's input: a centralised critic (MAPPO) reads the global state, whose size is set by

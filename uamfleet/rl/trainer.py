@@ -81,7 +81,7 @@ def capture(run: Run, learner: Learner, counters: Counters) -> Checkpoint:
         model=copy.deepcopy(learner.net.state_dict()), optimizer=copy.deepcopy(learner.optimizer.state_dict()),
         net_config=dataclasses.asdict(learner.net_cfg), args=run.args.flat(),
         obs_shapes={k: list(v) for k, v in run.obs_shapes.items()}, obs_layout=layout_to_dict(run.layout),
-        observer=trained_spec(run.eval_cfg, dataclasses.asdict(learner.net_cfg)).to_dict(),
+        observer=trained_spec(run.eval_cfg, dataclasses.asdict(learner.net_cfg), observer=run.spec).to_dict(),
         world=world_record(run.eval_cfg.world), iteration=counters.iteration,
         global_step=counters.global_step, wall_s=counters.wall_offset + time.time() - run.start_time,
         obs_normalizer=learner.normalizer.state_dict() if learner.normalizer is not None else None,
@@ -175,8 +175,8 @@ def progress_row(
 
 def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[str, float]) -> bool:
     """Rank 0: fly the greedy policy (one episode, or the validation instances), add eval/* to the row, keep the
-    best; True when it is a new best."""
-    policy = GreedyPolicy(learner.net, learner.normalizer, run.device)
+    best; True when it is a new best. The policy reads the run's spec (:attr:`Run.spec`) in the evaluation world."""
+    policy = GreedyPolicy(learner.net, learner.normalizer, run.device, spec=run.spec)
     if run.args.eval.eval_instances:
         m = validation_metrics(policy, family_of(run.args.env.scenario), run.args.eval.eval_instances, run.eval_cfg)
     else:
