@@ -391,25 +391,6 @@ class EnvConfig(WorldConfig):
         """Passenger rows of each taxi's observation: ``passenger_window`` when set, else :attr:`num_passengers`."""
         return self.passenger_window if self.passenger_window is not None else self.num_passengers
 
-    def with_layout_of(self, like: EnvConfig) -> EnvConfig:
-        """This config (rules, threshold, instance and reward kept) with the observation layout of ``like``: its
-        passenger axis, stop fields (features, rivals, claims, look-ahead), patch, history and time limit (the
-        observation's time feature is a fraction of the limit). How a policy trained on ``like`` flies another
-        instance.
-
-        With ``like.passenger_window`` set, the observation no longer depends on the number of requests or the
-        shift's length: this config keeps its own passenger axis and time limit (any number of requests, any
-        shift; the time feature is then a fraction of this episode's limit) and takes the window."""
-        windowed = like.passenger_window is not None
-        return self.replace(
-            max_passengers=self.max_passengers if windowed else like.num_passengers,
-            passenger_window=like.passenger_window, stop_features=like.stop_features, stop_rivals=like.stop_rivals,
-            stop_claims=like.stop_claims, heading_lookahead=like.heading_lookahead,
-            lookahead_depth=like.lookahead_depth,
-            time_limit_steps=self.time_limit_steps if windowed else like.time_limit_steps,
-            patch_size=like.patch_size, history_len=like.history_len,
-        )  # fmt: skip
-
 
 def separation_room_bound(width_m: float, height_m: float, min_separation_m: float, area_m2: float | None = None,
                           perimeter_m: float | None = None) -> int:  # fmt: skip

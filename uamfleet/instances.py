@@ -53,6 +53,7 @@ from uamfleet.config import (
 )
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.observe.legacy import observed_config, split_env_config
+from uamfleet.observe.spec import ObserverSpec
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
 from uamfleet.presets import make_config
@@ -299,21 +300,24 @@ def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
     return observed_config(cfg.replace(**rules).world, split_env_config(like)[1])[0]
 
 
-_BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig], MixtureVectorEnv] = {}
+_BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig, ObserverSpec | None], MixtureVectorEnv] = {}
 
 
 def fly_instances(
     policy: Callable[[dict[str, np.ndarray]], np.ndarray], family: str, seeds: Sequence[int], like: EnvConfig
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Fly ``policy`` (``obs [E, A, ...] -> actions [E, A]``) once on each instance ``seeds`` of ``family``, laid
-    out as ``like`` (:func:`instance_for_policy`), all in one batch (one policy call per step for all).
-    Returns (share of passengers delivered [n], distance flown [n] metres). The batch of the last call is kept:
-    a trainer evaluating on the same seeds every few iterations builds the instances and worlds once."""
-    key = (family, tuple(int(s) for s in seeds), like)  # the config itself (hashed by identity, kept alive)
+    """Fly ``policy`` (``obs [E, A, ...] -> actions [E, A]``) once on each instance ``seeds`` of ``family`` under
+    ``like``'s rules (:func:`instance_for_policy`), observed by the policy's spec when it has one, all in one batch
+    (one policy call per step for all). Returns (share of passengers delivered [n], distance flown [n] metres).
+    The batch of the last call is kept: a trainer evaluating on the same seeds every few iterations builds the
+    instances and worlds once."""
+    spec = getattr(policy, "spec", None)  # observed as the policy reads, else as ``like`` observes
+    observer = spec if isinstance(spec, ObserverSpec) else None
+    key = (family, tuple(int(s) for s in seeds), like, observer)  # the config itself (hashed by identity, kept alive)
     if key not in _BATCHES:
         _BATCHES.clear()
         cfgs = [instance_for_policy(family, seed, like) for seed in key[1]]
-        _BATCHES[key] = MixtureVectorEnv(cfgs, num_envs=len(cfgs))
+        _BATCHES[key] = MixtureVectorEnv(cfgs, num_envs=len(cfgs), observer=observer)
     venv = _BATCHES[key]
     count = venv.num_envs
     obs, _ = venv.reset(seed=0)

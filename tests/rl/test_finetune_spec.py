@@ -87,6 +87,8 @@ def test_the_generalist_fine_tuned_on_p4_reads_its_spec_in_the_p4_world(tmp_path
     assert spec_of(old, "format 2") == BERLIN
     world = with_stored_spec(old, "format 2").world
     assert world is not None and (world["max_passengers"], world["time_limit_steps"]) == (6, 600)
+    old.save(tmp_path / "old.pt")  # and a user's format-2 fine-tuned file loads reading its start's spec
+    assert load_policy(tmp_path / "old.pt")[0].spec == BERLIN
 
 
 def test_a_run_window_replaces_the_start_window_and_keeps_the_run_world(tmp_path: Path) -> None:

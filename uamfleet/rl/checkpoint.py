@@ -500,15 +500,15 @@ PRETRAINED: dict[str, str] = {
     # The fleet names point at files by what the policy is, not by file name: every committed fleet command names
     # the file (--checkpoints uamfleet/data/pretrained/berlin_fleet.pt), so berlin_fleet.pt keeps the first
     # berlin_fleet's weights and those commands fly what they flew.
-    "berlin_fleet": "berlin_fleet_hover.pt",  # a fleet sharing one policy on the Berlin map, any size through
-    # .for_fleet(n), any number of requests (it reads a 24-row passenger window, docs/rules.md "Passenger window"):
+    "berlin_fleet": "berlin_fleet_hover.pt",  # a fleet sharing one policy on the Berlin map, any fleet size (it fits
+    # itself at reset), any number of requests (it reads a 24-row passenger window, docs/rules.md "Passenger window"):
     # berlin_fleet_v1 fine-tuned on a mixture of 2-8 taxis, light and loaded, under the shield, waiting with the true
     # hover action (NetConfig.hover_logit; fly it with EnvConfig.hover_action=True, on in the *_fleet presets);
     # how it was trained: reports/2026-12-03-results-history/fleet_hover_finetune.md; its rows: docs/results.md "Fleets"
     "berlin_fleet_hover": "berlin_fleet_hover.pt",  # the same policy under the name its results were measured by
     "berlin_fleet_v1": "berlin_fleet.pt",  # the "berlin_fleet" shipped before it (trained
     # with 4 taxis): nearest-first claims, zig-zagging when idle, 6 requests per taxi; any number of requests through
-    # .for_fleet(n, passenger_window=24), its 24 trained slots; for its results
+    # learned:source=berlin_fleet_v1,passenger_window=24, its 24 trained slots; for its results
     "berlin_fleet4": "berlin_fleet4.pt",  # the first fleet policy (4 taxis, tour prior, no claims), for its results
 }
 """The policies shipped in ``uamfleet/data/pretrained`` (``uamfleet.pretrained(name)``): name -> file."""

@@ -76,7 +76,7 @@ def _learner_from(run: Run, source: Path) -> Learner:
     passenger count), else only with ``--reinit-critic``, which starts it afresh and says so."""
     args = run.args
     start, trained_on = _fitted_start(run, source)
-    start_net, normalizer, shapes = start._acting()
+    start_net, normalizer, shapes = start.fitted()
     if set(shapes or {}) != set(run.obs_shapes):
         unread = sorted(set(run.obs_shapes) - set(shapes or {}))
         raise ConfigError(
@@ -173,7 +173,7 @@ def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
         start.fit(run.cfg)
     except ValueError as err:
         raise ConfigError(f"--init-from={run.args.net.init_from!r} cannot fly this run's layout: {err}") from None
-    shapes = start._acting()[2] or {}
+    shapes = start.fitted()[2] or {}
     trained = start_spec.layout(trained_on)  # what its weights read, as they trained
     read = {k: dataclasses.replace(trained[k], shape=shape) for k, shape in shapes.items() if k in trained}
     differences = layout_differences(read, {k: spec for k, spec in run.layout.items() if k in read})

@@ -30,7 +30,7 @@ from uamfleet.observe.spec import (
 from uamfleet.presets import PRESETS
 from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config, trained_spec
-from uamfleet.rl.legacy import checkpoint_args
+from uamfleet.rl.legacy import checkpoint_args, spec_of
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
 from uamfleet.rl.options import TrainArgs
@@ -69,6 +69,10 @@ class GreedyPolicy(PolicyBase):
         self.spec = spec
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
         self.trained_on, self.thresholds_db = trained_on, thresholds_db
+        # the window it trained with: its spec's as loaded (a copy reading another spec keeps it)
+        self._trained_window = (
+            spec.passenger_window if spec is not None else trained_on.passenger_window if trained_on else None
+        )
         # fitted to the world of the last reset (None: as built): the network, normaliser and shapes it acts with,
         # and the fits to each world shape met (per network, so a network swapped in is fitted afresh)
         self._fitted: tuple[MSHAActorCritic, ObservationNormalizer | None, dict[str, tuple[int, ...]]] | None = None
@@ -157,7 +161,7 @@ class GreedyPolicy(PolicyBase):
     def passenger_window(self) -> int | None:
         """The passenger window it trained with (``ObserverSpec.passenger_window`` of its checkpoint): None: it
         trained on a fixed passenger axis, row p read as request p."""
-        return self.trained_on.passenger_window if self.trained_on is not None else None
+        return self._trained_window
 
     def reading(self, spec: ObserverSpec) -> GreedyPolicy:
         """A copy of this policy (the same network, weights and normaliser) that reads ``spec`` instead of its own,
@@ -288,12 +292,16 @@ def load_policy(
     ``env_config`` when it was trained on one). Loads with ``weights_only=True``: a foreign or pickle-only
     file is refused with a ValueError, a checkpoint of another observation layout says what differs. The policy
     reads the observer spec its checkpoint stores (format 3), else the one rebuilt from the config it was
-    evaluated on (format 2: :func:`~uamfleet.rl.checkpoint.trained_spec`)."""
+    evaluated on (format 2: :func:`~uamfleet.rl.legacy.spec_of`)."""
     ckpt = Checkpoint.load(path, map_location=device)
     args = checkpoint_args(ckpt)
     cfg = env_config if env_config is not None else run_config(args, training=False)
-    # what it reads: stored (format 3), else rebuilt from the config it was evaluated on (format 2)
-    spec = ckpt.spec(str(path)) or trained_spec(cfg, ckpt.net_config, str(path))
+    # what it reads: stored (format 3), else rebuilt from its arguments (format 2, a fine-tune through its start's
+    # files) or from the config it was trained on when one is given
+    if env_config is None:
+        spec = spec_of(ckpt, str(path))
+    else:
+        spec = ckpt.spec(str(path)) or trained_spec(cfg, ckpt.net_config, str(path))
     layout = spec.layout(cfg.world)  # the spec: no env is built
     _check_layout(ckpt, layout, str(path), args)
     if env_config is not None:  # the config it trained on, as given, must observe what the weights read
