@@ -176,11 +176,12 @@ def spec_of_checkpoint(
             raise CheckpointError(f"{source}: its observation layout is not a spec: {err}") from None
         differences = layout_differences(stored, spec.layout(world))
         if differences:
-            first = differences[0].replace("the first layout", "the stored layout")
+            named = [line.replace("the first layout", "the stored layout") for line in differences]
+            fields = "; ".join(f"observation field {line.replace('the second layout', 'the rebuilt layout')}"
+                               for line in named)  # fmt: skip
             raise CheckpointError(
-                f"{source}: the observer rebuilt from its args does not read what its obs_layout stores: field "
-                f"{first.replace('the second layout', 'the rebuilt layout')} (stored vs rebuilt); the file's args "
-                "or the preset they name changed since it was written."
+                f"{source}: the observer rebuilt from its args does not read what its obs_layout stores (stored vs "
+                f"rebuilt): {fields}; the file's args or the preset they name changed since it was written."
             )
     return spec
 
