@@ -15,6 +15,8 @@ AWT / ELR / PR / connectivity next to the paper's MSHA-RL row and our raster pla
 ``raster_opt``, clairvoyant: best stop orders over shortest feasible paths) flown under the same rules (the
 authors' endpoint-block rule by default). Then it flies the shipped generalist zero-shot on Berlin P4 at
 -7 ... -3 dB beside the paper's MSHA-RL, and on the held-out test instances beside the planners' recorded rows.
+The training's learning curve (greedy TD and PR of every evaluation against agent-steps, with best_known's tour
+and the band within 5 % of it) is drawn as curve.png in the run folder, beside its TensorBoard logs (tb/).
 It keeps no files outside ``--run-dir`` (the distance-table rows it needs are computed in memory; only a complete
 table, as training on random demand fills, is cached in ``~/.cache/uamfleet``).
 """
@@ -41,6 +43,7 @@ from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
 from uamfleet.rollout import fly as fly_episode
+from uamfleet.viz.curves import plot_learning_curve
 
 
 DEFAULT_RUN = "quickstart"
@@ -48,6 +51,8 @@ DEFAULT_RUN = "quickstart"
 
 FINE_TUNE_STEPS = 49_152  # 24 iterations of 32 envs x 64 steps
 SCRATCH_STEPS = 150_000
+FIXED_CSV = Path("docs/results/benchmark_fixed.csv")
+"""The planners' recorded rows on the paper's fixed scenarios (best_known on P4 is the learning curve's reference)."""
 
 
 @dataclass
@@ -167,9 +172,25 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
         )
         print(f"kept: {kept}")
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
+    title = f"Berlin P4 at {args.sinr_min_db:g} dB"
+    curve = plot_learning_curve(result.run_dir, best_known_m=recorded_best_known(args), title=title)
+    print(f"learning curve (greedy TD and PR against agent-steps): {curve}")
     if args.generalist:
         generalist_report(args.test_count, args.planner_csv)
     return rows
+
+
+def recorded_best_known(args: Args, path: Path = FIXED_CSV) -> float | None:
+    """``best_known``'s recorded TD on Berlin P4 at the run's threshold and rule (None when not recorded): the
+    learning curve's reference line."""
+    if not path.is_file():
+        return None
+    instance = f"berlin_p4@{args.sinr_min_db:g}dB"
+    with path.open(encoding="utf-8") as f:
+        for r in csv.DictReader(f):
+            if (r["instance"], r["method"], r["feasibility"]) == (instance, "best_known", args.feasibility):
+                return float(r["td_m"])
+    return None
 
 
 def generalist_report(test_count: int, planner_csv: Path) -> dict[str, float]:
