@@ -64,7 +64,7 @@ def main(argv: list[str]) -> int:
     seeds = instances.split_seeds("test", args.count)
     if args.fleet is not None:
         policies = () if args.no_generalist else (pretrained_path("berlin_fleet_v1"),)  # as recorded: no hover action
-        jobs: list = [(family, args.fleet, seed, FLEET_DISPATCHERS, policies, "none") for seed in seeds]
+        jobs: list = [(family, args.fleet, seed, FLEET_DISPATCHERS, policies, "none", False) for seed in seeds]
         flight, table, columns = fleet_benchmark.run_episode_set, fleet_benchmark.markdown, fleet_benchmark.COLUMNS
     else:
         checkpoint = None if args.no_generalist else pretrained_path("berlin")
