@@ -294,6 +294,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.hedged: list[bool] = []  # per search over futures: a first heading other than the policy's won
         self.waited: list[bool] = []  # per search over futures: waiting in place won
         self.scores: list[tuple[np.ndarray, np.ndarray]] = []  # per search over futures: (first headings, mean moves)
+        self.searched_at: list[int] = []  # per search over futures: the step it was made at
 
     def reset(self, sim: Simulator) -> None:
         if isinstance(self.demand, DemandPrior):
@@ -306,7 +307,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
             self.prior = self._priors[key]
         self._check_rows(sim.cfg)
         self.rng_futures = np.random.default_rng(self.seed)
-        self.hedged, self.waited, self.scores = [], [], []
+        self.hedged, self.waited, self.scores, self.searched_at = [], [], [], []
         self._next_search_t = 0  # the step of the next search over futures, between releases
         self._known_search_done = False
         super().reset(sim)  # its search at the start runs through _search below
@@ -389,6 +390,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.hedged.append(bool(best > 0 and first[best] != first[0]))
         self.waited.append(bool(hold[best] > 1))
         self.scores.append((first.copy(), means))
+        self.searched_at.append(t)
         wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
         self.plans.append((t, C * F, round(float(means[best])), wall, cpu))
         return [int(first[best])] * int(hold[best])
