@@ -274,6 +274,49 @@ def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> N
     assert hedge.queue == [int(first[best])] * holds[best]
 
 
+def test_the_hover_wait_is_a_candidate_at_any_step_scored_by_the_policy_flown_after_it() -> None:
+    """``wait_action="hover"`` in a world with the hover action, from the middle of an open map (no heading is
+    forbidden, so the "forbidden" wait has no candidate there): action 16 held ``commit`` steps, then the policy,
+    scored by hand one future at a time like every first heading; without the hover action in the world, refused."""
+    from uamfleet.baselines.step_planner import released_only
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+    from uamfleet.types import HOVER_ACTION, FleetState
+
+    cfg = _hedge_config((Request(0, (550.0, 150.0), (550.0, 550.0)),), start=(350.0, 350.0)).replace(hover_action=True)
+    prior, policy = _prior(cfg), _policy(cfg, 3)
+    forbidden = AnticipatingGuidedSearch(policy, prior, first_headings=3, futures=4, tail=None, seed=5)
+    hover = AnticipatingGuidedSearch(policy, prior, first_headings=3, futures=4, tail=None, seed=5, wait_action="hover")
+    env = VectorEnv(cfg, 1, autoreset=False)
+    env.reset(seed=0)
+    assert env.state.action_mask[0, 0, :16].all()  # nothing forbidden in the middle of the open map
+    forbidden.reset(env.sim)
+    hover.reset(env.sim)
+    assert len(forbidden.scores[0][0]) == 3  # no wait candidate without a forbidden heading
+    first, means = hover.scores[0]
+    assert len(first) == 4 and first[3] == HOVER_ACTION and (first[:3] == forbidden.scores[0][0]).all()
+    np.testing.assert_array_equal(means[:3], forbidden.scores[0][1])  # the same futures for the headings
+    rng = np.random.default_rng(5)
+    known = released_only(env.state)
+    futures = [prior.sample(known, rng) for _ in range(4)]
+    moves = []
+    for future in futures:
+        probe = VectorEnv(env.cfg, 1, autoreset=False)
+        probe.reset(seed=0)
+        for name in FleetState._fields:
+            getattr(probe.state, name)[:] = getattr(known if future is None else future, name)
+        for _ in range(hover.commit):  # the hover flies nothing
+            _, _, terminated, _, info = probe.step(np.array([[HOVER_ACTION]]))
+            assert float(info["events"].moved[0, 0]) == 0.0 and not terminated[0]
+        moves.append(_greedy_moves(policy, probe))
+    assert means[3] == pytest.approx(np.mean(moves))
+    still = VectorEnv(cfg.replace(hover_action=False), 1, autoreset=False)
+    still.reset(seed=0)
+    with pytest.raises(ValueError, match="wait_action='hover' waits with the hover action"):
+        AnticipatingGuidedSearch(policy, prior, wait_action="hover").reset(still.sim)
+    with pytest.raises(ValueError, match="wait_action='sit' is unknown"):
+        AnticipatingGuidedSearch(policy, prior, wait_action="sit")
+
+
 def test_the_hedge_reads_no_hidden_request() -> None:
     """Two instances that differ only in a request released at step 8: the same flight and the same searches
     until then; a search every `commit` steps in the window, and one at the release."""

@@ -25,7 +25,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -124,6 +124,12 @@ class Args:
     hedge_tail: int = 10
     """rollouts end this many steps after the demand model's last possible release, then a tour bound (-1: to the
     end)"""
+    hedge_wait_action: Literal["forbidden", "hover"] = "forbidden"
+    """the hedge's wait candidate: a heading the rule forbids, where one is, or the hover action (16) at any step
+    (needs --hover-action)"""
+    hover_action: bool = False
+    """fly every instance in a world with the hover action (16: stay in place); its rows' set is named
+    "<family> <split> hover". The planners never choose it"""
     finish_beam: int = 0
     """> 0 with --checkpoint: also fly that policy (and its guided search, with --guided) until the instance family's
     demand model says no request can come, then one step-level search of this width over the then-known requests
@@ -172,6 +178,7 @@ class Job:
     methods: tuple[str, ...]
     checkpoint: Path | None = None
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    hover_action: bool = False  # the instance's world has the hover action
 
 
 def job_options(args: Args) -> dict[str, dict[str, Any]]:
@@ -184,7 +191,8 @@ def job_options(args: Args) -> dict[str, dict[str, Any]]:
         "best_known": {"beams": tuple(args.best_known_beams)},
         "guided": {**guided, "samples": args.guided_samples},
         "hedge": {**guided, "samples": args.hedge_samples, "first_headings": args.hedge_first_headings,
-                  "futures": args.hedge_futures, "commit": args.hedge_commit, "tail": args.hedge_tail},
+                  "futures": args.hedge_futures, "commit": args.hedge_commit, "tail": args.hedge_tail,
+                  "wait_action": args.hedge_wait_action},
         "finish": {"beam": args.finish_beam},
     }  # fmt: skip
 
@@ -236,6 +244,8 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
     task = job.task
     try:
         cfg = _config(task)
+        if job.hover_action:
+            cfg = cfg.replace(hover_action=True)
         validate_instance(World(cfg), np.array(cfg.starts_m), cfg.requests or ())
     except InfeasibleInstanceError as err:  # e.g. a paper stop below the threshold under the strict rule
         print(f"skipped {task[1]} at {task[3]} dB ({task[4]}): {err}", flush=True)
@@ -254,7 +264,8 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
         m = episode_metrics(traj, cfg.radio, threshold_db=cfg.sinr_min_db)
         decisions = np.asarray(traj.decision_s) * 1000.0
         rows.append({
-            "set": label if label == "fixed" else f"{source} {label}", "instance": name,
+            "set": (label if label == "fixed" else f"{source} {label}") + (" hover" if job.hover_action else ""),
+            "instance": name,
             "threshold_db": cfg.sinr_min_db, "feasibility": rule, "num_requests": m.num_requests, "method": method,
             "pr_pct": m.pr_pct, "td_m": m.td_m, "att_s": m.att_s, "awt_s": m.awt_s,
             "connectivity_pct": m.connectivity_pct, "lower_bound_m": bound, "steps": m.steps, "policy_s": elapsed,
@@ -492,7 +503,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     learned += tuple(f"{m}_finish" for m in learned) if args.finish_beam else ()  # recorded names (aliases)
     learned += ("learned_hedge",) if args.hedge else ()
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
-    jobs = [Job(t, methods, args.checkpoint, job_options(args)) for t in selected]
+    jobs = [Job(t, methods, args.checkpoint, job_options(args), args.hover_action) for t in selected]
     start = time.perf_counter()
     rows = fly_all(args, jobs)
     if not rows:

@@ -21,6 +21,7 @@ from uamfleet.rl.guided import (
     MAX_FUTURES,
     MAX_SAMPLES,
     MAX_STEPS,
+    WAIT_ACTIONS,
     AnticipatingGuidedSearch,
     GuidedSearchPolicy,
 )
@@ -54,7 +55,8 @@ class HedgeOptions:
     """``hedge``: while a request of the demand model of the world's instance family may come, every ``commit``
     steps and at each release, the base's ``first_headings`` likeliest first headings flown in ``futures`` sampled
     futures (rollouts end ``tail`` steps after the last possible release, -1: at the end); then guided search with
-    ``top_k`` and ``samples``."""
+    ``top_k`` and ``samples``. ``wait_action``: the wait candidate is a forbidden heading where one is
+    (``forbidden``) or the hover action at any step of a world with it (``hover``)."""
 
     first_headings: int = 4
     futures: int = 8
@@ -65,8 +67,11 @@ class HedgeOptions:
     temperature: float = 2.0
     expert_beam: int = 0
     horizon: int | None = None
+    wait_action: str = "forbidden"
 
     def __post_init__(self) -> None:
+        if self.wait_action not in WAIT_ACTIONS:
+            raise PolicyNameError(f"wait_action={self.wait_action!r} is unknown; choose one of {WAIT_ACTIONS}.")
         check_integer("first_headings", self.first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
         check_integer("futures", self.futures, 1, MAX_FUTURES, fix=" (e.g. 8)")
         check_integer("commit", self.commit, 1, MAX_STEPS, fix=" (e.g. 4)")
@@ -102,7 +107,7 @@ def _hedge(o: HedgeOptions, base: Any) -> AnticipatingGuidedSearch:
     return AnticipatingGuidedSearch(
         _learned_base("hedge", base), None, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
         tail=None if o.tail < 0 else o.tail, top_k=o.top_k, samples=o.samples, temperature=o.temperature,
-        expert_beam=o.expert_beam, horizon=o.horizon,
+        expert_beam=o.expert_beam, horizon=o.horizon, wait_action=o.wait_action,
     )  # fmt: skip
 
 

@@ -45,7 +45,7 @@ from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.sim.core import Simulator
 from uamfleet.sim.generator import pad_passengers
-from uamfleet.types import HIDDEN, NUM_HEADINGS, FleetState
+from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, FleetState
 
 MAX_SAMPLES = 1024
 """Upper bound of the sampled flights of one search (``samples``; ``uamfleet-benchmark --guided-samples`` and
@@ -56,6 +56,10 @@ MAX_FUTURES = 256
 """Upper bound of ``futures`` (``--hedge-futures``): one scratch env per future and candidate (up to 17 candidates)."""
 MAX_STEPS = MAX_TIME_LIMIT_STEPS
 """Upper bound of the step counts ``horizon``, ``commit`` and ``tail``: an episode's longest."""
+
+WAIT_ACTIONS: tuple[str, ...] = ("forbidden", "hover")
+"""How the hedge's wait candidate keeps the taxi in place: a heading the rule forbids (where one is), or the hover
+action (16) of a world that has it, at any step."""
 
 
 class GuidedSearchPolicy(PolicyBase):
@@ -251,7 +255,8 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     would be). It takes the first heading of
     least mean moves over the futures (ties to the policy's own), then flies the policy until the next search. With
     ``wait``, where a heading the rule forbids keeps the taxi in place, staying there ``commit`` steps (then the
-    policy) is one more candidate: a wait flies no distance, and it is how ``replan_futures`` hedges most.
+    policy) is one more candidate: a wait flies no distance, and it is how ``replan_futures`` hedges most;
+    ``wait_action="hover"`` waits with the hover action (16) instead, at any step of a world that has it.
     Until a sampled request is released the policy's flight in a future is its flight over the known requests, so
     what is scored is what the taxi does next; after, it is the policy's answer to that future. This is Bertsekas'
     rollout algorithm with the policy as its base and sample average approximation over the demand model
@@ -269,7 +274,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     def __init__(
         self, policy: GreedyPolicy, demand: str | DemandPrior | None, first_headings: int = 4, futures: int = 8,
         commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, top_k: int = 8, samples: int = 8,
-        **known_search: Any,
+        wait_action: str = "forbidden", **known_search: Any,
     ) -> None:  # fmt: skip
         if isinstance(demand, str):
             check_family(demand)
@@ -281,12 +286,15 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         if tail is not None:
             tail = check_integer("tail", tail, 0, MAX_STEPS, fix=" or None (every rollout to its end), e.g. 10")
         wait = check_flag("wait", wait)
+        if wait_action not in WAIT_ACTIONS:
+            raise ValueError(f"wait_action={wait_action!r} is unknown; choose one of {WAIT_ACTIONS}.")
         seed = check_integer("seed", seed, 0, MAX_SEED)
         known_search.setdefault("guard_rollouts", True)  # its flights are the policy's, loop guard included
         super().__init__(policy, top_k=top_k, samples=samples, seed=seed, **known_search)
         self.demand, self.first_headings, self.futures, self.commit = demand, first_headings, futures, commit
         self.tail = tail  # None: every rollout to its end
         self.wait = wait  # waiting in place `commit` steps is a candidate where a forbidden heading allows it
+        self.wait_action = wait_action  # "hover": the wait is the hover action (16), at any step of a world with it
         self.seed = seed
         self._priors: dict[tuple[str, float, str], DemandPrior] = {}
         self._futures_envs: dict[int, VectorEnv] = {}
@@ -306,6 +314,12 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
                 self._priors[key] = DemandPrior.of_family(family, sim.cfg)
             self.prior = self._priors[key]
         self._check_rows(sim.cfg)
+        if self.wait and self.wait_action == "hover" and not sim.cfg.hover_action:
+            raise ValueError(
+                "wait_action='hover' waits with the hover action (16), which this world refuses: build it with "
+                "hover_action=True (uamfleet bench --hover-action), or wait where a heading is forbidden "
+                "(wait_action='forbidden')."
+            )
         self.rng_futures = np.random.default_rng(self.seed)
         self.hedged, self.waited, self.scores, self.searched_at = [], [], [], []
         self._next_search_t = 0  # the step of the next search over futures, between releases
@@ -355,7 +369,9 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         first = np.resize(order, K)  # fewer allowed headings than K: the last rows repeat candidates
         hold = np.ones(K, np.int64)  # steps a candidate keeps its first action before the policy flies
         blocked = np.flatnonzero(~self.sim.state.action_mask[0, 0, :NUM_HEADINGS])
-        if self.wait and len(blocked):  # a heading the rule forbids keeps the taxi in place: waiting flies nothing
+        if self.wait and self.wait_action == "hover":  # the hover action keeps the taxi in place at any step
+            first, hold = np.append(first, HOVER_ACTION), np.append(hold, self.commit)
+        elif self.wait and len(blocked):  # a heading the rule forbids keeps the taxi in place: waiting flies nothing
             first, hold = np.append(first, blocked[0]), np.append(hold, self.commit)
         C = len(first)
         env = self._futures_env(C * F)
@@ -419,4 +435,4 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         return due or super()._search_due()
 
 
-__all__ = ["AnticipatingGuidedSearch", "GuidedSearchPolicy"]
+__all__ = ["WAIT_ACTIONS", "AnticipatingGuidedSearch", "GuidedSearchPolicy"]
