@@ -90,12 +90,12 @@ def test_a_window_law_draws_its_count_its_release_steps_and_its_origins(family: 
     # the first `initial` requests are released at step 0; the others are i.i.d. over 0 ... window // slot
     later = np.concatenate([[r.release_step for r in e[law.initial :]] for e in episodes])
     assert all(r.release_step == 0 for e in episodes for r in e[: law.initial])
-    last = int(law.window_s // SLOT_S)
-    edges = np.minimum(np.arange(last + 2) * SLOT_S, law.window_s)
-    if law.arrivals == "peak":  # floor(time / slot) of a normal truncated to [0, window]
+    if law.arrivals == "peak":  # floor(time / slot) of a normal truncated to [0, window): steps 0 ... 79
+        last = math.ceil(law.window_s / SLOT_S) - 1
         a, b = (0 - law.peak_s) / law.peak_sd_s, (law.window_s - law.peak_s) / law.peak_sd_s
-        cdf = stats.truncnorm(a, b, loc=law.peak_s, scale=law.peak_sd_s).cdf(edges[1:])
-    else:
+        cdf = stats.truncnorm(a, b, loc=law.peak_s, scale=law.peak_sd_s).cdf(np.arange(1, last + 2) * SLOT_S)
+    else:  # uniform over 0 ... window // slot
+        last = int(law.window_s // SLOT_S)
         cdf = np.arange(1, last + 2) / (last + 1)
     assert later.max() <= last
     pit = _randomised_pit(later, cdf, np.random.default_rng(0))

@@ -113,7 +113,7 @@ class DemandLaw:
     - ``"uniform_window"``: the count N is uniform over ``min_requests`` … ``max_requests``; ``initial`` requests
       are released at step 0 and the N − ``initial`` others at steps uniform over 0 … ``window_s // slot_s``;
     - ``"peak"``: as ``uniform_window``, but each other request is released at a time drawn from a normal law of
-      mean ``peak_s`` and deviation ``peak_sd_s`` truncated to [0, ``window_s``], at step ``floor(time / slot_s)``;
+      mean ``peak_s`` and deviation ``peak_sd_s`` truncated to [0, ``window_s``), at step ``floor(time / slot_s)``;
     - ``"poisson_stream"``: ``initial`` requests at step 0, then a Poisson stream of ``rate_per_min`` over the
       service (0, ``window_s``], a request arriving at time τ released at step ``ceil(τ / slot_s)``; the stream
       stops at the cap ``max_requests`` (later arrivals are lost). ``min_requests`` must equal ``initial``.
@@ -174,8 +174,10 @@ class DemandLaw:
 
     def window_steps(self, slot_s: float) -> int:
         """The last step a request may be released at, with slots of ``slot_s`` seconds."""
-        if self.arrivals == "poisson_stream":
+        if self.arrivals == "poisson_stream":  # an arrival at time τ is released at step ceil(τ / slot)
             return math.ceil(self.window_s / slot_s - 1e-9)
+        if self.arrivals == "peak":  # a time τ < window_s is released at step floor(τ / slot)
+            return math.ceil(self.window_s / slot_s - 1e-9) - 1
         return int(self.window_s // slot_s)
 
     def count_pmf(self) -> np.ndarray:
@@ -250,7 +252,7 @@ class DemandLaw:
         out = np.empty(0)
         while len(out) < num:  # rejection: the window holds most of the mass of any sensible peak
             times = rng.normal(self.peak_s, self.peak_sd_s, size=2 * (num - len(out)) + 4)
-            out = np.concatenate([out, times[(times >= 0) & (times <= self.window_s)]])
+            out = np.concatenate([out, times[(times >= 0) & (times < self.window_s)]])
         return out[:num]
 
     def draw_trips(self, rng: np.random.Generator, sites: np.ndarray, count: int) -> list[tuple[int, int]]:
