@@ -12,6 +12,10 @@ this order from ``np.random.default_rng(SeedSequence([seed, family id]))``:
    (2 minutes: 40 steps of 3 s in Berlin, 12 of 9.6 s in Detroit), sorted;
 5. each request's origin and destination: two flyable block centres at least ``min_trip_m`` apart.
 
+A family with a :class:`~uamfleet.demand.DemandLaw` (``InstanceFamily.law``: ``berlin_stream``, ``berlin_peak``,
+``berlin_burst``) draws the threshold and the start as above, then its requests from the law
+(:meth:`~uamfleet.demand.DemandLaw.draw`: release steps, then trips); ``berlin`` and ``detroit3gpp`` have none.
+
 Fleet instances (:func:`make_fleet_instance`: ``num_taxis`` taxis, ``num_requests`` requests) are drawn from
 ``SeedSequence([seed, family id, FLEET_TAG])`` (so fleet seed s is not the single-taxi instance of seed s, but
 the same split ranges keep train / validation / test disjoint), in this order: the threshold; ``num_vertiports``
@@ -51,6 +55,7 @@ from uamfleet.config import (
     fleet_time_limit,
     fleet_window_steps,
 )
+from uamfleet.demand import DemandLaw
 from uamfleet.env.mixture import MixtureVectorEnv
 from uamfleet.observe.legacy import observed_config, split_env_config
 from uamfleet.observe.spec import ObserverSpec
@@ -82,17 +87,58 @@ class InstanceFamily:
     min_passengers: int = 2
     max_passengers: int = 6
     release_window_s: float = 120.0
+    law: DemandLaw | None = None
+    """None: the requests are drawn as the module docstring says (``berlin``, ``detroit3gpp``); a law: the start,
+    then :meth:`DemandLaw.draw` (the count, trip length and window fields above then repeat the law's)."""
 
     def window_steps(self, slot_s: float) -> int:
         """The last step a request may be released at, with slots of ``slot_s`` seconds (releases are drawn from
         steps 0 … this)."""
+        if self.law is not None:
+            return self.law.window_steps(slot_s)
         return int(self.release_window_s // slot_s)
 
+    def demand_law(self) -> DemandLaw:
+        """The family's law: :attr:`law`, or for ``law=None`` the ``uniform_window`` law its drawing code follows
+        (one request at step 0, uniform trips)."""
+        if self.law is not None:
+            return self.law
+        return DemandLaw("uniform_window", self.min_passengers, self.max_passengers, initial=1,
+                         window_s=self.release_window_s, min_trip_m=self.min_trip_m)  # fmt: skip
+
+
+def law_family(scenario: str, thresholds_db: tuple[float, ...], law: DemandLaw) -> InstanceFamily:
+    """A family of ``scenario``'s map whose requests follow ``law`` (its count bounds, window and trip length
+    repeated in the family's fields, which :class:`~uamfleet.baselines.anticipation.DemandPrior` reads)."""
+    return InstanceFamily(scenario, thresholds_db, law.min_trip_m, law.min_requests, law.max_requests,
+                          law.window_s, law=law)  # fmt: skip
+
+
+BERLIN_THRESHOLDS_DB = (-7.0, -6.0, -5.0, -4.0, -3.0)
+BERLIN_HOTSPOTS = ((650.0, 650.0, 300.0), (2050.0, 1550.0, 300.0), (2850.0, 2850.0, 300.0))
+"""The ``berlin_stream`` family's hot spots (x_m, y_m, sd_m): three block centres flyable at every threshold."""
 
 FAMILIES: dict[str, InstanceFamily] = {
-    "berlin": InstanceFamily("berlin_random", (-7.0, -6.0, -5.0, -4.0, -3.0), min_trip_m=500.0),
+    "berlin": InstanceFamily("berlin_random", BERLIN_THRESHOLDS_DB, min_trip_m=500.0),
     "detroit3gpp": InstanceFamily("detroit3gpp_random", (-21.0, -20.0, -19.0, -18.0, -17.0), min_trip_m=2000.0),
+    # a longer service (6 minutes) with a Poisson stream of 0.6 requests per minute from three hot spots, capped
+    # at the 6 rows of the shipped policies' observer (reached on about 29 % of the instances)
+    "berlin_stream": law_family(
+        "berlin_random",
+        BERLIN_THRESHOLDS_DB,
+        DemandLaw("poisson_stream", 1, 6, window_s=360.0, rate_per_min=0.6, hotspots=BERLIN_HOTSPOTS),
+    ),
+    # a peak of releases in the middle of a 4-minute window
+    "berlin_peak": law_family(
+        "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("peak", 3, 6, window_s=240.0, peak_s=120.0, peak_sd_s=30.0)
+    ),
+    # two requests at once, the others over the first 90 s (the new-user trial of issue 41)
+    "berlin_burst": law_family(
+        "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("uniform_window", 4, 5, initial=2, window_s=90.0)
+    ),
 }
+"""The instance families by name. Each has its own seed stream (``SeedSequence([seed, crc32(name)])``) on the same
+train / validation / test ranges."""
 
 
 def check_family(family: str) -> None:
@@ -127,15 +173,7 @@ def make_instance(
     graph = DistanceFields(world).graph
     window_steps = fam.window_steps(base.slot_s)
     for _ in range(MAX_ATTEMPTS):
-        num = int(rng.integers(fam.min_passengers, fam.max_passengers + 1))
-        start = sites[int(rng.integers(len(sites)))]
-        release = np.sort(np.concatenate([[0], rng.integers(0, window_steps + 1, size=num - 1)]))
-        requests = []
-        for step in release:
-            o = int(rng.integers(len(sites)))
-            far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= fam.min_trip_m)
-            d = int(far[rng.integers(len(far))]) if len(far) else (o + 1) % len(sites)
-            requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
+        start, requests = _draw_instance(fam, rng, sites, window_steps, base.slot_s)
         try:
             validate_instance(world, start[None], requests)
             stops = np.array([start] + [p for r in requests for p in (r.origin_m, r.destination_m)])
@@ -151,6 +189,26 @@ def make_instance(
             scenario=f"{family}_seed{seed}",
         )
     raise RuntimeError(f"no valid instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
+def _draw_instance(
+    fam: InstanceFamily, rng: np.random.Generator, sites: np.ndarray, window_steps: int, slot_s: float
+) -> tuple[np.ndarray, list[Request]]:
+    """One draw of an instance's start and requests (module docstring; a family with a :class:`DemandLaw`: the
+    start, then :meth:`DemandLaw.draw`)."""
+    if fam.law is not None:
+        start = sites[int(rng.integers(len(sites)))]
+        return start, fam.law.draw(rng, sites, slot_s)
+    num = int(rng.integers(fam.min_passengers, fam.max_passengers + 1))
+    start = sites[int(rng.integers(len(sites)))]
+    release = np.sort(np.concatenate([[0], rng.integers(0, window_steps + 1, size=num - 1)]))
+    requests = []
+    for step in release:
+        o = int(rng.integers(len(sites)))
+        far = np.flatnonzero(np.linalg.norm(sites - sites[o], axis=-1) >= fam.min_trip_m)
+        d = int(far[rng.integers(len(far))]) if len(far) else (o + 1) % len(sites)
+        requests.append(Request(int(step), tuple(sites[o]), tuple(sites[d])))
+    return start, requests
 
 
 def make_fleet_instance(
@@ -350,6 +408,7 @@ def validation_metrics(
 
 
 __all__ = [
+    "BERLIN_HOTSPOTS",
     "FAMILIES",
     "FLEET_SETTINGS",
     "SPLITS",
@@ -361,6 +420,7 @@ __all__ = [
     "family_of",
     "fly_instances",
     "instance_for_policy",
+    "law_family",
     "make_fleet_instance",
     "make_instance",
     "split_seeds",

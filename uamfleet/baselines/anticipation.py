@@ -26,13 +26,21 @@ future (seconds on one core). Where the prior says no request can come any more,
 from __future__ import annotations
 
 import math
-import re
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from uamfleet.baselines.demand_models import (
+    DemandModel,
+    EstimatedDemand,
+    FamilyLaw,
+    NoDemandModelError,
+    demand_model,
+    world_family,
+    wrong_model,
+)
 from uamfleet.baselines.planner_policy import require_one_taxi_env
 from uamfleet.baselines.step_planner import (
     SEARCH_STATE_FIELDS,
@@ -50,28 +58,6 @@ from uamfleet.sim.core import Simulator
 from uamfleet.sim.generator import allocate_state, flyable_sites
 from uamfleet.sim.world import World
 from uamfleet.types import HIDDEN, FleetState
-
-
-class NoDemandModelError(ValueError):
-    """A policy that reads an instance family's demand model was reset in a world no family draws (a fixed
-    scenario)."""
-
-
-def world_family(cfg: EnvConfig, policy: str) -> str:
-    """The instance family whose demand model draws ``cfg``'s requests, read from its scenario: a family's instances
-    (``berlin_seed3``, ``berlin_fleet4x48_seed3``, :func:`uamfleet.instances.make_instance`) and its training
-    scenarios (``berlin_instances``, ``berlin_fleet``, ``berlin_random``). :class:`NoDemandModelError`, naming
-    ``policy``, for any other world (the paper's fixed scenarios have none)."""
-    scenario = cfg.scenario
-    for family, fam in FAMILIES.items():
-        if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
-            return family
-        if re.fullmatch(rf"{re.escape(family)}_(fleet\d+x\d+_)?seed\d+", scenario):
-            return family
-    raise NoDemandModelError(
-        f"{policy} reads an instance family's demand model, and scenario {scenario!r} is none of "
-        f"{tuple(FAMILIES)}'s: fly it on an instance (uamfleet.instances.make_instance), not a fixed scenario."
-    )
 
 
 @dataclass(frozen=True)
@@ -160,8 +146,8 @@ class AnticipatingReplan(PolicyBase):
     reports/2026-12-03-results-history/README.md, "Anticipating releases")."""
 
     def __init__(
-        self, prior: DemandPrior, futures: int = 4, scored: int = 8, replan: SearchSettings = REPLAN_FUTURES_SEARCH,
-        future_beam: int = 16, score_beam: int = 8, seed: int = 0,
+        self, prior: DemandPrior | DemandModel, futures: int = 4, scored: int = 8,
+        replan: SearchSettings = REPLAN_FUTURES_SEARCH, future_beam: int = 16, score_beam: int = 8, seed: int = 0,
     ) -> None:  # fmt: skip
         if futures < 1 or scored < 1 or future_beam < 1 or score_beam < 1:
             raise ValueError(f"AnticipatingReplan(futures={futures}, scored={scored}, future_beam={future_beam}, "
@@ -288,4 +274,15 @@ def _next_release(future: FleetState) -> int:
     return int(future.pax_release[0, coming].min()) if coming.any() else -1
 
 
-__all__ = ["AnticipatingReplan", "Decision", "DemandPrior", "NoDemandModelError", "world_family"]
+__all__ = [
+    "AnticipatingReplan",
+    "Decision",
+    "DemandModel",
+    "DemandPrior",
+    "EstimatedDemand",
+    "FamilyLaw",
+    "NoDemandModelError",
+    "demand_model",
+    "world_family",
+    "wrong_model",
+]

@@ -32,6 +32,7 @@ COMMANDS: dict[str, str] = {
     "msha-table": "msha_table",
     "radio-map": "radio_map",
     "docs-tables": "docs_tables",
+    "demand": "demand",
 }
 """Each command of ``uamfleet <command>`` and its module in :mod:`uamfleet.cli`, in the order ``--help`` lists them."""
 
