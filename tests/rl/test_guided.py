@@ -392,7 +392,7 @@ def test_the_hedge_checks_each_option_in_the_api(option, value, message) -> None
     with pytest.raises(ConfigError, match=message):
         AnticipatingGuidedSearch(None, "berlin", **{option: value})  # type: ignore[arg-type]
     with pytest.raises(
-        ValueError, match=r"^demand=3 is no instance family's name or DemandPrior; pass one, e\.g\. 'berlin'"
+        ValueError, match=r"^demand=3 is no demand model; pass a family's name, 'family', 'wrong', a fitted model"
     ):
         AnticipatingGuidedSearch(None, 3)  # type: ignore[arg-type]
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from uamfleet.baselines.demand_models import EstimatedDemand
 from uamfleet.config import EnvConfig, Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, make_instance, split_seeds
@@ -14,10 +15,10 @@ from uamfleet.observe.spec import ObserverSpec
 from uamfleet.policies import make
 
 
-def _perturbed(cfg: EnvConfig) -> tuple[EnvConfig, int]:
+def _perturbed(cfg: EnvConfig, family: str = "berlin") -> tuple[EnvConfig, int]:
     """``cfg`` with every request released after step 0 reversed and released 2 steps later (at most the family's
     last release step), and the first step at which one of them is released in ``cfg``."""
-    window = FAMILIES["berlin"].window_steps(cfg.slot_s)
+    window = FAMILIES[family].window_steps(cfg.slot_s)
     assert cfg.requests is not None
     hidden = [r for r in cfg.requests if r.release_step > 0]
     changed = tuple(
@@ -27,11 +28,11 @@ def _perturbed(cfg: EnvConfig) -> tuple[EnvConfig, int]:
     return cfg.replace(requests=changed), min(r.release_step for r in hidden)
 
 
-def _instances(count: int) -> list[EnvConfig]:
-    """The first ``count`` Berlin validation instances with a request released after step 0."""
+def _instances(count: int, family: str = "berlin") -> list[EnvConfig]:
+    """The first ``count`` validation instances of ``family`` with a request released after step 0."""
     out = []
     for seed in split_seeds("validation", 4 * count):
-        cfg = make_instance("berlin", seed)
+        cfg = make_instance(family, seed)
         assert cfg.requests is not None
         if any(r.release_step > 0 for r in cfg.requests):
             out.append(cfg)
@@ -82,3 +83,50 @@ def test_replan_futures_never_reads_a_request_before_its_release() -> None:
         changed, first = _perturbed(cfg)
         actions = [_fly(make("replan_futures"), world, first) for world in (cfg, changed)]
         assert actions[0] == actions[1] and len(actions[0]) == first
+
+
+@pytest.fixture(scope="module")
+def stream_model(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """A demand model of ``berlin_stream`` fitted on 40 of its train episodes, as a file."""
+    episodes = [make_instance("berlin_stream", seed).requests or () for seed in split_seeds("train", 40)]
+    path = tmp_path_factory.mktemp("demand") / "berlin_stream.json"
+    EstimatedDemand.fit(episodes, make_instance("berlin_stream", 0).slot_s).save(path)
+    return str(path)
+
+
+@pytest.mark.slow  # 10-35 s per model: the stream's first hidden release comes late
+@pytest.mark.parametrize("model", ["family", "wrong", "fitted"])
+def test_the_hedge_never_reads_a_request_before_its_release_with_any_demand_model(model: str, stream_model) -> None:
+    """On the stream family (a Poisson stream with hot spots): the true law, a deliberately wrong one and a model
+    fitted on train episodes; the hidden requests changed, the same actions and scores until the first release."""
+    spec = stream_model if model == "fitted" else model
+    for cfg in _instances(2, "berlin_stream"):
+        changed, first = _perturbed(cfg, "berlin_stream")
+        flown = []
+        for world in (cfg, changed):
+            hedge = make("hedge", futures=2, first_headings=2, samples=0, top_k=1, tail=10, demand=spec)
+            actions = _fly(hedge, world, first)
+            assert type(hedge.prior).__name__ == {"family": "FamilyLaw", "wrong": "FamilyLaw"}.get(
+                model, "EstimatedDemand"
+            )
+            flown.append((actions, [(t, s) for t, s in zip(hedge.searched_at, hedge.scores, strict=True) if t < first]))
+        assert flown[0][0] == flown[1][0] and len(flown[0][0]) == first
+        assert len(flown[0][1]) == len(flown[1][1])
+        for (t, (heads, means)), (t2, (heads2, means2)) in zip(flown[0][1], flown[1][1], strict=True):
+            assert t == t2
+            np.testing.assert_array_equal(heads, heads2)
+            np.testing.assert_array_equal(means, means2)
+
+
+def test_the_true_law_of_a_family_without_one_is_the_recorded_prior() -> None:
+    """``berlin`` declares no law: its hedge samples the DemandPrior every recorded hedge row was flown with; the
+    new families sample their own law."""
+    from uamfleet.baselines.anticipation import DemandPrior
+    from uamfleet.rl.guided import model_on_world
+
+    assert isinstance(model_on_world(None, make_instance("berlin", 3), "hedge"), DemandPrior)
+    assert isinstance(model_on_world("family", make_instance("berlin", 3), "hedge"), DemandPrior)
+    law = model_on_world(None, make_instance("berlin_peak", 3), "hedge")
+    assert type(law).__name__ == "FamilyLaw" and law.max_requests == FAMILIES["berlin_peak"].max_passengers
+    with pytest.raises(ValueError, match="atlantis"):
+        make("hedge", demand="atlantis")

@@ -53,7 +53,7 @@ from uamfleet.metrics import episode_metrics
 from uamfleet.policies import make, parse
 from uamfleet.policies.learned import learned_policy
 from uamfleet.policies.registry import BASE
-from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS
+from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_SAMPLES, MAX_STEPS, check_demand_spec
 from uamfleet.rollout import fly
 from uamfleet.sim.generator import InfeasibleInstanceError, validate_instance
 from uamfleet.sim.world import World
@@ -127,6 +127,10 @@ class Args:
     hedge_wait_action: Literal["forbidden", "hover"] = "forbidden"
     """the hedge's wait candidate: a heading the rule forbids, where one is, or the hover action (16) at any step
     (needs --hover-action)"""
+    hedge_demand: tuple[str, ...] = ()
+    """with --checkpoint: also fly the hedge with each of these demand models (method
+    hedge:demand=<model>(learned:traced=true)): family (the true law of the instance family), a family's name, wrong
+    (a deliberately wrong law), or a fitted model's .json (uamfleet demand fit)"""
     hover_action: bool = False
     """fly every instance in a world with the hover action (16: stay in place); its rows' set is named
     "<family> <split> hover". The planners never choose it"""
@@ -195,6 +199,11 @@ def job_options(args: Args) -> dict[str, dict[str, Any]]:
                   "wait_action": args.hedge_wait_action},
         "finish": {"beam": args.finish_beam},
     }  # fmt: skip
+
+
+def hedge_method(model: str) -> str:
+    """The method name of the hedge over the checkpoint's policy with the demand model ``model``."""
+    return f"hedge:demand={model}(learned:traced=true)"
 
 
 def method_call(name: str, options: dict[str, Any], job: Job) -> tuple[str, dict[str, Any]]:
@@ -477,6 +486,15 @@ def check_args(args: Args) -> list[Task]:
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     check_guided(args)
+    for model in args.hedge_demand:
+        if args.checkpoint is None:
+            raise UsageError(f"--hedge-demand {model} hedges with a learned policy: give --checkpoint.")
+        try:
+            check_demand_spec(model)
+        except ValueError as err:
+            raise UsageError(f"--hedge-demand {model}: {err}") from None
+        if model.endswith(".json") and not Path(model).is_file():
+            raise UsageError(f"--hedge-demand {model}: no such file; fit one with `uamfleet demand fit`.")
     selected = tasks(args)
     if not selected:
         raise UsageError(
@@ -502,6 +520,7 @@ def main(args: Args) -> list[dict[str, Any]]:
     learned: tuple[str, ...] = ("learned", "learned_guided") if args.guided else ("learned",)
     learned += tuple(f"{m}_finish" for m in learned) if args.finish_beam else ()  # recorded names (aliases)
     learned += ("learned_hedge",) if args.hedge else ()
+    learned += tuple(hedge_method(model) for model in args.hedge_demand)
     methods = tuple(args.methods) + (learned if args.checkpoint is not None else ())
     jobs = [Job(t, methods, args.checkpoint, job_options(args), args.hover_action) for t in selected]
     start = time.perf_counter()

@@ -22,6 +22,7 @@ from uamfleet.rl.guided import (
     MAX_SAMPLES,
     MAX_STEPS,
     WAIT_ACTIONS,
+    check_demand_spec,
     AnticipatingGuidedSearch,
     GuidedSearchPolicy,
 )
@@ -56,7 +57,9 @@ class HedgeOptions:
     steps and at each release, the base's ``first_headings`` likeliest first headings flown in ``futures`` sampled
     futures (rollouts end ``tail`` steps after the last possible release, -1: at the end); then guided search with
     ``top_k`` and ``samples``. ``wait_action``: the wait candidate is a forbidden heading where one is
-    (``forbidden``) or the hover action at any step of a world with it (``hover``)."""
+    (``forbidden``) or the hover action at any step of a world with it (``hover``). ``demand``: the model its
+    futures are drawn from: ``family`` (the true law of the world's instance family), a family's name, ``wrong`` or
+    a fitted model's ``.json`` file (``uamfleet demand fit``)."""
 
     first_headings: int = 4
     futures: int = 8
@@ -68,8 +71,13 @@ class HedgeOptions:
     expert_beam: int = 0
     horizon: int | None = None
     wait_action: str = "forbidden"
+    demand: str = "family"
 
     def __post_init__(self) -> None:
+        try:
+            check_demand_spec(self.demand)
+        except ValueError as err:
+            raise PolicyNameError(f"demand={self.demand!r}: {err}") from None
         if self.wait_action not in WAIT_ACTIONS:
             raise PolicyNameError(f"wait_action={self.wait_action!r} is unknown; choose one of {WAIT_ACTIONS}.")
         check_integer("first_headings", self.first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
@@ -105,7 +113,7 @@ def _guided(o: GuidedOptions, base: Any) -> GuidedSearchPolicy:
 
 def _hedge(o: HedgeOptions, base: Any) -> AnticipatingGuidedSearch:
     return AnticipatingGuidedSearch(
-        _learned_base("hedge", base), None, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
+        _learned_base("hedge", base), o.demand, first_headings=o.first_headings, futures=o.futures, commit=o.commit,
         tail=None if o.tail < 0 else o.tail, top_k=o.top_k, samples=o.samples, temperature=o.temperature,
         expert_beam=o.expert_beam, horizon=o.horizon, wait_action=o.wait_action,
     )  # fmt: skip

@@ -33,12 +33,13 @@ import numpy as np
 import torch
 
 from uamfleet.baselines.anticipation import DemandPrior, world_family
+from uamfleet.baselines.demand_models import DemandModel, demand_model
 from uamfleet.baselines.step_planner import SearchSettings, StepSearch, released_only
 from uamfleet.checks import MAX_SEED, MAX_TIME_LIMIT_STEPS, check_flag, check_integer, check_number
 from uamfleet.config import EnvConfig
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import check_family
+from uamfleet.instances import FAMILIES, check_family
 from uamfleet.observe.spec import ObserverSpec
 from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy
@@ -60,6 +61,27 @@ MAX_STEPS = MAX_TIME_LIMIT_STEPS
 WAIT_ACTIONS: tuple[str, ...] = ("forbidden", "hover")
 """How the hedge's wait candidate keeps the taxi in place: a heading the rule forbids (where one is), or the hover
 action (16) of a world that has it, at any step."""
+
+
+def check_demand_spec(spec: str) -> str:
+    """``spec`` if it names a demand model the hedge can read on a world: ``family`` (the true law of the world's
+    instance family), a family's name, ``wrong`` (:func:`~uamfleet.baselines.demand_models.wrong_model` of the
+    world's family) or a fitted model's ``.json`` file; ValueError naming them otherwise."""
+    if spec in ("family", "wrong") or spec.endswith(".json"):
+        return spec
+    check_family(spec)
+    return spec
+
+
+def model_on_world(spec: str | None, cfg: EnvConfig, policy: str) -> DemandPrior | DemandModel:
+    """The demand model ``spec`` names (None: ``family``) on ``cfg``'s world. The true law of a family without a
+    declared law (``berlin``, ``detroit3gpp``) is :class:`DemandPrior`, as every recorded hedge row was flown; a
+    family with a law (``berlin_stream``, ...) samples it (:class:`~uamfleet.baselines.demand_models.FamilyLaw`)."""
+    if spec is None or spec == "family":
+        spec = world_family(cfg, policy)
+    if spec in FAMILIES and FAMILIES[spec].law is None:
+        return DemandPrior.of_family(spec, cfg)
+    return demand_model(spec, cfg)
 
 
 class GuidedSearchPolicy(PolicyBase):
@@ -272,14 +294,18 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     :class:`GuidedSearchPolicy`'s does (the chosen candidate's mean moves, rounded, in place of its moves)."""
 
     def __init__(
-        self, policy: GreedyPolicy, demand: str | DemandPrior | None, first_headings: int = 4, futures: int = 8,
+        self, policy: GreedyPolicy, demand: str | DemandPrior | DemandModel | None, first_headings: int = 4,
+        futures: int = 8,
         commit: int = 4, tail: int | None = 10, wait: bool = True, seed: int = 0, top_k: int = 8, samples: int = 8,
         wait_action: str = "forbidden", **known_search: Any,
     ) -> None:  # fmt: skip
         if isinstance(demand, str):
-            check_family(demand)
-        elif demand is not None and not isinstance(demand, DemandPrior):
-            raise ValueError(f"demand={demand!r} is no instance family's name or DemandPrior; pass one, e.g. 'berlin'.")
+            check_demand_spec(demand)
+        elif demand is not None and not callable(getattr(demand, "sample", None)):
+            raise ValueError(
+                f"demand={demand!r} is no demand model; pass a family's name, 'family', 'wrong', a fitted model's "
+                ".json file or a DemandModel, e.g. 'berlin'."
+            )
         first_headings = check_integer("first_headings", first_headings, 1, NUM_HEADINGS, fix=" (e.g. 4)")
         futures = check_integer("futures", futures, 1, MAX_FUTURES, fix=" (futures drawn per search, e.g. 8)")
         commit = check_integer("commit", commit, 1, MAX_STEPS, fix=" (steps between searches, e.g. 4)")
@@ -296,7 +322,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.wait = wait  # waiting in place `commit` steps is a candidate where a forbidden heading allows it
         self.wait_action = wait_action  # "hover": the wait is the hover action (16), at any step of a world with it
         self.seed = seed
-        self._priors: dict[tuple[str, float, str], DemandPrior] = {}
+        self._priors: dict[tuple[str, float, str], DemandPrior | DemandModel] = {}
         self._futures_envs: dict[int, VectorEnv] = {}
         self._futures_world: EnvConfig | None = None  # the world its futures envs were built for
         self.hedged: list[bool] = []  # per search over futures: a first heading other than the policy's won
@@ -305,13 +331,12 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self.searched_at: list[int] = []  # per search over futures: the step it was made at
 
     def reset(self, sim: Simulator) -> None:
-        if isinstance(self.demand, DemandPrior):
+        if self.demand is not None and not isinstance(self.demand, str):
             self.prior = self.demand
-        else:  # the family's model on this map and threshold (its flyable sites), made once per pair
-            family = self.demand if self.demand is not None else world_family(sim.cfg, "hedge")
+        else:  # the named model on this map and threshold (its flyable sites), made once per pair
             key = (sim.cfg.scenario, float(sim.cfg.sinr_min_db), str(sim.cfg.feasibility))
             if key not in self._priors:
-                self._priors[key] = DemandPrior.of_family(family, sim.cfg)
+                self._priors[key] = model_on_world(self.demand, sim.cfg, "hedge")
             self.prior = self._priors[key]
         self._check_rows(sim.cfg)
         if self.wait and self.wait_action == "hover" and not sim.cfg.hover_action:
@@ -435,4 +460,4 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         return due or super()._search_due()
 
 
-__all__ = ["WAIT_ACTIONS", "AnticipatingGuidedSearch", "GuidedSearchPolicy"]
+__all__ = ["WAIT_ACTIONS", "AnticipatingGuidedSearch", "GuidedSearchPolicy", "check_demand_spec", "model_on_world"]
