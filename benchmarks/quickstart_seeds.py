@@ -11,7 +11,9 @@ quickstart's own ``fly``), TD over ``best_known`` (4,900 m at -3 dB, endpoint-bl
 docs/results/benchmark_fixed.csv), whether that is within 5 % of it, the agent-steps trained, when a greedy
 evaluation first delivered everyone and when the kept one was made (progress.csv), the seconds of training and of
 the whole command, and the machine's 1-minute load average before and after the seed (the machine may be shared).
-Rows are appended to ``--out-csv`` as each seed ends, so a stopped sweep keeps its rows.
+Rows are appended to ``--out-csv`` as each seed ends, so a stopped sweep keeps its rows. ``--plot PATH`` then draws
+the seeds' learning curves in one figure (uamfleet.viz.curves: each seed's line, their median and range, best_known
+and its 5 % band); with ``--plot-only`` it draws the seeds already under ``--run-dir`` without training.
 """
 
 from __future__ import annotations
@@ -68,8 +70,21 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", required=True)
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--out-csv", type=Path, required=True)
+    parser.add_argument("--plot", type=Path, help="draw the seeds' learning curves into this PNG")
+    parser.add_argument("--plot-only", action="store_true", help="only draw --plot from the runs under --run-dir")
     parser.add_argument("extra", nargs="*", help="flags passed on to the quickstart (after --)")
     args = parser.parse_args()
+    if not args.plot_only:
+        run_seeds(args)
+    if args.plot is not None:
+        from uamfleet.viz.curves import plot_learning_curve
+
+        runs = [args.run_dir / f"seed{seed}" for seed in args.seeds if (args.run_dir / f"seed{seed}").is_dir()]
+        title = f"Berlin P4 at -3 dB, recipe {args.recipe}, seeds {', '.join(str(s) for s in args.seeds)}"
+        print(plot_learning_curve(runs, out=args.plot, best_known_m=BEST_KNOWN_M[-3.0], title=title))
+
+
+def run_seeds(args: argparse.Namespace) -> None:
     for seed in args.seeds:
         row = seed_row(args.recipe, seed, args.run_dir, args.extra, pass_recipe=not args.label_only)
         new = not args.out_csv.exists()
