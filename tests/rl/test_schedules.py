@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from conftest import small_config
 
+from uamfleet import instances
 from uamfleet.config import ConfigError, Request
 from uamfleet.instances import fly_instances, split_seeds
 from uamfleet.rl import trainer
@@ -115,11 +116,21 @@ def test_the_first_delivery_clock_needs_evaluations():
 def test_the_curve_flies_the_validation_instances_after_each_evaluation(tmp_path):
     """A P4 run (4 passenger rows) with --curve-instances 3: each evaluation row carries val_td_m / val_pr_pct,
     the mean distance and delivered share of the policy flown on validation instances 1000000-1000002 (up to 6
-    requests each), where it reads its 4 nearest requests; flown again here from last.pt by hand. The training
-    itself is the run without the curve, to the bit."""
+    requests each), where it reads its 4 nearest requests; flown again here from last.pt by hand. The instances are
+    built once per run. The training itself is the run without the curve, to the bit."""
     common = dict(scenario="berlin_p4", sinr_min_db=-3.0, total_timesteps=2 * 2 * 8, time_limit_steps=200,
                   eval_time_limit_steps=200, shaping=50.0)  # fmt: skip
-    train(tiny_args(tmp_path / "curve", curve_instances=3, curve_family="berlin", **common))
+    built = []
+
+    def instance(family: str, seed: int, like: object) -> object:
+        built.append(seed)
+        return make_instance(family, seed, like)
+
+    with pytest.MonkeyPatch.context() as patch:
+        make_instance = instances.instance_for_policy
+        patch.setattr(instances, "instance_for_policy", instance)
+        train(tiny_args(tmp_path / "curve", curve_instances=3, curve_family="berlin", **common))
+    assert built == [1_000_000, 1_000_001, 1_000_002]  # built for the first evaluation, reused by the second
     train(tiny_args(tmp_path / "plain", **common))
     rows, plain = progress(tmp_path / "curve" / "tiny"), progress(tmp_path / "plain" / "tiny")
     assert len(rows) == 2 and all(r["val_td_m"] and r["val_pr_pct"] for r in rows)

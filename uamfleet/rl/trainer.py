@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -207,8 +208,16 @@ def curve_metrics(run: Run, policy: GreedyPolicy) -> dict[str, float]:
         if policy.spec.passenger_window is None:
             rows = policy.spec.rows(like.world)
             policy = policy.reading(dataclasses.replace(policy.spec, passenger_window=rows, slots_per_taxi=None))
-        like = like.replace(max_passengers=most)
+        like = _with_passenger_rows(like, most)
     return validation_metrics(policy, family, run.args.eval.curve_instances, like)
+
+
+@functools.lru_cache(maxsize=1)
+def _with_passenger_rows(like: EnvConfig, rows: int) -> EnvConfig:
+    """``like`` with a passenger axis of ``rows``: one object per run's config, since
+    :func:`~uamfleet.instances.fly_instances` keeps its batch for the config object it was built for (configs
+    hash by identity), so every evaluation after the first reuses the instances."""
+    return like.replace(max_passengers=rows)
 
 
 def evaluate_start(run: Run, learner: Learner, counters: Counters) -> dict[str, float]:
