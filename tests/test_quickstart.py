@@ -4,11 +4,13 @@ The 10-seed measurement behind the recipe is in docs/results.md, "The main job o
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import pytest
 
 from uamfleet.cli import quickstart
+from uamfleet.metrics import EpisodeMetrics
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
 from uamfleet.rl.legacy import checkpoint_args
 from uamfleet.rl.options import TrainArgs, make_env_config
@@ -89,3 +91,55 @@ def test_the_old_recipe_is_one_flag_pair_away(tmp_path):
         tmp_path, ["--init-from", "None", "--shaping-gamma", "0.9", "--eval-every", "5", "--seed", "3"]
     )
     assert (old.env.shaping_gamma, old.eval.eval_every, old.ppo.seed) == (0.9, 5, 3)
+
+
+SCRATCH_RECIPES = ("scratch", "scratch-first-delivery", "scratch-workers")
+
+
+def test_each_recipe_builds_its_trainer_options(tmp_path):
+    """--recipe names the training: fine-tune is the default's, scratch what --init-from None trains, and the
+    candidates from scratch differ from scratch only in the options they name (plan of issue 41, section 3.2)."""
+    assert trainer_options(tmp_path, ["--recipe", "fine-tune"]) == trainer_options(tmp_path, [])
+    scratch = trainer_options(tmp_path, ["--recipe", "scratch"])
+    assert scratch == trainer_options(tmp_path, ["--init-from", "None"])
+    assert scratch.net.init_from is None and scratch.ppo.schedule_clock == "steps"
+    delivery = trainer_options(tmp_path, ["--recipe", "scratch-first-delivery"])
+    assert delivery == scratch.with_options(schedule_clock="first_delivery")
+    workers = trainer_options(tmp_path, ["--recipe", "scratch-workers"])
+    assert workers == scratch.with_options(schedule_clock="first_delivery", num_envs=64, env_workers=2)
+    assert workers.chosen_backend() == "workers"
+    assert set(quickstart.RECIPES) == {"fine-tune", *SCRATCH_RECIPES}
+    for recipe in SCRATCH_RECIPES:  # from scratch whatever --init-from says (its default is the generalist)
+        assert trainer_options(tmp_path, ["--recipe", recipe, "--init-from", "berlin"]).net.init_from is None
+    curve = trainer_options(tmp_path, ["--recipe", "scratch", "--curve-instances", "5"])
+    assert (curve.eval.curve_instances, curve.eval.curve_family) == (5, "berlin")
+    assert curve == scratch.with_options(curve_instances=5, curve_family="berlin")
+
+
+def test_a_recipe_the_quickstart_does_not_know_is_a_one_line_error(tmp_path, capsys):
+    assert quickstart.cli(["--recipe", "scratch-fast", "--run-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("uamfleet-quickstart: error: --recipe='scratch-fast' is unknown; use one of fine-tune, ")
+    assert err.count("\n") == 1
+    assert quickstart.cli(["--recipe", "fine-tune", "--init-from", "None", "--run-dir", str(tmp_path)]) == 2
+    assert "--recipe fine-tune trains from --init-from, which is None" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_tiny_run_logs_the_validation_curve_and_draws_it(tmp_path, monkeypatch, capsys):
+    """One iteration from scratch with --curve-instances 2 (the flights of the table stubbed: not what is tested):
+    its evaluation row in progress.csv has val_td_m and val_pr_pct, and curve.png is written beside tb/."""
+    metrics = EpisodeMetrics(
+        5000.0, 100.0, 59.0, 28.0, 100.0, 91.6, -2.0, 200.0, 4, 4, 50.0, 60.0, 1.2, 1.0, 0, 0.1, 50
+    )
+    monkeypatch.setattr(quickstart, "fly", lambda *a, **k: metrics)
+    argv = ["--recipe", "scratch-first-delivery", "--total-timesteps", str(32 * 64), "--curve-instances", "2",
+            "--no-generalist", "--run-dir", str(tmp_path)]  # fmt: skip
+    assert quickstart.cli(argv) == 0
+    folder = tmp_path / quickstart.DEFAULT_RUN
+    with (folder / "progress.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 1 and float(rows[0]["val_td_m"]) > 0 and 0 <= float(rows[0]["val_pr_pct"]) <= 100
+    png = (folder / "curve.png").read_bytes()
+    assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 1000 and (folder / "tb").is_dir()
+    assert "recipe scratch-first-delivery" in capsys.readouterr().out

@@ -3,6 +3,7 @@
     uamfleet-quickstart                                   # 2-4 minutes of fine-tuning on a shared 2-core machine
     uamfleet-quickstart --init-from None                  # MSHA-PPO from scratch (150k agent-steps, 6-10 minutes)
     uamfleet-quickstart --init-from None --variant full   # the full MSHA model from scratch (~3x slower per step)
+    uamfleet-quickstart --recipe scratch-first-delivery   # a candidate recipe from scratch (RECIPES)
 
 Starts from the shipped generalist (``uamfleet.pretrained("berlin")``, one policy for any Berlin instance, trained
 on random demand) and fine-tunes it with PPO on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold),
@@ -17,8 +18,11 @@ authors' endpoint-block rule by default). Then it flies the shipped generalist z
 -7 ... -3 dB beside the paper's MSHA-RL, and on the held-out test instances beside the planners' recorded rows.
 The training's learning curve (greedy TD and PR of every evaluation against agent-steps, with best_known's tour
 and the band within 5 % of it) is drawn as curve.png in the run folder, beside its TensorBoard logs (tb/).
-It keeps no files outside ``--run-dir`` (the distance-table rows it needs are computed in memory; only a complete
-table, as training on random demand fills, is cached in ``~/.cache/uamfleet``).
+``--recipe`` names the training (:data:`RECIPES`): ``fine-tune`` (the default, from ``--init-from``), ``scratch``
+(what ``--init-from None`` trains), and the candidates from scratch that are being measured against it. With
+``--curve-instances N`` every evaluation also flies the first N Berlin validation instances (the curve's second
+panel). It keeps no files outside ``--run-dir`` (the distance-table rows it needs are computed in memory; only a
+complete table, as training on random demand fills, is cached in ``~/.cache/uamfleet``).
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
+from uamfleet.checks import ConfigError
 from uamfleet.cli._common import Feasibility, Variant, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
@@ -51,12 +56,25 @@ DEFAULT_RUN = "quickstart"
 
 FINE_TUNE_STEPS = 49_152  # 24 iterations of 32 envs x 64 steps
 SCRATCH_STEPS = 150_000
+RECIPES: dict[str, str] = {
+    "fine-tune": "PPO from --init-from (the shipped generalist) with a KL term toward it, 49,152 agent-steps",
+    "scratch": "the de_msfea network from scratch, 150,000 agent-steps, shaping that pays only for progress",
+    "scratch-first-delivery": "scratch, with the learning-rate decay and the shaping anneal counted from the first "
+    "greedy evaluation that delivers everyone (--schedule-clock first_delivery)",
+    "scratch-workers": "scratch-first-delivery with 64 envs stepped in 2 worker processes (--env-workers 2)",
+}
+"""The main job's trainings, by ``--recipe`` name (plan of issue 41, section 3.2: R0 = scratch,
+R1 = scratch-first-delivery, R3 = scratch-workers)."""
 FIXED_CSV = Path("docs/results/benchmark_fixed.csv")
 """The planners' recorded rows on the paper's fixed scenarios (best_known on P4 is the learning curve's reference)."""
 
 
 @dataclass
 class Args:
+    recipe: str | None = None
+    """the training (one of RECIPES: fine-tune, scratch, scratch-first-delivery, scratch-workers); None: fine-tune
+    from --init-from, or scratch when --init-from is None. The scratch recipes train from scratch whatever
+    --init-from says"""
     init_from: str | None = "berlin"
     """the policy fine-tuning starts from: a shipped name (uamfleet.zoo.PRETRAINED) or a checkpoint file; None:
     train the --variant network from scratch (the recipe of the 10-seed table before fine-tuning)"""
@@ -87,6 +105,9 @@ class Args:
     eval_every: int = 1
     """greedy evaluation every this many iterations; best.pt keeps the shortest tour of any of them (one episode,
     well under a second; with 5, tours flown between two evaluations were never kept)"""
+    curve_instances: int = 0
+    """after each evaluation also fly the first this many Berlin validation instances (TrainArgs.eval.curve_instances:
+    progress.csv's val_td_m / val_pr_pct, the curve's second panel); 0: none"""
     run_dir: Path = Path("runs")
     """folder of the run (relative to the current folder)"""
     run_name: str = DEFAULT_RUN
@@ -111,22 +132,44 @@ def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics
     return episode_metrics(traj, scored.radio, threshold_db=scored.sinr_min_db)
 
 
+def recipe_of(args: Args) -> str:
+    """The recipe the command line names: ``--recipe``, else fine-tune from ``--init-from`` (scratch when it is
+    None); ConfigError for an unknown name or fine-tune without a start."""
+    recipe = args.recipe if args.recipe is not None else ("scratch" if args.init_from is None else "fine-tune")
+    if recipe not in RECIPES:
+        raise ConfigError(f"--recipe={recipe!r} is unknown; use one of {', '.join(RECIPES)}.")
+    if recipe == "fine-tune" and args.init_from is None:
+        raise ConfigError(
+            "--recipe fine-tune trains from --init-from, which is None; give --init-from berlin (or a checkpoint "
+            "file), or use --recipe scratch."
+        )
+    return recipe
+
+
 def training_args(args: Args) -> TrainArgs:
-    """The trainer's options for the main job: fine-tuning from ``args.init_from``, or the recipe from scratch."""
+    """The trainer's options for the main job's recipe (:func:`recipe_of`): fine-tuning from ``args.init_from``, or
+    one of the recipes from scratch."""
+    recipe = recipe_of(args)
     common = dict(
         scenario="berlin_p4", sinr_min_db=args.sinr_min_db, seed=args.seed, run_dir=args.run_dir,
         run_name=args.run_name, max_wall_s=60.0 * args.minutes, feasibility=args.feasibility, threads=args.threads,
         eval_every=args.eval_every,
         overwrite=args.overwrite or args.run_name == DEFAULT_RUN,  # a rerun retrains its own run, never another
     )  # fmt: skip
-    if args.init_from is None:
+    if args.curve_instances:
+        common.update(curve_instances=args.curve_instances, curve_family="berlin")
+    if recipe != "fine-tune":
         steps = SCRATCH_STEPS if args.total_timesteps is None else args.total_timesteps
-        return TrainArgs.from_flat(
-            {**common, "total_timesteps": steps, "variant": args.variant, "shaping_gamma": args.shaping_gamma}
-        )
+        scratch = {**common, "total_timesteps": steps, "variant": args.variant, "shaping_gamma": args.shaping_gamma}
+        if recipe in ("scratch-first-delivery", "scratch-workers"):
+            scratch["schedule_clock"] = "first_delivery"
+        if recipe == "scratch-workers":
+            scratch.update(num_envs=64, env_workers=2)
+        return TrainArgs.from_flat(scratch)
     # The start's own reward (read from its checkpoint: for the shipped generalist no shaping and a long horizon),
     # a smaller step than from scratch, an entropy bonus to try other flights and a KL term to stay near the start
     # where the return does not say otherwise.
+    assert args.init_from is not None
     start = checkpoint_args(Checkpoint.load(checkpoint_source(args.init_from), map_location="cpu"))
     steps = FINE_TUNE_STEPS if args.total_timesteps is None else args.total_timesteps
     return TrainArgs.from_flat(dict(
@@ -138,16 +181,18 @@ def training_args(args: Args) -> TrainArgs:
 
 def main(args: Args) -> dict[str, EpisodeMetrics]:
     train_args = training_args(args)
-    if args.init_from is None:
+    scratch = train_args.net.init_from is None
+    if scratch:
         print(f"training MSHA-PPO ({args.variant}) from scratch on Berlin P4 at {args.sinr_min_db:g} dB for "
-              f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
+              f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min; recipe "
+              f"{recipe_of(args)}) ...")  # fmt: skip
     else:
         print(f"fine-tuning {args.init_from!r} with PPO on Berlin P4 at {args.sinr_min_db:g} dB for "
               f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
     result = train(train_args)
     policy, trained = load_policy(result.run_dir / "best.pt")
     rule = {"feasibility": args.feasibility}
-    name = f"MSHA-PPO {trained.net.variant} (ours)" if args.init_from is None else "MSHA-PPO fine-tuned (ours)"
+    name = f"MSHA-PPO {trained.net.variant} (ours)" if scratch else "MSHA-PPO fine-tuned (ours)"
     rows = {
         name: fly(policy, args.sinr_min_db, **rule),
         "raster_replan (ours)": fly(PlannerPolicy("raster_replan"), args.sinr_min_db, **rule),
@@ -164,7 +209,7 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
     for name, m in rows.items():
         print(f"{name:<26} {fmt(m.pr_pct, '.0f'):>5} {fmt(m.td_m, '.0f'):>6} {fmt(m.att_s, '.2f'):>7} "
               f"{fmt(m.awt_s, '.2f'):>7} {fmt(m.elr_pct, '.2f'):>6} {fmt(m.connectivity_pct, '.1f'):>8}")  # fmt: skip
-    if args.init_from is not None:
+    if not scratch:
         kept = (
             "the start itself: no evaluation beat it"
             if result.best_step == 0

@@ -186,17 +186,40 @@ def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
     return start, trained_on
 
 
-def set_schedules(run: Run, learner: Learner, iteration: int) -> float:
-    """Linear learning-rate decay and the shaping weight's anneal; returns the shaping weight."""
-    args, n = run.args, run.num_iterations
+def schedule(
+    args: TrainArgs, num_iterations: int, iteration: int, clock_start: int | None = None
+) -> tuple[float, float]:
+    """The (learning rate, shaping weight) of ``iteration`` (0-based) of a run of ``num_iterations``.
+
+    With ``--schedule-clock steps`` the learning rate decays linearly from ``--learning-rate`` to 0 over the run
+    (constant without ``--anneal-lr``) and the shaping weight decays linearly to 0 over the last
+    ``--shaping-anneal-frac`` of it. With ``first_delivery`` both stay at their start values until
+    ``clock_start``, the first iteration after the first greedy evaluation that delivered everyone (None: none
+    has yet), and from there follow the same shapes over the ``num_iterations - clock_start`` iterations left. The
+    shaping weight never falls below 1e-6, so the env's shaping stays on (its metric is fixed)."""
+    n, lr0, shaping, frac = num_iterations, args.ppo.learning_rate, args.env.shaping, args.env.shaping_anneal_frac
+    if args.ppo.schedule_clock == "steps":
+        begin, span = 0, n
+    elif clock_start is None:
+        return lr0, (shaping if shaping <= 0 or frac <= 0 else max(shaping, 1e-6))
+    else:
+        begin, span = clock_start, n - clock_start
+    lr = lr0 * (1.0 - (iteration - begin) / span) if args.ppo.anneal_lr else lr0
+    if shaping <= 0 or frac <= 0:
+        return lr, shaping
+    anneal_begin = begin + (1.0 - frac) * span
+    decay = min(1.0, max(0.0, 1.0 - (iteration - anneal_begin) / (frac * span)))
+    return lr, max(shaping * decay, 1e-6)
+
+
+def set_schedules(run: Run, learner: Learner, iteration: int, clock_start: int | None = None) -> float:
+    """Set the iteration's learning rate and shaping weight (:func:`schedule`); returns the shaping weight."""
+    args = run.args
+    lr, weight = schedule(args, run.num_iterations, iteration, clock_start)
     if args.ppo.anneal_lr:
-        learner.optimizer.param_groups[0]["lr"] = args.ppo.learning_rate * (1.0 - iteration / n)
+        learner.optimizer.param_groups[0]["lr"] = lr
     if args.env.shaping <= 0 or args.env.shaping_anneal_frac <= 0:
         return args.env.shaping
-    # keep a sliver of shaping so the env's shaping machinery stays on (its metric is fixed)
-    begin = (1.0 - args.env.shaping_anneal_frac) * n
-    decay = min(1.0, max(0.0, 1.0 - (iteration - begin) / (args.env.shaping_anneal_frac * n)))
-    weight = max(args.env.shaping * decay, 1e-6)
     run.venv.set_reward_weights(dataclasses.replace(run.cfg.reward, shaping=weight))
     return weight
 
@@ -278,5 +301,6 @@ def _local_indices(run: Run, idx: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 __all__ = [
-    "Learner", "compute_advantages", "make_learner", "ppo_update", "set_schedules", "with_init_architecture",
+    "Learner", "compute_advantages", "make_learner", "ppo_update", "schedule", "set_schedules",
+    "with_init_architecture",
 ]  # fmt: skip

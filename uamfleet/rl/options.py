@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeVar
 import tyro
 
 from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
-from uamfleet.instances import VALIDATION_SEEDS
+from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of
 from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.rl.networks import VARIANTS
 
@@ -199,6 +199,11 @@ class PPOOptions:
     """scale rewards by the running std of the discounted return"""
     seed: int = 1
     """seed of torch, numpy and the envs (env e gets seed + e)"""
+    schedule_clock: Literal["steps", "first_delivery"] = "steps"
+    """what the learning-rate decay and the shaping anneal count: steps, the run's iterations from the first; or
+    first_delivery, the iterations after the first greedy evaluation that delivers everyone (PR 100 %): until then
+    the learning rate and the shaping weight stay at their start values, after it both follow the steps schedule
+    compressed into the iterations left (needs greedy evaluations: --eval-every >= 1)"""
 
 
 @dataclass(frozen=True)
@@ -218,6 +223,14 @@ class EvalOptions:
     """stop once a greedy evaluation delivers everyone with TD at or below this (measures time-to-target)"""
     max_wall_s: float | None = None
     """stop (after a final evaluation and checkpoint) once training has run this many seconds"""
+    curve_instances: int = 0
+    """after each greedy evaluation, also fly the greedy policy on the first this many validation instances of
+    --curve-family (one batch; uamfleet.instances.validation_metrics) and log their mean distance and delivered
+    share as progress.csv's val_td_m and val_pr_pct (the learning curve's validation panel); never used to keep a
+    checkpoint. 0: none"""
+    curve_family: str | None = None
+    """instance family of --curve-instances (uamfleet.instances.FAMILIES, e.g. berlin); None: the scenario's own
+    (a *_instances, *_fleet or *_random scenario)"""
 
 
 @dataclass(frozen=True)
@@ -322,6 +335,14 @@ class TrainArgs:
                 f"--eval-instances={evaluation.eval_instances} flies held-out instances of a family; it needs a "
                 f"*_instances or *_fleet scenario (not {env.scenario!r}), e.g. --scenario berlin_instances."
             )
+        self._check_curve()
+        if self.ppo.schedule_clock not in ("steps", "first_delivery"):
+            raise ConfigError(f"--schedule-clock={self.ppo.schedule_clock!r} is unknown; use steps or first_delivery.")
+        if self.ppo.schedule_clock == "first_delivery" and evaluation.eval_every == 0:
+            raise ConfigError(
+                "--schedule-clock first_delivery starts the schedules at the first greedy evaluation that delivers "
+                "everyone, but --eval-every 0 evaluates only at the end; give --eval-every >= 1."
+            )
         if net.kl_to_init > 0 and net.init_from is None:
             raise ConfigError(
                 f"--kl-to-init={net.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
@@ -357,6 +378,29 @@ class TrainArgs:
             if (value <= low if low_open else value < low) or (high is not None and value > high):
                 interval = f"{'(' if low_open else '['}{low:g}, {'inf)' if high is None else f'{high:g}]'}"
                 raise ConfigError(f"{_flag(name)}={value!r} is out of range: it must lie in {interval}.")
+
+    def _check_curve(self) -> None:
+        """--curve-instances within the validation split, and a family to draw them from."""
+        count, family = self.eval.curve_instances, self.eval.curve_family
+        if count > len(VALIDATION_SEEDS):
+            raise ConfigError(
+                f"--curve-instances={count} exceeds the {len(VALIDATION_SEEDS):,} seeds of the validation split; "
+                "give at most that (e.g. 10)."
+            )
+        if family is not None and family not in FAMILIES:
+            raise ConfigError(f"--curve-family={family!r} is unknown; use one of {sorted(FAMILIES)}.")
+        if count and family is None and isinstance(self.env.scenario, str):
+            try:
+                family_of(self.env.scenario)
+            except ValueError:
+                raise ConfigError(
+                    f"--curve-instances={count} flies validation instances, but scenario {self.env.scenario!r} "
+                    f"belongs to no instance family; name one with --curve-family (e.g. berlin)."
+                ) from None
+
+    def curve_family_name(self) -> str:
+        """The family of the --curve-instances flights: --curve-family, else the scenario's own."""
+        return self.eval.curve_family or family_of(self.env.scenario)
 
     def _check_thresholds(self) -> None:
         """--thresholds: a list of distinct dB values, not given together with --sinr-min-db (stored as a tuple)."""
@@ -518,7 +562,7 @@ def grouped_from_flat(cls: type[G], flat: Mapping[str, Any]) -> G:
 _COUNTS: dict[str, int] = {
     "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
     "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
-    "checkpoint_every": 1, "threads": 0, "eval_instances": 0, "env_workers": 0,
+    "checkpoint_every": 1, "threads": 0, "eval_instances": 0, "env_workers": 0, "curve_instances": 0,
 }  # fmt: skip
 # (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
 _RANGES: dict[str, tuple[float, float | None, bool]] = {

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -31,7 +32,7 @@ import torch
 
 from uamfleet.config import REWARD_TERMS, EnvConfig
 from uamfleet.observe.spec import layout_to_dict
-from uamfleet.instances import family_of, validation_metrics
+from uamfleet.instances import FAMILIES, family_of, validation_metrics
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import (
     ARCHITECTURE_FIELDS,
@@ -182,6 +183,9 @@ def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[st
     else:
         m = evaluate(policy, run.eval_cfg).as_dict()
     row.update({f"eval/{k}": v for k, v in m.items()})
+    if run.args.eval.curve_instances:  # the curve's validation panel; the best is kept on the evaluation alone
+        curve = curve_metrics(run, policy)
+        row["val_td_m"], row["val_pr_pct"] = curve["td_m"], curve["pr_pct"]
     target = run.args.eval.stop_at_td_m
     if counters.target_step is None and target is not None and m["pr_pct"] >= 100.0 and m["td_m"] <= target:
         counters.target_step, counters.target_s = counters.global_step, row["wall_s"]
@@ -189,6 +193,31 @@ def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[st
         return False
     counters.best_eval, counters.best_step = m, counters.global_step
     return True
+
+
+def curve_metrics(run: Run, policy: GreedyPolicy) -> dict[str, float]:
+    """The greedy ``policy`` on the first ``--curve-instances`` validation instances of the curve's family
+    (:func:`~uamfleet.instances.validation_metrics`) under the evaluation's rules. Where those instances hold more
+    requests than the run's world has passenger rows (Berlin P4's 4 against a Berlin instance's up to 6), the
+    policy reads as many rows as it trained on, its nearest requests (a passenger window), in a world whose
+    passenger axis holds them all."""
+    family = run.args.curve_family_name()
+    like, most = run.eval_cfg, FAMILIES[family].max_passengers
+    if like.num_passengers < most:
+        assert policy.spec is not None
+        if policy.spec.passenger_window is None:
+            rows = policy.spec.rows(like.world)
+            policy = policy.reading(dataclasses.replace(policy.spec, passenger_window=rows, slots_per_taxi=None))
+        like = _with_passenger_rows(like, most)
+    return validation_metrics(policy, family, run.args.eval.curve_instances, like)
+
+
+@functools.lru_cache(maxsize=1)
+def _with_passenger_rows(like: EnvConfig, rows: int) -> EnvConfig:
+    """``like`` with a passenger axis of ``rows``: one object per run's config, since
+    :func:`~uamfleet.instances.fly_instances` keeps its batch for the config object it was built for (configs
+    hash by identity), so every evaluation after the first reuses the instances."""
+    return like.replace(max_passengers=rows)
 
 
 def evaluate_start(run: Run, learner: Learner, counters: Counters) -> dict[str, float]:
@@ -258,6 +287,7 @@ def _train(
     counters, rows = start(run, learner, claim)
     if args.net.init_from is not None and counters.iteration == 0 and ranks.is_main:
         rows.append(evaluate_start(run, learner, counters))
+    clock_start = first_delivery(run, rows)
     if counters.iteration >= run.num_iterations:
         _say_finished(run, counters)
         return _result(run, counters, rows, interrupted=False)
@@ -265,7 +295,7 @@ def _train(
     snapshot = capture(run, learner, counters) if ranks.is_main else None
     try:
         for iteration in range(counters.iteration, run.num_iterations):
-            shaping_weight = set_schedules(run, learner, iteration)
+            shaping_weight = set_schedules(run, learner, iteration, clock_start)
             rollout = collect_rollout(run, learner.net, learner.normalizer, learner.scaler)
             advantages, returns = compute_advantages(run, learner)
             infos = ppo_update(run, learner, advantages, returns)
@@ -274,6 +304,8 @@ def _train(
                 on_iteration(iteration, learner.net)
             row = progress_row(run, learner, counters, rollout, infos, advantages, returns, shaping_weight)
             stop, new_best = evaluate_and_decide(run, learner, counters, row, iteration)
+            if clock_start is None and args.ppo.schedule_clock == "first_delivery":
+                clock_start = first_delivery(run, [row])
             if log is not None:
                 rows.append(row)
                 snapshot = record(run, learner, counters, log, rows, new_best, stop)
@@ -286,6 +318,22 @@ def _train(
             log.close()
     ranks.barrier()
     return _result(run, counters, rows, interrupted=False)
+
+
+def first_delivery(run: Run, rows: list[dict[str, float]]) -> int | None:
+    """With ``--schedule-clock first_delivery``: the iteration the schedules count from, on every rank (rank 0's
+    ``rows`` decide): the first row's whose greedy evaluation delivered everyone (a row's ``iteration`` counts the
+    iterations done, so it is the next one to train; a resumed run finds it in its progress.csv, a fine-tuning run
+    in its start's evaluation, iteration 0); None when no row has, and always with ``steps``."""
+    if run.args.ppo.schedule_clock != "first_delivery":
+        return None
+    found = None
+    if run.ranks.is_main:
+        delivered = [r for r in rows if r.get("eval/pr_pct", 0.0) >= 100.0]
+        if delivered:
+            found = int(delivered[0]["iteration"])
+    data = run.ranks.broadcast_bytes(None if found is None else str(found).encode())
+    return None if data is None else int(data)
 
 
 def _say_finished(run: Run, counters: Counters) -> None:
