@@ -204,6 +204,17 @@ def _hedge_config(requests, art: str = OPEN_7, start=(150.0, 150.0)):  # type: i
                         max_passengers=3)  # fmt: skip
 
 
+def _probe(cfg, state):  # type: ignore[no-untyped-def]
+    """A one-env core of ``cfg`` set to ``state`` (a future drawn for the hedge, or the known requests)."""
+    from uamfleet.types import FleetState
+
+    probe = VectorEnv(cfg, 1, autoreset=False)
+    probe.reset(seed=0)
+    for name in FleetState._fields:
+        getattr(probe.state, name)[:] = getattr(state, name)
+    return probe
+
+
 def _greedy_moves(policy, env: VectorEnv) -> float:  # type: ignore[no-untyped-def]
     """Moves of the policy's greedy decoding (a loop guard of its own) from the env's state until it ends; the time
     limit adds its steps where someone is left undelivered."""
@@ -236,7 +247,6 @@ def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> N
     from the same seed), each first heading and then the policy's greedy flight to the end (tail None)."""
     from uamfleet.baselines.step_planner import released_only
     from uamfleet.rl.guided import AnticipatingGuidedSearch
-    from uamfleet.types import FleetState
 
     cfg = _hedge_config((Request(0, (550.0, 150.0), (550.0, 550.0)),), start=(50.0, 50.0))  # a corner: it may wait
     prior = _prior(cfg)
@@ -256,10 +266,7 @@ def test_each_first_heading_is_scored_by_the_policy_flown_in_every_future() -> N
     for heading, hold, mean in zip(first, holds, means, strict=False):
         moves = []
         for future in futures:
-            probe = VectorEnv(env.cfg, 1, autoreset=False)
-            probe.reset(seed=0)
-            for name in FleetState._fields:
-                getattr(probe.state, name)[:] = getattr(known if future is None else future, name)
+            probe = _probe(env.cfg, known if future is None else future)
             flown = 0.0
             for _ in range(hold):
                 _, _, terminated, _, info = probe.step(np.array([[heading]]))
@@ -280,7 +287,7 @@ def test_the_hover_wait_is_a_candidate_at_any_step_scored_by_the_policy_flown_af
     scored by hand one future at a time like every first heading; without the hover action in the world, refused."""
     from uamfleet.baselines.step_planner import released_only
     from uamfleet.rl.guided import AnticipatingGuidedSearch
-    from uamfleet.types import HOVER_ACTION, FleetState
+    from uamfleet.types import HOVER_ACTION
 
     cfg = _hedge_config((Request(0, (550.0, 150.0), (550.0, 550.0)),), start=(350.0, 350.0)).replace(hover_action=True)
     prior, policy = _prior(cfg), _policy(cfg, 3)
@@ -300,10 +307,7 @@ def test_the_hover_wait_is_a_candidate_at_any_step_scored_by_the_policy_flown_af
     futures = [prior.sample(known, rng) for _ in range(4)]
     moves = []
     for future in futures:
-        probe = VectorEnv(env.cfg, 1, autoreset=False)
-        probe.reset(seed=0)
-        for name in FleetState._fields:
-            getattr(probe.state, name)[:] = getattr(known if future is None else future, name)
+        probe = _probe(env.cfg, known if future is None else future)
         for _ in range(hover.commit):  # the hover flies nothing
             _, _, terminated, _, info = probe.step(np.array([[HOVER_ACTION]]))
             assert float(info["events"].moved[0, 0]) == 0.0 and not terminated[0]
