@@ -21,7 +21,9 @@ def main(paths: list[str]) -> None:
             for r in csv.DictReader(f):
                 rows[r["method"]][r["instance"]] = {k: float(r[k]) for k in ("td_m", "pr_pct", "awt_s")}
     best, replan = rows.get("best_known", {}), rows.get("replan", {})
-    print(f"{'method':<70} {'n':>4} {'all del. %':>10} {'TD m':>9} {'TD/best':>8} {'AWT s':>7} {'- replan m (95 %)':>20}")
+    print(
+        f"{'method':<70} {'n':>4} {'all del. %':>10} {'TD m':>9} {'TD/best':>8} {'AWT s':>7} {'- replan m (95 %)':>20}"
+    )
     for method, by in rows.items():
         names = sorted(by)
         td = np.array([by[n]["td_m"] for n in names])
