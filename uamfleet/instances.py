@@ -57,6 +57,7 @@ from uamfleet.config import (
 )
 from uamfleet.demand import DemandLaw
 from uamfleet.env.mixture import MixtureVectorEnv
+from uamfleet.env.protocol import observer_of
 from uamfleet.observe.legacy import observed_config, split_env_config
 from uamfleet.observe.spec import ObserverSpec
 from uamfleet.paths import DistanceFields
@@ -369,8 +370,7 @@ def fly_instances(
     (one policy call per step for all). Returns (share of passengers delivered [n], distance flown [n] metres).
     The batch of the last call is kept: a trainer evaluating on the same seeds every few iterations builds the
     instances and worlds once."""
-    spec = getattr(policy, "spec", None)  # observed as the policy reads, else as ``like`` observes
-    observer = spec if isinstance(spec, ObserverSpec) else None
+    observer = observer_of(policy)  # observed as the policy reads, else as ``like`` observes
     key = (family, tuple(int(s) for s in seeds), like, observer)  # the config itself (hashed by identity, kept alive)
     if key not in _BATCHES:
         _BATCHES.clear()

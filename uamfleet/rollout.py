@@ -10,9 +10,8 @@ from typing import Any
 import numpy as np
 
 from uamfleet.config import EnvConfig
-from uamfleet.env.protocol import Policy
+from uamfleet.env.protocol import Policy, observer_of
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.observe.spec import ObserverSpec
 from uamfleet.types import StepEvents
 
 
@@ -61,9 +60,7 @@ def fly(
     """One recorded episode of ``policy`` in a fresh one-env core of ``cfg``, observed as the policy reads it (its
     :class:`~uamfleet.observe.spec.ObserverSpec` ``spec``, :class:`~uamfleet.env.protocol.Policy`; none: the
     config's own observer). The world is flown as given; a spec that cannot read it is refused in one line."""
-    spec = getattr(policy, "spec", None)
-    observer = spec if isinstance(spec, ObserverSpec) else None
-    return run_episode(VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer), policy, seed=seed)
+    return run_episode(VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy)), policy, seed=seed)
 
 
 def run_episode(

@@ -11,7 +11,7 @@ from uamfleet.baselines.demand_models import EstimatedDemand
 from uamfleet.config import EnvConfig, Request
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FAMILIES, make_instance, split_seeds
-from uamfleet.observe.spec import ObserverSpec
+from uamfleet.env.protocol import observer_of
 from uamfleet.policies import make
 
 
@@ -43,8 +43,7 @@ def _instances(count: int, family: str = "berlin") -> list[EnvConfig]:
 
 def _fly(policy, cfg: EnvConfig, steps: int) -> list[int]:  # type: ignore[no-untyped-def]
     """The actions of ``policy`` over the first ``steps`` steps of ``cfg`` (observed as it reads)."""
-    spec = getattr(policy, "spec", None)
-    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=spec if isinstance(spec, ObserverSpec) else None)
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
     obs, _ = env.reset(seed=0)
     policy.reset(env.sim)
     actions = []

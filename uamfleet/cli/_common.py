@@ -23,7 +23,7 @@ from uamfleet.config import FEASIBILITY_RULES, EnvConfig
 from uamfleet.policies import available, make, make_flown, parse
 from uamfleet.policies.learned import for_world
 from uamfleet.policies.registry import BASE, PolicyNameError
-from uamfleet.observe.spec import ObserverSpec
+from uamfleet.env.protocol import observer_of
 from uamfleet.presets import SCENARIOS
 from uamfleet.instances import FAMILIES, SPLITS
 from uamfleet.rl.distributed import RankZeroError
@@ -187,8 +187,8 @@ def flight(
     try:
         name, options = _fit_to_world(call, scored)
         policy = make(name, **options)
-        spec = getattr(policy, "spec", None)
-        refusal = spec.reads(scored.world) if isinstance(spec, ObserverSpec) else None
+        spec = observer_of(policy)
+        refusal = spec.reads(scored.world) if spec is not None else None
         if refusal is not None:  # e.g. more requests than the policy reads, another fleet size, no hover action
             raise ValueError(refusal)
     except PolicyNameError as err:

@@ -377,11 +377,11 @@ def _check_checkpoint_flies(checkpoint: Path, args: Args) -> None:
     designed variant); says which it skips."""
     settings, passenger_window = list(args.settings), args.passenger_window
     make("learned", source=str(checkpoint))  # a file it cannot read is refused here, not skipped
-    reasons = {}
+    reasons, first_seed = {}, split_seeds(args.split, 1, args.first)[0]
     for setting in settings:
         taxis, requests = setting_size(setting)
         world = make_fleet_instance(
-            args.family, split_seeds(args.split, 1, args.first)[0], taxis, requests,
+            args.family, first_seed, taxis, requests,
             arrival_window_s=args.arrival_window_s, separation=args.separation, hover_action=args.hover_action,
         ).world  # fmt: skip
         reasons[setting] = refusal(_learned(checkpoint, taxis, requests, passenger_window), world)

@@ -24,7 +24,7 @@ from typing import Annotated
 import numpy as np
 
 import uamfleet
-from uamfleet.observe.spec import ObserverSpec
+from uamfleet.env.protocol import observer_of
 from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, flight, fmt, policy_call, run
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import run_episode
@@ -65,10 +65,7 @@ def main(args: Args) -> list[dict[str, float]]:
         if v is not None
     }
     flown, cfg, policy = flight(args.scenario, args.policy, args.seed, overrides)  # cfg: the rules it is scored by
-    spec = getattr(policy, "spec", None)  # observed as the policy reads (its spec), or by the world's own observer
-    env = uamfleet.VectorEnv(
-        flown, num_envs=1, autoreset=False, observer=spec if isinstance(spec, ObserverSpec) else None
-    )
+    env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False, observer=observer_of(policy))
     print(
         f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
         f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"

@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from uamfleet.observe.spec import ObserverSpec
+
 if TYPE_CHECKING:
     from uamfleet.sim.core import Simulator
 
@@ -58,4 +60,12 @@ class PolicyBase:
         return self.act(obs)
 
 
-__all__ = ["Policy", "PolicyBase"]
+def observer_of(policy: object) -> ObserverSpec | None:
+    """The observer ``policy`` reads (its :attr:`Policy.spec` when that is an
+    :class:`~uamfleet.observe.spec.ObserverSpec`), to build its env with ``observer=``; None: the world's own (a
+    planner, a dispatcher or a plain function of the observation)."""
+    spec = getattr(policy, "spec", None)
+    return spec if isinstance(spec, ObserverSpec) else None
+
+
+__all__ = ["Policy", "PolicyBase", "observer_of"]

@@ -351,9 +351,13 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self._known_search_done = False
         super().reset(sim)  # its search at the start runs through _search below
 
+    def _future_rows(self, world_rows: int) -> int:
+        """The passenger rows of its sampled futures: the world's, or the demand model's most requests if more."""
+        return max(world_rows, self.prior.max_requests)
+
     def _check_rows(self, cfg: EnvConfig) -> None:
         """ValueError when its policy cannot read the futures it samples: up to the demand model's most requests."""
-        rows = max(cfg.num_passengers, self.prior.max_requests)
+        rows = self._future_rows(cfg.num_passengers)
         spec = self.spec
         if spec is not None:
             reads = rows if spec.reads(cfg.replace(max_passengers=rows).world) is None else spec.rows(cfg.world)
@@ -372,7 +376,7 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         known = released_only(self.sim.state)
         if not known.pax_exists.any():
             return []
-        known = pad_passengers(known, max(known.pax_exists.shape[1], self.prior.max_requests))
+        known = pad_passengers(known, self._future_rows(known.pax_exists.shape[1]))
         samples = [self.prior.sample(known, self.rng_futures) for _ in range(self.futures)]
         if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
             self._known_search_done = True
@@ -439,16 +443,13 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
     def _futures_env(self, num_envs: int) -> VectorEnv:
         """The scratch env of ``num_envs`` rows for one search (made once per size and config)."""
         assert self.sim is not None
-        env = self._futures_envs.get(num_envs)
-        if env is None or self._futures_world is not self.sim.cfg:
-            if self._futures_world is not self.sim.cfg:
-                self._futures_envs.clear()
+        if self._futures_world is not self.sim.cfg:  # another world: its envs are built afresh
+            self._futures_envs.clear()
             self._futures_world = self.sim.cfg
-            # the world's rules on a passenger axis its sampled requests fit in, observed as the policy reads
-            rows = max(self.sim.cfg.num_passengers, self.prior.max_requests)
-            env = self._futures_envs[num_envs] = VectorEnv(
-                self.sim.cfg.replace(max_passengers=rows), num_envs=num_envs, autoreset=True, observer=self.spec
-            )
+        env = self._futures_envs.get(num_envs)
+        if env is None:  # the world's rules on the futures' passenger axis, observed as the policy reads
+            futures_world = self.sim.cfg.replace(max_passengers=self._future_rows(self.sim.cfg.num_passengers))
+            env = self._futures_envs[num_envs] = VectorEnv(futures_world, num_envs, autoreset=True, observer=self.spec)
             env.reset(seed=0)
         return env
 

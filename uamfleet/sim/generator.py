@@ -262,6 +262,10 @@ def sample_requests(
 # ---- state allocation and reset ---------------------------------------------------------------------------
 
 
+PAX_NONE: dict[str, int] = {"pax_taxi": -1, "pax_pickup_step": -1, "pax_dropoff_step": -1}
+"""The value of an empty passenger row in the ``pax_*`` fields that are not 0 there (no taxi, no step yet)."""
+
+
 def allocate_state(world: World, num_envs: int) -> FleetState:
     cfg = world.cfg
     E, A, P, H, k = num_envs, cfg.num_taxis, cfg.num_passengers, cfg.history_len, cfg.patch_size
@@ -280,9 +284,9 @@ def allocate_state(world: World, num_envs: int) -> FleetState:
         pax_origin_m=np.zeros((E, P, 2)),
         pax_dest_m=np.zeros((E, P, 2)),
         pax_status=np.zeros((E, P), np.int8),
-        pax_taxi=np.full((E, P), -1, np.int64),
-        pax_pickup_step=np.full((E, P), -1, np.int64),
-        pax_dropoff_step=np.full((E, P), -1, np.int64),
+        pax_taxi=np.full((E, P), PAX_NONE["pax_taxi"], np.int64),
+        pax_pickup_step=np.full((E, P), PAX_NONE["pax_pickup_step"], np.int64),
+        pax_dropoff_step=np.full((E, P), PAX_NONE["pax_dropoff_step"], np.int64),
         stop_pair_m=np.full((E, 2 * P, 2 * P) if cfg.stop_features else (E, 0, 0), np.nan),
         stop_tour_key=np.full((E, A), -1, np.int64),
         stop_tour_m=np.full((E, A, 2 * P if cfg.stop_features else 0), np.nan),
@@ -307,10 +311,9 @@ def pad_passengers(state: FleetState, rows: int) -> FleetState:
         return out
 
     fields = {name: np.array(getattr(state, name)) for name in FleetState._fields}
-    for name in ("pax_exists", "pax_release", "pax_origin_m", "pax_dest_m", "pax_status"):
-        fields[name] = grown(name, 0)
-    for name in ("pax_taxi", "pax_pickup_step", "pax_dropoff_step"):
-        fields[name] = grown(name, -1)
+    for name in FleetState._fields:
+        if name.startswith("pax_"):  # [E, P, ...]: the passenger rows
+            fields[name] = grown(name, PAX_NONE.get(name, 0))
     if state.stop_pair_m.shape[1]:  # with the stop features: [E, 2P, 2P] and [E, A, 2P]
         pairs = np.full((E, 2 * rows, 2 * rows), np.nan)
         pairs[:, : 2 * P, : 2 * P] = state.stop_pair_m
