@@ -133,7 +133,7 @@ FAMILIES: dict[str, InstanceFamily] = {
     "berlin_peak": law_family(
         "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("peak", 3, 6, window_s=240.0, peak_s=120.0, peak_sd_s=30.0)
     ),
-    # two requests at once, the others over the first 90 s (the new-user trial of issue 41)
+    # two requests at once, the others over the first 90 s
     "berlin_burst": law_family(
         "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("uniform_window", 4, 5, initial=2, window_s=90.0)
     ),

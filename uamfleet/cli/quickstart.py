@@ -63,8 +63,7 @@ RECIPES: dict[str, str] = {
     "greedy evaluation that delivers everyone (--schedule-clock first_delivery)",
     "scratch-workers": "scratch-first-delivery with 64 envs stepped in 2 worker processes (--env-workers 2)",
 }
-"""The main job's trainings, by ``--recipe`` name (plan of issue 41, section 3.2: R0 = scratch,
-R1 = scratch-first-delivery, R3 = scratch-workers)."""
+"""The main job's trainings, by ``--recipe`` name."""
 FIXED_CSV = Path("docs/results/benchmark_fixed.csv")
 """The planners' recorded rows on the paper's fixed scenarios (best_known on P4 is the learning curve's reference)."""
 

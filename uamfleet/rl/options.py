@@ -336,13 +336,6 @@ class TrainArgs:
                 f"*_instances or *_fleet scenario (not {env.scenario!r}), e.g. --scenario berlin_instances."
             )
         self._check_curve()
-        if self.ppo.schedule_clock not in ("steps", "first_delivery"):
-            raise ConfigError(f"--schedule-clock={self.ppo.schedule_clock!r} is unknown; use steps or first_delivery.")
-        if self.ppo.schedule_clock == "first_delivery" and evaluation.eval_every == 0:
-            raise ConfigError(
-                "--schedule-clock first_delivery starts the schedules at the first greedy evaluation that delivers "
-                "everyone, but --eval-every 0 evaluates only at the end; give --eval-every >= 1."
-            )
         if net.kl_to_init > 0 and net.init_from is None:
             raise ConfigError(
                 f"--kl-to-init={net.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
@@ -380,7 +373,15 @@ class TrainArgs:
                 raise ConfigError(f"{_flag(name)}={value!r} is out of range: it must lie in {interval}.")
 
     def _check_curve(self) -> None:
-        """--curve-instances within the validation split, and a family to draw them from."""
+        """--curve-instances within the validation split, and a family to draw them from; --schedule-clock known,
+        and with first_delivery, evaluations during the run to start it."""
+        if self.ppo.schedule_clock not in ("steps", "first_delivery"):
+            raise ConfigError(f"--schedule-clock={self.ppo.schedule_clock!r} is unknown; use steps or first_delivery.")
+        if self.ppo.schedule_clock == "first_delivery" and self.eval.eval_every == 0:
+            raise ConfigError(
+                "--schedule-clock first_delivery starts the schedules at the first greedy evaluation that delivers "
+                "everyone, but --eval-every 0 evaluates only at the end; give --eval-every >= 1."
+            )
         count, family = self.eval.curve_instances, self.eval.curve_family
         if count > len(VALIDATION_SEEDS):
             raise ConfigError(
