@@ -277,3 +277,23 @@ class DemandLaw:
 def _origin_pmf(law: DemandLaw, sites: bytes, shape: tuple[int, ...]) -> np.ndarray:
     """``law``'s origin pmf over the sites (as bytes), kept: an instance family draws on a few site sets only."""
     return law.site_pmf(np.frombuffer(sites).reshape(shape))[0]
+
+
+def binned_intensity(releases: Sequence[np.ndarray], cap: int, bin_steps: int) -> np.ndarray:
+    """[horizon + 1] arrivals per step after step 0, per bin of ``bin_steps``: a bin's arrivals over its at-risk
+    steps (those of each episode before it reached ``cap``); half an arrival in a bin without any; the horizon one
+    bin past the bin of the last release (:meth:`uamfleet.baselines.demand_models.EstimatedDemand.fit`)."""
+    last = max(int(r.max()) for r in releases)
+    horizon = (-(-last // bin_steps) + 1) * bin_steps
+    intensity = np.zeros(horizon + 1)
+    arrivals, at_risk = np.zeros(horizon + 1), np.zeros(horizon + 1)
+    steps = np.arange(horizon + 1)
+    for r in releases:
+        np.add.at(arrivals, r[r > 0], 1)
+        before = np.searchsorted(r, steps, side="left")  # released before each step
+        at_risk += before < cap
+    for b in range(horizon // bin_steps):
+        span = slice(1 + b * bin_steps, 1 + (b + 1) * bin_steps)
+        if at_risk[span].sum() > 0:  # half an arrival in a bin without any: unlikely there, not impossible
+            intensity[span] = max(arrivals[span].sum(), 0.5) / at_risk[span].sum()
+    return intensity

@@ -31,7 +31,7 @@ import numpy as np
 
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import EnvConfig
-from uamfleet.demand import DemandLaw, Request
+from uamfleet.demand import DemandLaw, Request, binned_intensity
 from uamfleet.instances import FAMILIES, check_family, draw_trip
 from uamfleet.io import write_text_atomic
 from uamfleet.sim.generator import flyable_sites
@@ -313,26 +313,6 @@ class FamilyLaw:
 # --- the estimated model -----------------------------------------------------------------------------------------
 
 
-def _binned_intensity(releases: Sequence[np.ndarray], cap: int, bin_steps: int) -> np.ndarray:
-    """[horizon + 1] arrivals per step after step 0, per bin of ``bin_steps``: a bin's arrivals over its at-risk
-    steps (those of each episode before it reached ``cap``); half an arrival in a bin without any; the horizon one
-    bin past the bin of the last release (:meth:`EstimatedDemand.fit`)."""
-    last = max(int(r.max()) for r in releases)
-    horizon = (-(-last // bin_steps) + 1) * bin_steps
-    intensity = np.zeros(horizon + 1)
-    arrivals, at_risk = np.zeros(horizon + 1), np.zeros(horizon + 1)
-    steps = np.arange(horizon + 1)
-    for r in releases:
-        np.add.at(arrivals, r[r > 0], 1)
-        before = np.searchsorted(r, steps, side="left")  # released before each step
-        at_risk += before < cap
-    for b in range(horizon // bin_steps):
-        span = slice(1 + b * bin_steps, 1 + (b + 1) * bin_steps)
-        if at_risk[span].sum() > 0:  # half an arrival in a bin without any: unlikely there, not impossible
-            intensity[span] = max(arrivals[span].sum(), 0.5) / at_risk[span].sum()
-    return intensity
-
-
 def _kernel(a: np.ndarray, b: np.ndarray, bandwidth_m: float) -> np.ndarray:
     d2 = np.sum((a[:, None] - b[None]) ** 2, axis=-1)
     return np.exp(-0.5 * d2 / bandwidth_m**2)
@@ -423,7 +403,7 @@ class EstimatedDemand:
         releases = [np.sort([r.release_step for r in e]) for e in episodes]
         cap = max(map(len, releases))
         initial_pmf = np.bincount([int((r == 0).sum()) for r in releases], minlength=cap + 1) / len(releases)
-        intensity = _binned_intensity(releases, cap, bin_steps)
+        intensity = binned_intensity(releases, cap, bin_steps)
         origins = np.array([r.origin_m for e in episodes for r in e], dtype=float)
         dests = np.array([r.destination_m for e in episodes for r in e], dtype=float)
         points, inverse = np.unique(np.vstack([origins, dests]), axis=0, return_inverse=True)
