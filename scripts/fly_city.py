@@ -7,7 +7,7 @@ The instances are drawn exactly as Berlin's test instances (:func:`uamfleet.inst
 ``berlin``'s rules: thresholds -7 ... -3 dB, 2-6 passengers, trips >= 500 m, 100 m steps of 3 s) on the given
 map, registered for this process as the family ``<map name>`` (so the seeds draw other instances than Berlin's)
 and the scenario ``<map name>_random`` (``berlin_random`` with ``radio=`` the map). Each instance is flown by
-:func:`uamfleet.cli.benchmark.run_instance`, the rows summarised by :func:`uamfleet.cli.benchmark.markdown`. The
+:func:`uamfleet.cli.benchmark.run_instance`, the rows summarised by :func:`uamfleet.cli.benchmark_tables.markdown`. The
 generalist is ``uamfleet.pretrained("berlin")``'s checkpoint, never trained on this map. Workers are forked (not
 spawned as in uamfleet-benchmark) so that they inherit the registered family.
 

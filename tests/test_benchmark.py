@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from uamfleet.cli.benchmark import Args, markdown, summary, tasks
+from uamfleet.cli.benchmark import Args, tasks
+from uamfleet.cli.benchmark_tables import markdown, summary
 
 
 def _row(instance: str, method: str, td: float, pr: float = 100.0) -> dict[str, object]:

@@ -43,7 +43,7 @@ from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.checks import ConfigError, check_number
 from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
-from uamfleet.cli.benchmark import _ci, command_header
+from uamfleet.cli.benchmark_tables import ci, command_header
 from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.config import WorldConfig
 from uamfleet.env.vector_env import VectorEnv
@@ -244,11 +244,11 @@ def markdown(rows: list[dict[str, Any]], command: str, wall_s: float, note: str 
 
         all_delivered = 100.0 * float(np.mean(col("service_pct") >= 100.0))
         lines.append(
-            f"| {key[0]} | {key[1]} | {key[2]} | {len(sel)} | {all_delivered:.0f} | {_ci(col('service_pct'))} | "
-            f"{_ci(col('wait_p50_s'))} | {_ci(col('wait_p95_s'))} | {_ci(col('detour') * 100)} % | "
-            f"{_ci(col('td_per_delivered_m'))} | {_ci(col('occupancy') * 100)} % | "
-            f"{_ci(col('separation_violations'))} | {_ci(col('interventions_per_taxi_h'))} | "
-            f"{_ci(col('connectivity_pct'))} | "
+            f"| {key[0]} | {key[1]} | {key[2]} | {len(sel)} | {all_delivered:.0f} | {ci(col('service_pct'))} | "
+            f"{ci(col('wait_p50_s'))} | {ci(col('wait_p95_s'))} | {ci(col('detour') * 100)} % | "
+            f"{ci(col('td_per_delivered_m'))} | {ci(col('occupancy') * 100)} % | "
+            f"{ci(col('separation_violations'))} | {ci(col('interventions_per_taxi_h'))} | "
+            f"{ci(col('connectivity_pct'))} | "
             f"{np.median(col('decision_p50_ms')):.1f} / {col('decision_max_ms').max():,.0f} |"
         )
     lines += [

@@ -51,7 +51,7 @@ from uamfleet.rl.checkpoint import (
     trained_spec,
     world_record,
 )
-from uamfleet.rl.options import Flat, flat_options, grouped_from_flat, option_groups
+from uamfleet.rl.option_groups import Flat, flat_options, grouped_from_flat, option_groups
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rl.trainer import Checkpoint, GreedyPolicy, checkpoint_args, load_policy

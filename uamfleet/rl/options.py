@@ -12,16 +12,13 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeVar
-
-import tyro
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of
 from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.rl.networks import VARIANTS
-
-G = TypeVar("G")
+from uamfleet.rl.option_groups import Flat, flat_options, grouped_from_flat
 
 # The known names as Literal types built from the package's tuples (tyro offers them as choices); mypy sees str.
 if TYPE_CHECKING:
@@ -265,9 +262,6 @@ GROUPS: dict[str, type] = {
     "run": RunOptions,
 }  # fmt: skip
 """The option groups of :class:`TrainArgs`, by attribute: each option belongs to exactly one."""
-Flat = tyro.conf.OmitArgPrefixes
-"""A group's flags keep their own names (``--learning-rate``, not ``--ppo.learning-rate``); ``--help`` shows the
-group as a section."""
 GROUP_OF: dict[str, str] = {f.name: group for group, cls in GROUPS.items() for f in dataclasses.fields(cls)}
 """The group of each option, by its name (the key of the flat dict a checkpoint stores)."""
 
@@ -529,34 +523,6 @@ class TrainArgs:
         if observer.passenger_window is not None:
             overrides["passenger_window"] = observer.passenger_window
         return overrides
-
-
-def flat_options(grouped: Any) -> dict[str, Any]:
-    """Every option of a dataclass of option groups (each a dataclass), by name, in the groups' order."""
-    return {
-        f.name: getattr(group, f.name)
-        for group in (getattr(grouped, g.name) for g in dataclasses.fields(grouped))
-        for f in dataclasses.fields(group)
-    }
-
-
-def option_groups(cls: type) -> dict[str, type]:
-    """The group classes of a dataclass of option groups, by attribute (each group's default factory)."""
-    return {g.name: g.default_factory for g in dataclasses.fields(cls)}  # type: ignore[misc]
-
-
-def grouped_from_flat(cls: type[G], flat: Mapping[str, Any]) -> G:
-    """A dataclass of option groups built from the flat dict ``flat`` (option name -> value; options it lacks take
-    their defaults); ConfigError naming any key that is no option of ``cls``."""
-    groups = option_groups(cls)
-    group_of = {f.name: name for name, group in groups.items() for f in dataclasses.fields(group)}
-    unknown = sorted(set(flat) - set(group_of))
-    if unknown:
-        raise ConfigError(f"{unknown} are no options of {cls.__name__}; give only its options (e.g. seed), by name.")
-    grouped: dict[str, dict[str, Any]] = {name: {} for name in groups}
-    for name, value in flat.items():
-        grouped[group_of[name]][name] = value
-    return cls(**{name: groups[name](**values) for name, values in grouped.items()})
 
 
 # Lower bounds of TrainArgs' integer options.
