@@ -193,7 +193,7 @@ def main(args: Args) -> list[dict[str, Any]]:
 
 def print_table(rows: list[dict[str, Any]], maps: tuple[str, ...]) -> None:
     """Per shield and method: each map's decision ms per taxi-step (wall p50 / p95 / max, CPU p50) and env step
-    ms per taxi (p50), and the ratio of the last map to the first (p50, p95)."""
+    ms per taxi (p50), and the ratio of each other map to the first (p50, p95)."""
     print(f"\n{'shield':>6} {'method':>22} {'map':>7} {'p50':>7} {'p95':>7} {'max':>7} {'cpu p50':>8} "
           f"{'step p50':>9} {'ratio p50':>10} {'ratio p95':>10}")  # fmt: skip
     by_key = {(r["separation"], r["method"], r["map"]): r for r in rows}
