@@ -46,7 +46,7 @@ near-ties, and a learned correction must grow to a dozen logits to turn the taxi
 HOVER_START = -12.0
 """Initial logit of the hover action (16) with ``NetConfig.hover_anytime``: its probability starts at
 sigmoid(-12) = 6.1e-6 at every step, so a converted policy hovers with probability below 1e-5 and never by argmax
-(a heading's log-probability is at least log(1/16) = -2.8 above it)."""
+(the likeliest heading's log-probability is at least log(1/16) = -2.8, the hover's -12)."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -164,8 +164,8 @@ class StopHead(nn.Module):
     def with_anytime_hover(self, logits: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         """``hover_anytime``: masked heading logits [B, 16] and the torso's features [B, F] → log pi [B, 17]: the
         headings' log-probabilities plus log(1 - p), and log p in column 16 (the hover action), p = sigmoid(b + w .
-        features). The headings keep their order, so the greedy heading stays the greedy heading whenever p < 1/2,
-        and a masked heading stays at the masked value."""
+        features). The headings keep their order, so the greedy heading stays the greedy action while p < (1 - p)
+        max_h pi_old(h), and a masked heading stays at the masked value (probability 0)."""
         z = self.anytime_hover(features)  # [B, 1] the hover's log-odds
         headings = torch.log_softmax(logits, dim=-1) + F.logsigmoid(-z)  # [B, 16] log(pi_old(h) (1 - p))
         return torch.cat([headings, F.logsigmoid(z)], dim=-1)  # [B, 17]
