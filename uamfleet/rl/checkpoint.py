@@ -351,12 +351,15 @@ def trained_spec(
     """What a network of ``net_config`` trained on ``cfg`` (its evaluation config) reads: ``observer`` (None: the
     observer of ``cfg``, :func:`~uamfleet.observe.legacy.split_env_config`) with, without a passenger window, the
     rows and time scale it read in ``cfg``'s world pinned where it leaves them to the world (``slots_per_taxi``:
-    the world's passengers per taxi; ``time_scale_steps``: its time limit), ``hover`` its network's hover logit
-    (``net_config["hover_logit"]``, not the world's rule) and, for the linear encoder (variant ``"le"``), which
-    reads the other taxis by position, ``fleet_rows`` its fleet's taxis less one."""
-    hover = net_config.get("hover_logit", False)  # absent: written before the hover logit existed
-    if not isinstance(hover, bool):
-        raise CheckpointError(f"{source}: net_config hover_logit={hover!r} must be a bool (e.g. False).")
+    the world's passengers per taxi; ``time_scale_steps``: its time limit), ``hover`` whether its network takes the
+    hover action (``net_config["hover_logit"]`` or ``["hover_anytime"]``, not the world's rule) and, for the linear
+    encoder (variant ``"le"``), which reads the other taxis by position, ``fleet_rows`` its fleet's taxis less one."""
+    hover = False
+    for name in ("hover_logit", "hover_anytime"):
+        flag = net_config.get(name, False)  # absent: written before the option existed
+        if not isinstance(flag, bool):
+            raise CheckpointError(f"{source}: net_config {name}={flag!r} must be a bool (e.g. False).")
+        hover = hover or flag
     world, spec = split_env_config(cfg)
     if observer is not None:
         spec = observer

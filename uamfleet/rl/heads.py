@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from uamfleet.rl.encoders import as_bool, layer_init
@@ -42,6 +43,10 @@ LOOKAHEAD_RULE = 100.0
 """A :attr:`NetConfig.lookahead_rule` at which the least look-ahead heading decides: a heading 0.12 move (12 m)
 worse than the best loses by more than the prior's whole range (:data:`PRIOR_FLOOR`), so the prior only breaks
 near-ties, and a learned correction must grow to a dozen logits to turn the taxi off the rule's heading."""
+HOVER_START = -12.0
+"""Initial logit of the hover action (16) with ``NetConfig.hover_anytime``: its probability starts at
+sigmoid(-12) = 6.1e-6 at every step, so a converted policy hovers with probability below 1e-5 and never by argmax
+(the likeliest heading's log-probability is at least log(1/16) = -2.8, the hover's -12)."""
 CLAIM_INIT = 8.0
 """Initial logits taken from a stop that the nearest-first matching gives to another taxi (``stop_claims``): about
 the tour prior of 1.3 km more (Berlin), and enough that a taxi whose every stop is claimed starts by waiting."""
@@ -76,6 +81,12 @@ class StopHead(nn.Module):
     log-probability of action 16 (stay in place), open whenever no stop is (it needs no hover heading): the output
     has 17 columns, and the stop and free components keep their headings' log-probabilities unchanged.
 
+    ``hover_anytime=True`` (``NetConfig.hover_anytime``, for an env with the hover action) opens action 16 at every
+    step, stops open or not: :meth:`with_anytime_hover` turns the masked heading logits into 17 log-probabilities,
+    the headings' old probabilities times 1 - p and action 16's p = sigmoid(b + w . features), with ``b`` learned
+    from :data:`HOVER_START` and ``w`` from zero. The search's "wait here" is then a decision the policy can imitate
+    wherever it is taken.
+
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
     it is always a component (starting at ``free_bias``), so the policy may wait or reposition.
@@ -101,7 +112,7 @@ class StopHead(nn.Module):
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
         claims: bool = False, hover: bool = False, residual: bool = False, lookahead: bool = False,
-        hover_logit: bool = False, lookahead_rule: float = 0.0,
+        hover_logit: bool = False, lookahead_rule: float = 0.0, hover_anytime: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
         self.lookahead_rule = lookahead_rule  # fixed logits per move of look-ahead (NetConfig.lookahead_rule)
@@ -124,6 +135,11 @@ class StopHead(nn.Module):
         self.score = layer_init(nn.Linear(hidden, 1), std=0.01)
         self.free = layer_init(nn.Linear(features, 1), std=0.01, bias=free_bias)
         self.log_nearness = nn.Parameter(torch.tensor(math.log(NEARNESS_INIT)))
+        self.hover_anytime = hover_anytime
+        if hover_anytime:  # made last and drawing no random numbers: every other initial weight stays as without it
+            self.anytime_hover = nn.Linear(features, 1)
+            nn.init.zeros_(self.anytime_hover.weight)
+            nn.init.constant_(self.anytime_hover.bias, HOVER_START)
 
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
@@ -144,6 +160,15 @@ class StopHead(nn.Module):
         if not ((self.residual or self.lookahead) and with_residual):
             return logp
         return self._corrected(logp, weights, hidden, features, lookahead)
+
+    def with_anytime_hover(self, logits: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        """``hover_anytime``: masked heading logits [B, 16] and the torso's features [B, F] → log pi [B, 17]: the
+        headings' log-probabilities plus log(1 - p), and log p in column 16 (the hover action), p = sigmoid(b + w .
+        features). The headings keep their order, so the greedy heading stays the greedy action while p < (1 - p)
+        max_h pi_old(h), and a masked heading stays at the masked value (probability 0)."""
+        z = self.anytime_hover(features)  # [B, 1] the hover's log-odds
+        headings = torch.log_softmax(logits, dim=-1) + F.logsigmoid(-z)  # [B, 16] log(pi_old(h) (1 - p))
+        return torch.cat([headings, F.logsigmoid(z)], dim=-1)  # [B, 17]
 
     def _stop_scores(
         self, features: torch.Tensor, tokens: torch.Tensor, actionable: torch.Tensor,
@@ -222,6 +247,6 @@ class StopHead(nn.Module):
 
 
 __all__ = [
-    "CLAIMED_BY_OTHER", "CLAIM_INIT", "HOVER_LEAD", "LOOKAHEAD_GAIN", "LOOKAHEAD_HIDDEN", "LOOKAHEAD_RULE",
-    "NEARNESS_INIT", "NOT_THIS", "PATH_TO_STOP", "PRIOR_FLOOR", "TOUR_VIA_STOP", "StopHead",
+    "CLAIMED_BY_OTHER", "CLAIM_INIT", "HOVER_LEAD", "HOVER_START", "LOOKAHEAD_GAIN", "LOOKAHEAD_HIDDEN",
+    "LOOKAHEAD_RULE", "NEARNESS_INIT", "NOT_THIS", "PATH_TO_STOP", "PRIOR_FLOOR", "TOUR_VIA_STOP", "StopHead",
 ]  # fmt: skip

@@ -74,7 +74,7 @@ STOP_PRIORS: tuple[str, ...] = ("tour", "nearest")
 the path to it alone."""
 READOUTS: tuple[str, ...] = ("flatten", "mean")
 NUM_ACTIONS = NUM_HEADINGS  # one logit per heading (the action mask's width)
-NUM_ACTIONS_HOVER = NUM_HEADINGS + 1  # ... and the hover action's (HOVER_ACTION), with NetConfig.hover_logit
+NUM_ACTIONS_HOVER = NUM_HEADINGS + 1  # ... and the hover action's (HOVER_ACTION): hover_logit or hover_anytime
 MASK_FIELDS: tuple[str, ...] = ("passenger_mask", "others_mask", "action_mask")
 
 
@@ -106,6 +106,9 @@ class NetConfig:
     # "stops" with lookahead_inputs: logits taken from each heading per move of its look-ahead excess, a fixed term
     # (not learned) that makes the untrained head fly the least look-ahead heading (:data:`LOOKAHEAD_RULE`); 0: none
     lookahead_rule: float = 0.0
+    # "stops", for an env with the hover action: action 16's logit open at every step, stops open or not (a learned
+    # bias from HOVER_START plus a zero-initialised linear map of the features); 17 logits (StopHead.with_anytime_hover)
+    hover_anytime: bool = False
 
     def __post_init__(self) -> None:
         self._check_head()
@@ -165,6 +168,15 @@ class NetConfig:
             raise ValueError(
                 "hover_logit=True makes the stop head's hover component the hover action's logit: it needs "
                 "stop_hover=True (action_head='stops' with claim inputs and the 'hover_heading_mask' field)."
+            )
+        if self.hover_anytime and self.action_head != "stops":
+            raise ValueError(
+                "hover_anytime=True mixes the hover action into the stop head's output: it needs action_head='stops'."
+            )
+        if self.hover_anytime and self.hover_logit:
+            raise ValueError(
+                "hover_anytime=True and hover_logit=True both make the logit of action 16: keep one (hover_anytime "
+                "opens it at every step, hover_logit only where no stop is open)."
             )
         if self.lookahead_inputs and self.action_head != "stops":
             raise ValueError(
@@ -368,17 +380,18 @@ class MSHAActorCritic(nn.Module):
             self.stop_head = StopHead(
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
                 hover=cfg.stop_hover, residual=cfg.heading_residual, lookahead=cfg.lookahead_inputs,
-                hover_logit=cfg.hover_logit, lookahead_rule=cfg.lookahead_rule,
+                hover_logit=cfg.hover_logit, lookahead_rule=cfg.lookahead_rule, hover_anytime=cfg.hover_anytime,
             )  # fmt: skip
 
     @property
     def num_actions(self) -> int:
-        """Logits per row: the 16 headings, and the hover action (HOVER_ACTION) with ``NetConfig.hover_logit``."""
-        return NUM_ACTIONS_HOVER if self.cfg.hover_logit else NUM_ACTIONS
+        """Logits per row: the 16 headings, and the hover action (HOVER_ACTION) with ``NetConfig.hover_logit`` or
+        ``NetConfig.hover_anytime``."""
+        return NUM_ACTIONS_HOVER if self.cfg.hover_logit or self.cfg.hover_anytime else NUM_ACTIONS
 
     def _actor(self, obs: dict[str, torch.Tensor], with_residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
         """(masked logits [B, 16 or 17], torso features [B, F]); ``with_residual=False``: the stop head's prior
-        alone. Action 16 (``hover_logit``) is never masked: the hover is always allowed."""
+        alone. Action 16 (``hover_logit``, ``hover_anytime``) is never masked: the hover is always allowed."""
         if self.stop_head is None:
             features = self.torso(obs)  # [B, F]
             return mask_logits(self.actor(features), obs["action_mask"]), features
@@ -396,7 +409,10 @@ class MSHAActorCritic(nn.Module):
         allowed = obs["action_mask"]  # [B, 16]
         if self.cfg.hover_logit:
             allowed = torch.cat([allowed, torch.ones_like(allowed[:, :1])], dim=-1)  # [B, 17]
-        return mask_logits(logp, allowed), features
+        masked = mask_logits(logp, allowed)  # [B, 16 (+ 1)]
+        if self.cfg.hover_anytime:  # mixed in after the mask: the headings keep their masked probabilities' ratios
+            return self.stop_head.with_anytime_hover(masked, features), features  # [B, 17]
+        return masked, features
 
     def check(self, obs: dict[str, torch.Tensor]) -> int:
         """Raise :class:`ObservationShapeError` unless every field is [B, *space shape]; return B."""
@@ -435,7 +451,8 @@ class MSHAActorCritic(nn.Module):
             raise ObservationShapeError(f"state has shape {tuple(state.shape)}, expected ({batch}, {S}).")
 
     def masked_logits(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The actor alone (no state needed, even with a centralised critic): masked logits [B, 16]."""
+        """The actor alone (no state needed, even with a centralised critic): masked logits [B, 16] (17 with the hover
+        action's, :attr:`num_actions`)."""
         self.check(obs)
         return self._actor(obs)[0]  # [B, 16]
 

@@ -65,6 +65,11 @@ class GreedyPolicy(PolicyBase):
         thresholds_db: tuple[float, float] | None = None,
         spec: ObserverSpec | None = None,
     ) -> None:
+        if spec is not None and net.cfg.hover_anytime and not spec.hover:
+            raise ConfigError(
+                "this policy's network takes the hover action at every step (NetConfig.hover_anytime), but its "
+                "observer spec has hover=False: give it dataclasses.replace(spec, hover=True) (it flies hover worlds)."
+            )
         self.net, self.normalizer, self.device = net, normalizer, device
         self.spec = spec
         self.obs_shapes, self.num_taxis, self.passenger_slots = obs_shapes, num_taxis, passenger_slots
@@ -236,9 +241,10 @@ class GreedyPolicy(PolicyBase):
 
     @torch.inference_mode()
     def logits_of(self, inputs: dict[str, np.ndarray]) -> torch.Tensor:
-        """Masked logits [B, 16] (17 with the hover action's, ``NetConfig.hover_logit``) for :meth:`network_input`
-        rows (needs no critic state). Under inference mode, not only no_grad: less overhead per call, which a lone
-        taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`, through a trace."""
+        """Masked logits [B, 16] (17 with the hover action's, ``NetConfig.hover_logit`` / ``hover_anytime``) for
+        :meth:`network_input` rows (needs no critic state). Under inference mode, not only no_grad: less overhead per
+        call, which a lone taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`,
+        through a trace."""
         x = obs_to_torch(inputs, self.device)
         net = self.fitted()[0]
         if not self.traced:
