@@ -248,7 +248,7 @@ def test_two_workers_write_the_labels_of_one(tmp_path) -> None:  # type: ignore[
     opts = LabelOptions(every=6, futures=2, first_headings=2, finish_beam=4, tail=4)
     costs = [label_instances("berlin", "berlin", seeds, None, opts, w, tmp_path / str(w)) for w in (1, 2)]
     one, two = (load_labels(tmp_path / str(w), seeds) for w in (1, 2))
-    assert len(one) > 0 and (one.source == HEDGE).any() and (one.source == FINISH).any()
+    assert one.num_labels > 0 and (one.source == HEDGE).any() and (one.source == FINISH).any()
     assert list(dict.fromkeys(one.seed.tolist())) == seeds  # in the order of the seeds
     for field in Labels._fields[1:]:
         np.testing.assert_array_equal(getattr(one, field), getattr(two, field))
@@ -261,3 +261,18 @@ def test_two_workers_write_the_labels_of_one(tmp_path) -> None:  # type: ignore[
         assert cost.searches == cost.hedge_labels and cost.solves >= 1 and cost.cpu_s > 0 and cost.labels_per_cpu_s > 0
     with pytest.raises(FileExistsError, match="exists"):
         label_instances("berlin", "berlin", seeds[:1], None, opts, 1, tmp_path / "1")
+
+
+def test_labels_round_trip_through_their_npz_file(labelled, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    _, _, labels = labelled
+    back = Labels.load(labels.save(tmp_path / "one.npz"))
+    both = Labels.concat([labels, back])
+    assert both.num_labels == 2 * labels.num_labels
+    for field in Labels._fields[1:]:
+        np.testing.assert_array_equal(getattr(back, field), getattr(labels, field))
+        np.testing.assert_array_equal(getattr(both, field)[labels.num_labels :], getattr(labels, field))
+    assert back.obs.keys() == labels.obs.keys()
+    for name in labels.obs:
+        np.testing.assert_array_equal(back.obs[name], labels.obs[name])
+    with pytest.raises(FileNotFoundError, match="no labels file"):
+        Labels.load(tmp_path / "none.npz")

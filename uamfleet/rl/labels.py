@@ -99,7 +99,9 @@ class Labels(NamedTuple):
     seed: np.ndarray  # [N] int64: the instance's seed
     step: np.ndarray  # [N] int64: the step labelled
 
-    def __len__(self) -> int:  # type: ignore[override]
+    @property
+    def num_labels(self) -> int:
+        """N, the states labelled."""
         return len(self.action)
 
     def save(self, path: str | Path) -> Path:
@@ -119,17 +121,23 @@ class Labels(NamedTuple):
             )
         with np.load(path, allow_pickle=False) as data:
             obs = {k[4:]: data[k] for k in data.files if k.startswith("obs/")}
-            return cls(obs, *(data[k] for k in cls._fields[1:]))
+            return cls(obs=obs, **{k: data[k] for k in cls._fields[1:]})
 
     @classmethod
     def concat(cls, parts: Sequence[Labels]) -> Labels:
         """The labels of ``parts`` one after another (plans padded to the longest)."""
-        parts = [p for p in parts if len(p)] or list(parts[:1])
-        width = max((p.plan.shape[1] for p in parts), default=1)
-        plans = [np.pad(p.plan, ((0, 0), (0, width - p.plan.shape[1])), constant_values=-1) for p in parts]
-        obs = {k: np.concatenate([p.obs[k] for p in parts]) for k in parts[0].obs} if parts else {}
-        rest = [np.concatenate([getattr(p, k) for p in parts]) for k in cls._fields[1:] if k != "plan"]
-        return cls(obs, *rest[:5], np.concatenate(plans) if plans else np.zeros((0, 1), np.int16), *rest[5:])
+        if not parts:
+            raise ValueError("Labels.concat needs at least one Labels; give the labels of one instance or more.")
+        parts = [p for p in parts if p.num_labels] or list(parts[:1])
+        width = max(p.plan.shape[1] for p in parts)
+        joined: dict[str, Any] = {
+            k: np.concatenate([getattr(p, k) for p in parts]) for k in cls._fields if k not in ("obs", "plan")
+        }
+        joined["plan"] = np.concatenate(
+            [np.pad(p.plan, ((0, 0), (0, width - p.plan.shape[1])), constant_values=-1) for p in parts]
+        )
+        joined["obs"] = {k: np.concatenate([p.obs[k] for p in parts]) for k in parts[0].obs}
+        return cls(**joined)
 
 
 @dataclass(frozen=True)
@@ -295,7 +303,7 @@ def _label_seed(job: tuple[str, int, str | None, LabelOptions, str]) -> tuple[in
     labels, searches, solves = _label(_WORKER["policy"], demand, cfg, opts, np.random.default_rng(seed), seed)
     labels.save(Path(out_dir) / f"labels_{seed}.npz")
     hedge = int((labels.source == HEDGE).sum())
-    return hedge, len(labels) - hedge, searches, solves, time.process_time() - start
+    return hedge, labels.num_labels - hedge, searches, solves, time.process_time() - start
 
 
 def label_instances(
