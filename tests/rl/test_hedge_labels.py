@@ -276,3 +276,16 @@ def test_labels_round_trip_through_their_npz_file(labelled, tmp_path) -> None:  
         np.testing.assert_array_equal(back.obs[name], labels.obs[name])
     with pytest.raises(FileNotFoundError, match="no labels file"):
         Labels.load(tmp_path / "none.npz")
+
+
+def test_with_beta_one_the_expert_s_actions_are_flown() -> None:
+    """``beta`` = 1 flies every label's action: after the window the first finish plan is flown to its end, so
+    every later step is labelled with the next heading of that one plan (one solve held)."""
+    cfg = _world()
+    opts = LabelOptions(every=3, futures=2, finish_beam=8, tail=4, first_headings=2, beta=1.0)
+    labels = label_instance(_policy(cfg), _prior(cfg), cfg, opts, np.random.default_rng(0), seed=7)
+    finish = np.flatnonzero(labels.source == FINISH)
+    plan = labels.plan[finish[0]][labels.plan[finish[0]] >= 0]
+    assert len(finish) == len(plan) >= 3
+    np.testing.assert_array_equal(labels.action[finish], plan)
+    np.testing.assert_array_equal(labels.step[finish], labels.step[finish[0]] + np.arange(len(plan)))

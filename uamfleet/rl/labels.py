@@ -39,7 +39,14 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import check_family, make_instance
 from uamfleet.io import write_bytes_atomic
 from uamfleet.rl.experts import NO_LABEL, ReplanExpert, released_count
-from uamfleet.rl.guided import MAX_EXPERT_BEAM, MAX_FUTURES, MAX_STEPS, WAIT_ACTIONS, AnticipatingGuidedSearch
+from uamfleet.rl.guided import (
+    MAX_EXPERT_BEAM,
+    MAX_FUTURES,
+    MAX_STEPS,
+    WAIT_ACTIONS,
+    AnticipatingGuidedSearch,
+    SearchScores,
+)
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.types import HOVER_ACTION, NUM_HEADINGS, FleetState
 
@@ -208,41 +215,63 @@ def _label(
     )  # fmt: skip
     hedge.reset(env.sim)  # also resets the policy's loop guard: the flight below is its plain greedy decoding
     expert: ReplanExpert | None = None
-    rows: list[tuple[dict[str, np.ndarray], np.ndarray, int, float, int, float, list[int], int]] = []
+    rows: list[tuple[Any, ...]] = []  # (obs, target, action, weight, source, promised moves, plan, step)
     searches, closed = 0, False
     while True:
         t = int(env.sim.state.t[0])
         greedy = policy(obs)  # [1, 1]: called once per step, as a plain flight does (its loop guard's memory)
-        label: int | None = None
         futures = None if closed else label_futures(hedge, seed, t, opts.futures)
         closed = futures is None
         if futures is not None and t % opts.every == 0:
-            scores = hedge.scores_at(futures)
+            rows.append(_hedge_row(hedge.scores_at(futures), _one(obs), opts, t))
             searches += 1
-            target, label, weight = soft_target(scores.actions, scores.mean_moves, opts.temperature)
-            hold = opts.commit if scores.waits[int(np.argmin(scores.mean_moves))] else 1
-            promised = float(scores.mean_moves.min())
-            rows.append((_one(obs), target, label, weight, HEDGE, promised, [label] * hold, t))
         elif closed:
-            if expert is None:
-                expert = ReplanExpert(cfg, 1, opts.finish_beam)
-            first = int(expert.labels(env, proposals=greedy[:, 0])[0])
-            if first != NO_LABEL:
-                label, plan = first, list(expert.plans[0])
-                target = np.zeros(NUM_ACTIONS, np.float32)
-                target[label] = 1.0
-                rows.append((_one(obs), target, label, 1.0, FINISH, float(len(plan)), plan, t))
-        action = greedy
-        if label is not None and opts.beta > 0 and rng.random() < opts.beta:
-            action = np.array([[label]], np.int64)
-        before = released_count(env)
-        obs, _, terminated, truncated, _ = env.step(action)
-        ended = bool(terminated[0] or truncated[0])
-        if expert is not None:
-            expert.advance(action[:, 0], released_count(env) > before, np.array([ended]))
+            expert = expert if expert is not None else ReplanExpert(cfg, 1, opts.finish_beam)
+            rows.extend(_finish_row(expert, env, greedy, _one(obs), t))
+        action = _flown(greedy, rows[-1][2] if rows and rows[-1][7] == t else None, opts.beta, rng)
+        obs, ended = _step(env, action, expert)
         if ended:
             break
     return _stack(rows, seed), searches, (expert.solves if expert is not None else 0)
+
+
+def _finish_row(
+    expert: ReplanExpert, env: VectorEnv, greedy: np.ndarray, obs: dict[str, np.ndarray], t: int
+) -> list[tuple[Any, ...]]:  # fmt: skip
+    """A finish label's row (none where the solver has no plan): the held plan's first heading, one-hot, weight 1,
+    its length the moves promised (the network's ``greedy`` heading kept where it is as short)."""
+    first = int(expert.labels(env, proposals=greedy[:, 0])[0])
+    if first == NO_LABEL:
+        return []
+    target = np.zeros(NUM_ACTIONS, np.float32)
+    target[first] = 1.0
+    plan = list(expert.plans[0])
+    return [(obs, target, first, 1.0, FINISH, float(len(plan)), plan, t)]
+
+
+def _flown(greedy: np.ndarray, label: int | None, beta: float, rng: np.random.Generator) -> np.ndarray:
+    """[1, 1] the action flown: the network's, or with probability ``beta`` the label's where there is one."""
+    if label is not None and beta > 0 and rng.random() < beta:
+        return np.array([[label]], np.int64)
+    return greedy
+
+
+def _step(env: VectorEnv, action: np.ndarray, expert: ReplanExpert | None) -> tuple[dict[str, np.ndarray], bool]:
+    """``action`` flown in ``env``, the expert's held plan moved on or dropped: (the observation, the end)."""
+    before = released_count(env)
+    obs, _, terminated, truncated, _ = env.step(action)
+    ended = bool(terminated[0] or truncated[0])
+    if expert is not None:
+        expert.advance(action[:, 0], released_count(env) > before, np.array([ended]))
+    return obs, ended
+
+
+def _hedge_row(scores: SearchScores, obs: dict[str, np.ndarray], opts: LabelOptions, t: int) -> tuple[Any, ...]:
+    """A hedge label's row: the soft target over the candidates, the best one's action held as it would be (the
+    wait ``commit`` steps), its mean moves promised."""
+    target, label, weight = soft_target(scores.actions, scores.mean_moves, opts.temperature)
+    hold = opts.commit if scores.waits[int(np.argmin(scores.mean_moves))] else 1
+    return obs, target, label, weight, HEDGE, float(scores.mean_moves.min()), [label] * hold, t
 
 
 def _one(obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
