@@ -65,6 +65,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.imitation",
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",
+            "uamfleet.rl.labels",
             "uamfleet.zoo",
             "uamfleet.policies",
         ),

@@ -27,7 +27,8 @@ candidate (the policy's flights win ties): the search alone is then the yardstic
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -61,6 +62,17 @@ MAX_STEPS = MAX_TIME_LIMIT_STEPS
 WAIT_ACTIONS: tuple[str, ...] = ("forbidden", "hover")
 """How the hedge's wait candidate keeps the taxi in place: a heading the rule forbids (where one is), or the hover
 action (16) of a world that has it, at any step."""
+
+
+class SearchScores(NamedTuple):
+    """The hedge's candidates at one state scored over sampled futures (:meth:`AnticipatingGuidedSearch.scores_at`)."""
+
+    actions: np.ndarray  # [C] int: each candidate's first action (a heading; the wait: HOVER_ACTION or the forbidden
+    # heading it holds)
+    mean_moves: np.ndarray  # [C] float: its moves averaged over the futures
+    per_future: np.ndarray  # [C, F] float: its moves in each future (plus the tour bound where cut by the tail)
+    waits: np.ndarray  # [C] bool: the candidate holds its first action `commit` steps (the wait)
+    cpu_s: float  # thread CPU seconds of the scoring
 
 
 def check_demand_spec(spec: str) -> str:
@@ -376,22 +388,54 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         known = released_only(self.sim.state)
         if not known.pax_exists.any():
             return []
-        known = pad_passengers(known, self._future_rows(known.pax_exists.shape[1]))
-        samples = [self.prior.sample(known, self.rng_futures) for _ in range(self.futures)]
-        if all(f is None for f in samples):  # nothing can come any more: the known requests are all of them
+        futures = self.futures_at(self.rng_futures, self.futures)
+        if futures is None:  # nothing can come any more: the known requests are all of them
             self._known_search_done = True
             return super()._search()
         self._next_search_t = int(self.sim.state.t[0]) + self.commit
-        return self._hedge([known if f is None else f for f in samples])
+        return self._hedge(futures)
+
+    def futures_at(self, rng: np.random.Generator, count: int) -> list[FleetState] | None:
+        """``count`` futures of the simulator's current state drawn from the demand model with ``rng``: the released
+        requests, and sampled ones on the passenger axis the model's count fits in (a future where none is drawn is
+        the known state); None where no request can come any more. Reads no hidden row."""
+        assert self.sim is not None, "call reset(sim) first"
+        known = released_only(self.sim.state)
+        known = pad_passengers(known, self._future_rows(known.pax_exists.shape[1]))
+        samples = [self.prior.sample(known, rng) for _ in range(count)]
+        if all(f is None for f in samples):
+            return None
+        return [known if f is None else f for f in samples]
 
     def _hedge(self, futures: list[FleetState]) -> list[int]:
-        """The candidate of least mean moves over ``futures`` (class docstring): its first heading, or with
-        ``wait`` its ``commit`` steps in place."""
+        """The candidate of least mean moves over ``futures`` (class docstring, :meth:`scores_at`): its first
+        heading, or with ``wait`` its ``commit`` steps in place."""
         assert self.sim is not None
-        start, start_cpu = time.perf_counter(), time.thread_time()
-        K, F = self.first_headings, self.futures
-        assert self.scratch is not None  # its observer reads the simulator's world as the policy does (reset)
-        root_obs = self.scratch.observer.observe(self.sim.state)
+        start = time.perf_counter()
+        scores = self.scores_at(futures)
+        first, means = scores.actions, scores.mean_moves
+        best = int(np.argmin(means))  # ties to the lowest index: the policy's own first heading
+        hold = self.commit if scores.waits[best] else 1
+        self.hedged.append(bool(best > 0 and first[best] != first[0]))
+        self.waited.append(bool(scores.waits[best]))
+        self.scores.append((first.copy(), means))
+        t = int(self.sim.state.t[0])
+        self.searched_at.append(t)
+        self.plans.append((t, len(first) * len(futures), round(float(means[best])), time.perf_counter() - start,
+                           scores.cpu_s))  # fmt: skip
+        return [int(first[best])] * hold
+
+    def scores_at(self, futures: Sequence[FleetState]) -> SearchScores:
+        """The candidates at the simulator's current state scored over ``futures`` (:meth:`futures_at`), flying
+        nothing in the simulator: the policy's ``first_headings`` likeliest first headings, and with ``wait`` the
+        wait (the hover action, or the first forbidden heading, held ``commit`` steps), each followed by the
+        policy's greedy decoding (its loop guard included) in a scratch env per candidate and future, to the end
+        or ``tail`` steps past the demand model's window (then plus the tour through the stops left); a rollout
+        cut by the time limit counts the limit's steps more."""
+        assert self.sim is not None and self.scratch is not None, "call reset(sim) first"
+        start_cpu = time.thread_time()
+        K, F = self.first_headings, len(futures)
+        root_obs = self.scratch.observer.observe(self.sim.state)  # it reads the world as the policy does (reset)
         root_logits = self.policy.logits_of(self.policy.network_input(root_obs))[0]
         finite = torch.isfinite(root_logits) & (root_logits > -1e8)
         order = torch.argsort(root_logits, descending=True)[: max(1, min(K, int(finite.sum())))].numpy()
@@ -430,15 +474,8 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         cut = ~finished  # still flying at the tail's end: its moves plus the tour through the stops it has left
         moves[cut] += self._tour_moves(obs)[cut]
         moves[finished & ~delivered] += self.sim.cfg.time_limit_steps  # cut by the time limit: never preferred
-        means = moves.reshape(C, F).mean(1)
-        best = int(np.argmin(means))  # ties to the lowest index: the policy's own first heading
-        self.hedged.append(bool(best > 0 and first[best] != first[0]))
-        self.waited.append(bool(hold[best] > 1))
-        self.scores.append((first.copy(), means))
-        self.searched_at.append(t)
-        wall, cpu = time.perf_counter() - start, time.thread_time() - start_cpu
-        self.plans.append((t, C * F, round(float(means[best])), wall, cpu))
-        return [int(first[best])] * int(hold[best])
+        per_future = moves.reshape(C, F)
+        return SearchScores(first, per_future.mean(1), per_future, hold > 1, time.thread_time() - start_cpu)
 
     def _futures_env(self, num_envs: int) -> VectorEnv:
         """The scratch env of ``num_envs`` rows for one search (made once per size and config)."""
@@ -461,4 +498,11 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         return due or super()._search_due()
 
 
-__all__ = ["WAIT_ACTIONS", "AnticipatingGuidedSearch", "GuidedSearchPolicy", "check_demand_spec", "model_on_world"]
+__all__ = [
+    "WAIT_ACTIONS",
+    "AnticipatingGuidedSearch",
+    "GuidedSearchPolicy",
+    "SearchScores",
+    "check_demand_spec",
+    "model_on_world",
+]
