@@ -1,0 +1,273 @@
+"""Expert iteration: the network learns the decisions of the hedge built on it, on the states it visits itself.
+
+The hedge (:class:`uamfleet.rl.guided.AnticipatingGuidedSearch`) flies the network as the base of a search over
+sampled futures and beats it; this loop teaches the network what the search chose (Anthony et al. 2017, ExIt;
+Silver et al. 2017) and hedges again with the network it made:
+
+1. **Label** fresh training instances of the family (a new block of train seeds each round) with
+   :func:`uamfleet.rl.labels.label_instances`: the network flies greedily (DAgger: its own states), and on the way
+   the hedge over it scores its candidates in sampled futures (soft targets over the candidates) while a request may
+   still come, and the step-level solver over the then-complete requests labels the steps after.
+2. **Fit** every parameter to the aggregated labels: the weighted cross-entropy to the soft targets plus
+   ``kl_anchor`` times the KL divergence from the round's start network on the same states (a fit that drifts off
+   the stops it flew well is held back).
+3. **Validate** the fitted network greedily on the validation block, paired per instance against the round's start
+   network, and accept the round only if it flies shorter on average without delivering fewer passengers; a rejected
+   round keeps the start network (its labels stay in the data). Stop after ``patience`` rejections in a row.
+
+Instances fly in worlds with the hover action (``hover=True``, the network converted by
+:func:`uamfleet.rl.hover.with_hover_anytime` so that waiting, the hedge's most valuable move, can be learnt).
+Choices are made on validation seeds only; the test seeds are flown once per shipped policy, elsewhere.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from uamfleet.baselines.step_planner import lower_bound_m  # noqa: F401  (kept for the reference rows' bound)
+from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
+from uamfleet.instances import FAMILIES, make_instance, split_seeds
+from uamfleet.io import write_csv_atomic
+from uamfleet.metrics import episode_metrics
+from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, pretrained_path
+from uamfleet.rl.labels import LabelOptions, Labels, label_instances
+from uamfleet.rl.networks import obs_to_torch
+from uamfleet.rl.policy import GreedyPolicy, load_policy
+from uamfleet.rl.runs import claim_run
+from uamfleet.rollout import fly
+
+CLOSED_LOGP = -1e3
+"""A log-probability below this is a masked action: it carries no target and no anchor mass."""
+
+
+@dataclass(frozen=True)
+class ExItOptions:
+    """The options of one expert-iteration run (``uamfleet exit``), checked on construction."""
+
+    init: str = "berlin"
+    """the start: a shipped policy's name or a checkpoint file"""
+    family: str = "berlin"
+    """the instance family labelled and validated on"""
+    hover: bool = True
+    """worlds with the hover action, the network able to hover at any step and the hedge waiting by hovering"""
+    demand: str = "family"
+    """the hedge's demand model: family (the true law), a family's name, wrong, or a fitted model's .json"""
+    rounds: int = 4
+    label_instances: int = 60
+    """training instances labelled per round (a fresh block of train seeds each round)"""
+    label_every: int = 2
+    label_futures: int = 16
+    label_temperature: float = 0.5
+    finish_beam: int = 32
+    val_instances: int = 80
+    val_first: int = 200
+    """index of the first validation seed (the block earlier choices did not use)"""
+    workers: int = 2
+    epochs: int = 3
+    learning_rate: float = 1e-4
+    minibatch: int = 256
+    kl_anchor: float = 1.0
+    max_samples: int = 200_000
+    patience: int = 2
+    seed: int = 0
+    threads: int = 1
+    run_name: str = "exit"
+    run_dir: Path = Path("runs")
+    overwrite: bool = False
+
+    def __post_init__(self) -> None:
+        if self.family not in FAMILIES:
+            raise ConfigError(f"family={self.family!r} is unknown; choose one of {sorted(FAMILIES)}.")
+        if self.init not in PRETRAINED and not Path(self.init).is_file():
+            raise ConfigError(f"init={self.init!r} is neither a shipped policy {tuple(PRETRAINED)} nor a file.")
+        for name, low in (("rounds", 1), ("label_instances", 1), ("label_every", 1), ("label_futures", 1),
+                          ("finish_beam", 1), ("val_instances", 2), ("val_first", 0), ("workers", 1),
+                          ("epochs", 1), ("minibatch", 1), ("max_samples", 1), ("patience", 1), ("seed", 0),
+                          ("threads", 1)):  # fmt: skip
+            check_integer(name, getattr(self, name), low)
+        check_number("label_temperature", self.label_temperature, 0.0, low_open=True)
+        check_number("learning_rate", self.learning_rate, 0.0, low_open=True)
+        check_number("kl_anchor", self.kl_anchor, 0.0)
+
+    def label_options(self) -> LabelOptions:
+        return LabelOptions(
+            every=self.label_every, futures=self.label_futures, temperature=self.label_temperature,
+            finish_beam=self.finish_beam, wait_action="hover" if self.hover else "forbidden",
+        )  # fmt: skip
+
+
+@dataclass
+class LabelSet:
+    """The aggregated labels as the network reads them: normalised observation rows, soft targets and weights."""
+
+    obs: dict[str, np.ndarray]
+    target: np.ndarray  # [N, actions]
+    weight: np.ndarray  # [N]
+
+    def __len__(self) -> int:
+        return len(self.weight)
+
+    def extended(self, other: LabelSet, limit: int) -> LabelSet:
+        """These labels and ``other``'s after them, the oldest dropped beyond ``limit``."""
+        if not len(self):
+            return other.tail(limit)
+        obs = {k: np.concatenate([self.obs[k], other.obs[k]]) for k in self.obs}
+        return LabelSet(obs, np.concatenate([self.target, other.target]), np.concatenate([self.weight, other.weight])).tail(limit)
+
+    def tail(self, limit: int) -> LabelSet:
+        if len(self) <= limit:
+            return self
+        return LabelSet({k: v[-limit:] for k, v in self.obs.items()}, self.target[-limit:], self.weight[-limit:])
+
+
+def fit(
+    policy: GreedyPolicy, anchor: GreedyPolicy, data: LabelSet, opts: ExItOptions, rng: np.random.Generator
+) -> dict[str, float]:
+    """``opts.epochs`` passes over ``data``: Σ w · CE(q, π) / Σ w + ``kl_anchor`` · KL(π_anchor ‖ π), every
+    parameter of ``policy``'s network. Targets on actions the state masks are dropped and the rest renormalised.
+    Returns the last epoch's mean loss, the agreement of the argmax with the target's, and the mean KL."""
+    net, anchor_net = policy.net, anchor.net
+    optimizer = torch.optim.Adam(net.parameters(), lr=opts.learning_rate)
+    net.train()
+    losses, hits, kls = [], [], []
+    n = len(data)
+    for _ in range(opts.epochs):
+        order = rng.permutation(n)
+        losses, hits, kls = [], [], []
+        for start in range(0, n, opts.minibatch):
+            idx = order[start : start + opts.minibatch]
+            batch = obs_to_torch({k: v[idx] for k, v in data.obs.items()}, "cpu")
+            with torch.no_grad():
+                anchor_logp = torch.log_softmax(anchor_net.masked_logits(batch), -1).clamp(min=-1e4)
+            logp = torch.log_softmax(net.masked_logits(batch), -1).clamp(min=-1e4)  # [b, A]
+            allowed = anchor_logp > CLOSED_LOGP
+            width = logp.shape[-1]
+            target = torch.as_tensor(data.target[idx][:, :width]) * allowed
+            mass = target.sum(-1, keepdim=True)
+            kept = mass.squeeze(-1) > 0
+            target = target / mass.clamp(min=1e-12)
+            weight = torch.as_tensor(data.weight[idx]) * kept
+            ce = -(target * torch.where(allowed, logp, torch.zeros_like(logp))).sum(-1)
+            kl = (anchor_logp.exp() * (anchor_logp - logp)).sum(-1)
+            loss = (ce * weight).sum() / weight.sum().clamp(min=1e-12) + opts.kl_anchor * kl.mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 0.5)
+            optimizer.step()
+            losses.append(float(loss.detach()))
+            kls.append(float(kl.detach().mean()))
+            agree = (logp.argmax(-1) == target.argmax(-1))[kept]
+            hits.append(float(agree.float().mean()) if len(agree) else math.nan)
+    net.eval()
+    return {"fit_loss": float(np.mean(losses)), "fit_agreement": float(np.nanmean(hits)), "fit_kl": float(np.mean(kls))}
+
+
+def validation_flights(policy: GreedyPolicy | Any, family: str, seeds: list[int], hover: bool) -> np.ndarray:
+    """[n, 2]: (passengers delivered %, distance flown m) of ``policy`` on each instance of ``seeds``, one
+    recorded episode each in the instance's world (with the hover action when ``hover``)."""
+    out = np.zeros((len(seeds), 2))
+    for i, seed in enumerate(seeds):
+        cfg = instance_world(family, seed, hover)
+        m = episode_metrics(fly(cfg, policy), cfg.radio, threshold_db=cfg.sinr_min_db)
+        out[i] = (m.pr_pct, m.td_m)
+    return out
+
+
+def instance_world(family: str, seed: int, hover: bool) -> EnvConfig:
+    """Instance ``seed`` of ``family``, with the hover action when ``hover`` (as ``uamfleet bench --hover-action``)."""
+    cfg = make_instance(family, seed)
+    return cfg.replace(hover_action=True) if hover else cfg
+
+
+def paired(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """Mean of a − b and the half-width of its 95 % interval (normal approximation)."""
+    d = np.asarray(a, float) - np.asarray(b, float)
+    half = 1.96 * d.std(ddof=1) / math.sqrt(len(d)) if len(d) > 1 else math.nan
+    return float(d.mean()), float(half)
+
+
+def expert_iteration(opts: ExItOptions) -> dict[str, float]:
+    """Run expert iteration (module docstring); writes ``start.pt``, ``best.pt`` (the last accepted network),
+    ``progress.csv`` (a row per round: labelling cost, fit, validation paired against the round's start and against
+    ``replan``) and the labels of each round under ``labels/<round>/`` in the run folder. Returns the last row."""
+    with claim_run(opts.run_dir, opts.run_name, overwrite=opts.overwrite, resumable=False) as claim:
+        claim.clear()
+        return _iterate(opts, claim.folder)
+
+
+def _iterate(opts: ExItOptions, folder: Path) -> dict[str, float]:
+    torch.set_num_threads(opts.threads)
+    torch.manual_seed(opts.seed)
+    rng = np.random.default_rng(opts.seed)
+    source, policy = start_policy(opts)
+    val_seeds = [int(s) for s in split_seeds("validation", opts.val_instances, opts.val_first)]
+    started = time.time()
+    reference = validation_flights(_replan(), opts.family, val_seeds, opts.hover)
+    current = validation_flights(policy, opts.family, val_seeds, opts.hover)
+    save_policy(folder / "start.pt", source, policy, opts, {})
+    save_policy(folder / "best.pt", source, policy, opts, {})
+    rows: list[dict[str, float]] = [_row(-1, current, current, reference, started, accepted=True)]
+    _report(folder, rows)
+    data: LabelSet | None = None
+    rejected = 0
+    for r in range(opts.rounds):
+        seeds = [int(s) for s in split_seeds("train", opts.label_instances, opts.label_instances * r)]
+        cost = label_instances(
+            folder / "best.pt", opts.family, seeds, opts.demand, opts.label_options(), opts.workers,
+            folder / "labels" / str(r),
+        )  # fmt: skip
+        new = label_set(policy, load_round_labels(folder / "labels" / str(r)))
+        data = new.tail(opts.max_samples) if data is None else data.extended(new, opts.max_samples)
+        candidate = copy.deepcopy(policy)
+        stats = fit(candidate, policy, data, opts, rng)
+        flights = validation_flights(candidate, opts.family, val_seeds, opts.hover)
+        delta, _ = paired(flights[:, 1], current[:, 1])
+        accepted = delta < 0 and flights[:, 0].mean() >= current[:, 0].mean()
+        row = {**_row(r, flights, current, reference, started, accepted), **_cost_columns(cost), **stats,
+               "samples": float(len(data)), "new_samples": float(len(new))}  # fmt: skip
+        rows.append(row)
+        print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
+        if accepted:
+            policy, current, rejected = candidate, flights, 0
+            save_policy(folder / f"round{r}.pt", source, policy, opts, row)
+            save_policy(folder / "best.pt", source, policy, opts, row)
+        else:
+            rejected += 1
+        _report(folder, rows)
+        if rejected >= opts.patience:
+            break
+    return rows[-1]
+
+
+def _row(
+    r: int, flights: np.ndarray, start: np.ndarray, reference: np.ndarray, started: float, accepted: bool
+) -> dict[str, float]:
+    """A progress row: validation PR and TD, TD paired against the round's start and against ``replan``."""
+    vs_start, vs_start_ci = paired(flights[:, 1], start[:, 1])
+    vs_replan, vs_replan_ci = paired(flights[:, 1], reference[:, 1])
+    return {
+        "round": float(r), "wall_s": time.time() - started, "val_pr_pct": float(flights[:, 0].mean()),
+        "val_td_m": float(flights[:, 1].mean()), "vs_start_m": vs_start, "vs_start_ci_m": vs_start_ci,
+        "vs_replan_m": vs_replan, "vs_replan_ci_m": vs_replan_ci, "replan_td_m": float(reference[:, 1].mean()),
+        "accepted": float(accepted),
+    }  # fmt: skip
+
+
+def _report(folder: Path, rows: list[dict[str, float]]) -> None:
+    write_csv_atomic(folder / "progress.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
+
+
+def _replan() -> Any:
+    from uamfleet.policies import make
+
+    return make("replan")
