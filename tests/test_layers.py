@@ -63,6 +63,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.learner",
             "uamfleet.rl.policy",
             "uamfleet.rl.imitation",
+            "uamfleet.rl.expert_iteration",
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",
             "uamfleet.rl.labels",

@@ -23,6 +23,7 @@ from pathlib import Path
 COMMANDS: dict[str, str] = {
     "train": "train",
     "imitate": "imitate",
+    "expert-iteration": "expert_iteration",
     "quickstart": "quickstart",
     "rollout": "rollout",
     "render": "render",

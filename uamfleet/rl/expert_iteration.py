@@ -34,13 +34,13 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from uamfleet.baselines.step_planner import lower_bound_m  # noqa: F401  (kept for the reference rows' bound)
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import FAMILIES, make_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, pretrained_path
-from uamfleet.rl.labels import LabelOptions, Labels, label_instances
+from uamfleet.rl.hover import hover_checkpoint, with_hover_anytime
+from uamfleet.rl.labels import LabelOptions, Labels, label_instances, load_labels
 from uamfleet.rl.networks import obs_to_torch
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.runs import claim_run
@@ -226,7 +226,7 @@ def _iterate(opts: ExItOptions, folder: Path) -> dict[str, float]:
             folder / "best.pt", opts.family, seeds, opts.demand, opts.label_options(), opts.workers,
             folder / "labels" / str(r),
         )  # fmt: skip
-        new = label_set(policy, load_round_labels(folder / "labels" / str(r)))
+        new = label_set(policy, load_labels(folder / "labels" / str(r), seeds), opts)
         data = new.tail(opts.max_samples) if data is None else data.extended(new, opts.max_samples)
         candidate = copy.deepcopy(policy)
         stats = fit(candidate, policy, data, opts, rng)
@@ -271,3 +271,33 @@ def _replan() -> Any:
     from uamfleet.policies import make
 
     return make("replan")
+
+
+def start_policy(opts: ExItOptions) -> tuple[Checkpoint, GreedyPolicy]:
+    """The start's checkpoint and its policy, able to hover at any step with ``opts.hover``."""
+    path = pretrained_path(opts.init) if opts.init in PRETRAINED else Path(opts.init)
+    policy = load_policy(path)[0]
+    return Checkpoint.load(path), with_hover_anytime(policy) if opts.hover else policy
+
+
+def save_policy(path: Path, source: Checkpoint, policy: GreedyPolicy, opts: ExItOptions, row: dict[str, float]) -> None:
+    """``policy`` in ``source``'s checkpoint (:func:`~uamfleet.rl.hover.hover_checkpoint`: loadable with
+    ``load_policy``, ``torch.load(weights_only=True)``), with the run's options and its validation row."""
+    ckpt = hover_checkpoint(source, policy)
+    options = {f.name: (str(v) if isinstance(v := getattr(opts, f.name), Path) else v) for f in dataclasses.fields(opts)}
+    dataclasses.replace(ckpt, args={**source.args, "exit": options}, best_eval={k: float(v) for k, v in row.items()}).save(path)
+
+
+def label_set(policy: GreedyPolicy, labels: Labels, opts: ExItOptions) -> LabelSet:
+    """``labels`` as ``policy``'s network reads them: its fields normalised (one row per labelled state)."""
+    policy.fit(instance_world(opts.family, int(labels.seed[0]), opts.hover).world)
+    rows = policy.network_input(labels.obs)  # obs fields [N, 1, ...]: N envs of one taxi
+    return LabelSet(rows, labels.target.astype(np.float32), labels.weight.astype(np.float32))
+
+
+def _cost_columns(cost: Any) -> dict[str, float]:
+    return {
+        "label_instances": float(cost.instances), "hedge_labels": float(cost.hedge_labels),
+        "finish_labels": float(cost.finish_labels), "searches": float(cost.searches), "solves": float(cost.solves),
+        "label_cpu_s": cost.cpu_s, "label_wall_s": cost.wall_s, "labels_per_cpu_s": cost.labels_per_cpu_s,
+    }  # fmt: skip
