@@ -159,6 +159,10 @@ def test_training_refuses_the_option_without_the_hover_action() -> None:
     with pytest.raises(ConfigError, match="drop --hover-logit"):
         _check_hover_logit(on, make_fleet_instance("berlin", 0, 4, 48, hover_action=False))
     _check_hover_logit(on, make_fleet_instance("berlin", 0, 4, 48, hover_action=True))
+    anytime = dataclasses.replace(uamfleet.pretrained("berlin").net.cfg, hover_anytime=True)
+    with pytest.raises(ConfigError, match="hover_anytime"):
+        _check_hover_logit(anytime, make_fleet_instance("berlin", 0, 4, 48, hover_action=False))
+    _check_hover_logit(anytime, make_fleet_instance("berlin", 0, 4, 48, hover_action=True))
 
 
 def test_a_fine_tune_with_the_option_trains_17_logits_and_its_checkpoint_records_it(tmp_path: Path) -> None:

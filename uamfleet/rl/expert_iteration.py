@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import FAMILIES, make_instance, split_seeds
@@ -95,9 +94,9 @@ class ExItOptions:
                           ("epochs", 1), ("minibatch", 1), ("max_samples", 1), ("patience", 1), ("seed", 0),
                           ("threads", 1)):  # fmt: skip
             check_integer(name, getattr(self, name), low)
-        check_number("label_temperature", self.label_temperature, 0.0, low_open=True)
-        check_number("learning_rate", self.learning_rate, 0.0, low_open=True)
-        check_number("kl_anchor", self.kl_anchor, 0.0)
+        check_number("label_temperature", self.label_temperature, positive=True)
+        check_number("learning_rate", self.learning_rate, positive=True)
+        check_number("kl_anchor", self.kl_anchor, minimum=0.0)
 
     def label_options(self) -> LabelOptions:
         return LabelOptions(
@@ -122,7 +121,9 @@ class LabelSet:
         if not len(self):
             return other.tail(limit)
         obs = {k: np.concatenate([self.obs[k], other.obs[k]]) for k in self.obs}
-        return LabelSet(obs, np.concatenate([self.target, other.target]), np.concatenate([self.weight, other.weight])).tail(limit)
+        return LabelSet(
+            obs, np.concatenate([self.target, other.target]), np.concatenate([self.weight, other.weight])
+        ).tail(limit)
 
     def tail(self, limit: int) -> LabelSet:
         if len(self) <= limit:
@@ -139,11 +140,13 @@ def fit(
     net, anchor_net = policy.net, anchor.net
     optimizer = torch.optim.Adam(net.parameters(), lr=opts.learning_rate)
     net.train()
-    losses, hits, kls = [], [], []
+    losses: list[float] = []
+    hits: list[float] = []
+    kls: list[float] = []
     n = len(data)
     for _ in range(opts.epochs):
         order = rng.permutation(n)
-        losses, hits, kls = [], [], []
+        del losses[:], hits[:], kls[:]  # the last epoch's figures are reported
         for start in range(0, n, opts.minibatch):
             idx = order[start : start + opts.minibatch]
             batch = obs_to_torch({k: v[idx] for k, v in data.obs.items()}, "cpu")
@@ -169,7 +172,8 @@ def fit(
             agree = (logp.argmax(-1) == target.argmax(-1))[kept]
             hits.append(float(agree.float().mean()) if len(agree) else math.nan)
     net.eval()
-    return {"fit_loss": float(np.mean(losses)), "fit_agreement": float(np.nanmean(hits)), "fit_kl": float(np.mean(kls))}
+    agreement = float(np.nanmean(hits)) if np.isfinite(hits).any() else math.nan  # nan: no state kept a target
+    return {"fit_loss": float(np.mean(losses)), "fit_agreement": agreement, "fit_kl": float(np.mean(kls))}
 
 
 def validation_flights(policy: GreedyPolicy | Any, family: str, seeds: list[int], hover: bool) -> np.ndarray:
@@ -284,8 +288,12 @@ def save_policy(path: Path, source: Checkpoint, policy: GreedyPolicy, opts: ExIt
     """``policy`` in ``source``'s checkpoint (:func:`~uamfleet.rl.hover.hover_checkpoint`: loadable with
     ``load_policy``, ``torch.load(weights_only=True)``), with the run's options and its validation row."""
     ckpt = hover_checkpoint(source, policy)
-    options = {f.name: (str(v) if isinstance(v := getattr(opts, f.name), Path) else v) for f in dataclasses.fields(opts)}
-    dataclasses.replace(ckpt, args={**source.args, "exit": options}, best_eval={k: float(v) for k, v in row.items()}).save(path)
+    options = {
+        f.name: (str(v) if isinstance(v := getattr(opts, f.name), Path) else v) for f in dataclasses.fields(opts)
+    }
+    dataclasses.replace(
+        ckpt, args={**source.args, "exit": options}, best_eval={k: float(v) for k, v in row.items()}
+    ).save(path)
 
 
 def label_set(policy: GreedyPolicy, labels: Labels, opts: ExItOptions) -> LabelSet:

@@ -155,9 +155,15 @@ def with_init_architecture(args: TrainArgs) -> TrainArgs:
 
 
 def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
-    """ConfigError when the network takes the hover action (``NetConfig.hover_logit``) but the run's env has none."""
+    """ConfigError when the network takes the hover action (``NetConfig.hover_logit`` or ``hover_anytime``) but the
+    run's env has none."""
     if net_cfg.hover_logit and not cfg.hover_action:
         raise ConfigError(HOVER_WITHOUT_ACTION)
+    if net_cfg.hover_anytime and not cfg.hover_action:
+        raise ConfigError(
+            "the start's network takes the hover action (16) at any step (NetConfig.hover_anytime), which this run's "
+            "env lacks: train on a scenario with EnvConfig.hover_action (a *_fleet preset), or start from a policy without it."
+        )
 
 
 def _fitted_start(run: Run, source: Path) -> tuple[GreedyPolicy, EnvConfig]:
