@@ -161,8 +161,9 @@ def _check_hover_logit(net_cfg: NetConfig, cfg: EnvConfig) -> None:
         raise ConfigError(HOVER_WITHOUT_ACTION)
     if net_cfg.hover_anytime and not cfg.hover_action:
         raise ConfigError(
-            "the start's network takes the hover action (16) at any step (NetConfig.hover_anytime), which this run's "
-            "env lacks: train on a scenario with EnvConfig.hover_action (a *_fleet preset), or start from a policy without it."
+            "the start's network takes the hover action (16) at any step (NetConfig.hover_anytime), which this "
+            "run's env lacks: train on a scenario with EnvConfig.hover_action (a *_fleet preset), or start from a "
+            "policy without it."
         )
 
 
