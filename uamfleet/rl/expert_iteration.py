@@ -73,8 +73,9 @@ class ExItOptions:
     val_first: int = 200
     """index of the first validation seed (the block earlier choices did not use)"""
     workers: int = 2
-    epochs: int = 3
-    learning_rate: float = 1e-4
+    epochs: int = 5
+    learning_rate: float = 1e-3
+    """chosen with epochs on the first two rounds' labels of a run, on the validation block (reports/2026-12-04-expert-iteration)"""
     minibatch: int = 256
     kl_anchor: float = 1.0
     """weight of the KL divergence from the round's start over the headings (given no hover)"""
