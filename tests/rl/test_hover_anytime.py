@@ -142,3 +142,21 @@ def test_the_option_on_a_spec_without_the_hover_action_is_refused_in_one_line(tm
     assert "\n" not in str(err.value)
     with pytest.raises(ConfigError, match="hover_action=True"):  # a world without the hover action
         converted.fly(make_instance("berlin", SEEDS[0]))
+
+
+def test_the_hedge_and_guided_search_fly_a_policy_that_hovers_at_any_step() -> None:
+    """Guided search samples its flights from all 17 actions of a hover_anytime policy (the hover included), and the
+    hedge over it flies an instance to the end, everyone delivered."""
+    from uamfleet.rl.guided import AnticipatingGuidedSearch, GuidedSearchPolicy
+    from uamfleet.metrics import episode_metrics
+    from uamfleet.rl.hover import with_hover_anytime
+    from uamfleet.rollout import fly
+
+    policy = with_hover_anytime(uamfleet.pretrained("berlin"))
+    cfg = make_instance("berlin", 1_000_000).replace(hover_action=True)
+    for search in (
+        GuidedSearchPolicy(policy, top_k=2, samples=2),
+        AnticipatingGuidedSearch(policy, None, futures=2, samples=2, wait_action="hover"),
+    ):
+        m = episode_metrics(fly(cfg, search), cfg.radio, threshold_db=cfg.sinr_min_db)
+        assert m.pr_pct == 100.0

@@ -201,7 +201,7 @@ class GuidedSearchPolicy(PolicyBase):
             chosen[: self.top_k] = torch.topk(logits[0], self.top_k).indices.numpy()
         if self.samples:
             probs = torch.softmax(logits[self.top_k :] / self.temperature, -1).double().numpy()
-            chosen[self.top_k :] = [self.rng.choice(16, p=p / p.sum()) for p in probs]
+            chosen[self.top_k :] = [self.rng.choice(len(p), p=p / p.sum()) for p in probs]
         return chosen
 
     def _rollouts(self, limit: int, cut: bool = False) -> tuple[list[int], tuple[int, int] | None]:
