@@ -205,7 +205,8 @@ MapName = Annotated[
         metavar="FILE|NAME",
         help=f"fly this radio map: a packaged map ({', '.join(RADIO_MAPS)}) or the path of a map file (.npz of "
         "uamfleet-radio-map, or WinProp ASCII); its instances are its family's (uamfleet.instances.map_family: "
-        "Berlin's rules scaled to the map), its provenance is printed above the results (default: the command's own)",
+        "Berlin's rules scaled to the map), its provenance is printed above the results",
+        help_behavior_hint="(default: the command's own map)",
     ),
 ]
 """``--map``: a packaged map's name or a map file's path (checked by :func:`check_map`)."""

@@ -29,6 +29,7 @@ from uamfleet.cli._common import (
     Policy,
     Scenario,
     UsageError,
+    check_map,
     check_outputs,
     flight,
     on_map,
@@ -105,6 +106,8 @@ def main(args: Args) -> dict[str, Path]:
         raise UsageError(f"--seconds-per-step {args.seconds_per_step}: give a positive playback time (e.g. 0.25).")
     if args.checkpoint is None:
         policy_call(args.policy)
+    if args.map is not None:
+        check_map(args.map)
     output_path(args.out, "--out")
     check_outputs(args.overwrite, [args.out, *(figure_paths(args.out).values() if args.png else ())])
     if args.map is not None:
