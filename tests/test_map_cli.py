@@ -11,7 +11,7 @@ import pytest
 
 from uamfleet.cli import benchmark, fleet_benchmark, render, rollout
 from uamfleet.instances import make_fleet_instance, make_instance, map_family, split_seeds
-from uamfleet.radio import load_radio_map, save_radio_map_npz
+from uamfleet.radio import RADIO_MAPS, load_radio_map, save_radio_map_npz
 
 
 @pytest.fixture(scope="module")
@@ -147,3 +147,16 @@ def test_train_refuses_a_bad_map_in_one_line(extra: list[str], message: str, tmp
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", RADIO_MAPS)
+def test_every_packaged_city_flies_its_test_instances_from_the_benchmark(name: str, tmp_path: Path) -> None:
+    out = tmp_path / "b.csv"
+    argv = ["--map", name, "--count", "2", "--jobs", "1", "--methods", "straight", "--out-csv", str(out)]
+    assert benchmark.cli(argv) == 0
+    rows = _rows(out)
+    assert [int(r["instance"]) for r in rows] == split_seeds("test", 2)
+    assert all(float(r["pr_pct"]) == 100.0 for r in rows)
+    assert [float(r["threshold_db"]) for r in rows] == [
+        make_instance(name, s).sinr_min_db for s in split_seeds("test", 2)
+    ]

@@ -151,3 +151,12 @@ def test_provenance_names_the_source_size_cell_and_the_maps_own_record(tmp_path:
     assert "Sionna RT" in line and '"cell_m": 10.0' in line and "\n" not in line
     path = _copy_munich(tmp_path, "city")
     assert map_provenance(str(path)).startswith(f"map file {path}: 148 x 121 cells of 10 m")
+
+
+def test_a_map_coarser_than_berlins_steps_is_flown_in_steps_of_its_cells_at_berlins_speed() -> None:
+    fam = map_family("detroit_estimate")  # 320 m blocks: 100 m steps would leave blocks without a value
+    assert fam.step_m == 320.0 and map_family("munich").step_m is None
+    cfg = make_instance("detroit_estimate", 2_000_000)
+    assert (cfg.step_m, cfg.slot_s) == (320.0, pytest.approx(9.6))  # 100 m per 3 s
+    assert cfg.scenario == "detroit_estimate_seed2000000" and cfg.sinr_min_db in BERLIN_THRESHOLDS_DB
+    assert all(r.release_step <= 120.0 // 9.6 for r in cfg.requests)  # the 2-minute window in 9.6 s steps

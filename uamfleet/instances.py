@@ -109,12 +109,17 @@ class InstanceFamily:
     name: str | None = None
     """A family of a map: its name (the packaged name, or the file's stem), which seeds its instances and names
     its scenarios; None: the family's key in :data:`FAMILIES`."""
+    step_m: float | None = None
+    """A family of a map whose raster is coarser than the preset's steps: its steps (one raster cell), flown at the
+    preset's speed; None: the preset's."""
 
     def config(self, **overrides: object) -> EnvConfig:
         """The family's preset with ``overrides`` (on the family's map, named ``<name>_random``)."""
         if self.radio is None:
             return make_config(self.scenario, **overrides)
-        return make_config(self.scenario, radio=_map(self.radio), **overrides).replace(scenario=f"{self.name}_random")
+        return make_config(
+            self.scenario, radio=_map(self.radio), **_steps(self.scenario, self.step_m), **overrides
+        ).replace(scenario=f"{self.name}_random")
 
     def seed_name(self, family: str) -> str:
         """The name mixed into the family's seeds (``crc32``) and its instances' scenario names."""
@@ -187,6 +192,8 @@ FAMILIES: Families = Families(
 """The instance families by name, and a family for any map (:class:`Families`). Each has its own seed stream
 (``SeedSequence([seed, crc32(name)])``) on the same train / validation / test ranges."""
 
+BERLIN_STEP_M = 100.0
+"""Berlin's steps (and SINR blocks), of 3 s."""
 BERLIN_SIDE_M = 3260.0
 """The side of the Berlin map's operating square, the extent Berlin's rules are scaled from."""
 BERLIN_FEASIBLE_SHARES = (0.9568, 0.9421, 0.9063, 0.8650, 0.8118)
@@ -210,13 +217,27 @@ def is_map_name(key: object) -> bool:
         return False
 
 
+def _steps(scenario: str, step_m: float | None) -> dict[str, float]:
+    """``step_m`` and ``slot_s`` overrides of ``scenario``'s preset for steps of ``step_m`` at its speed (none: {})."""
+    if step_m is None:
+        return {}
+    base = make_config(scenario)
+    return {"step_m": step_m, "slot_s": base.slot_s * step_m / base.step_m}
+
+
+def map_step_m(radio: RadioMap) -> float | None:
+    """The steps of a map's family: Berlin's 100 m, or one raster cell where the map's cells are coarser (blocks
+    hold at least one raster value); None: Berlin's."""
+    return float(radio.resolution_m) if radio.resolution_m > BERLIN_STEP_M else None
+
+
 def map_thresholds(radio: RadioMap) -> tuple[float, ...]:
     """The thresholds of a map's family: Berlin's (-7 ... -3 dB) where they bind on the map (at -7 dB at least
     :data:`MIN_FEASIBLE_SHARE` of its 100 m blocks flyable, at -3 dB at least :data:`MIN_INFEASIBLE_SHARE` not);
     else the map's own quantiles: the five thresholds (rounded down to 0.1 dB) at which the map has Berlin's
     shares of flyable blocks at -7 ... -3 dB (:data:`BERLIN_FEASIBLE_SHARES`), so that the radio binds on it as
     much as on Berlin. Blocks with no value (N.C.) are never flyable."""
-    base = make_config("berlin_random", radio=radio)
+    base = make_config("berlin_random", radio=radio, **_steps("berlin_random", map_step_m(radio)))
     sinr = np.asarray(radio.block_map(base.block_size_m, nc_rule=base.nc_rule).sinr_db, float).ravel()
     sinr = np.where(np.isnan(sinr), -np.inf, sinr)
     loosest, strictest = BERLIN_THRESHOLDS_DB[0], BERLIN_THRESHOLDS_DB[-1]
@@ -251,13 +272,17 @@ def _map_family(key: str) -> InstanceFamily:
     berlin = FAMILIES["berlin"]
     assert radio.side_m is not None  # a RadioMap infers its side when built without one
     min_trip_m = float(round(berlin.min_trip_m * radio.side_m / BERLIN_SIDE_M))
-    return InstanceFamily("berlin_random", map_thresholds(radio), min_trip_m, radio=key, name=map_family_name(key))
+    return InstanceFamily(
+        "berlin_random", map_thresholds(radio), min_trip_m, radio=key, name=map_family_name(key),
+        step_m=map_step_m(radio),
+    )  # fmt: skip
 
 
 def map_family(name_or_path: str | os.PathLike[str]) -> InstanceFamily:
     """The instance family of a map (a packaged map's name, or the path of a ``.npz`` / WinProp file): Berlin's
-    rules (2-6 passengers, the first at step 0 and the others over the first 2 minutes, 100 m steps of 3 s and
-    ``berlin_random``'s time limit) scaled to the map: trips at least ``500 m x side / 3,260 m`` (Berlin's
+    rules (2-6 passengers, the first at step 0 and the others over the first 2 minutes, 100 m steps of 3 s, or of
+    one raster cell at that speed on a coarser map (:func:`map_step_m`), and ``berlin_random``'s time limit) scaled
+    to the map: trips at least ``500 m x side / 3,260 m`` (Berlin's
     shortest trip as the same share of the map's side, rounded to the metre) and the thresholds of
     :func:`map_thresholds`. Named ``<map name>`` (a file: its stem), which seeds its instances; built from the
     name or path alone, so any process derives the same family. A bad name or file is refused in one line."""
