@@ -92,7 +92,9 @@ def test_a_bad_map_is_refused_in_one_line(command, argv: list[str], tmp_path: Pa
     monkeypatch.chdir(tmp_path)
     assert command([*argv, "--map", "atlantis"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and ": error: --map 'atlantis': no packaged map of that name and no such file" in err
+    assert (
+        err.count("\n") == 1 and ": error: --map 'atlantis': no packaged map of that name and no such map file" in err
+    )
     assert "munich" in err and "uamfleet-radio-map" in err
     assert list(tmp_path.iterdir()) == []  # refused before anything was written
 

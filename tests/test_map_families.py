@@ -120,6 +120,9 @@ def test_a_map_file_is_a_family_by_path_seeded_by_its_stem(tmp_path: Path) -> No
     assert _drawn(str(other), 2_000_000) == _drawn(str(path), 2_000_000)  # same stem, same instances
     assert _drawn(str(path), 2_000_000) != _drawn("munich", 2_000_000)  # another name, another seed stream
     assert make_fleet_instance(path, 2_000_000, 1, 6).scenario == "mycity_fleet1x6_seed2000000"
+    model = tmp_path / "model.json"  # a file that is no map (a demand model's) names no family
+    model.write_text("{}")
+    assert str(path) in FAMILIES and str(model) not in FAMILIES
 
 
 def test_a_spawned_worker_rebuilds_a_map_family_from_its_path(tmp_path: Path) -> None:
@@ -160,3 +163,17 @@ def test_a_map_coarser_than_berlins_steps_is_flown_in_steps_of_its_cells_at_berl
     assert (cfg.step_m, cfg.slot_s) == (320.0, pytest.approx(9.6))  # 100 m per 3 s
     assert cfg.scenario == "detroit_estimate_seed2000000" and cfg.sinr_min_db in BERLIN_THRESHOLDS_DB
     assert all(r.release_step <= 120.0 // 9.6 for r in cfg.requests)  # the 2-minute window in 9.6 s steps
+
+
+def test_the_demand_model_of_a_map_familys_world_is_its_familys_law(tmp_path: Path) -> None:
+    from uamfleet.baselines.demand_models import NoDemandModelError, demand_model, world_family
+
+    cfg = make_instance("munich", 2_000_000)
+    assert world_family(cfg, "hedge") == "munich"
+    assert world_family(make_fleet_instance("munich", 2_000_000, 2, 12), "hedge") == "munich"
+    model = demand_model("family", cfg)
+    assert model.law == map_family("munich").demand_law() and model.law.min_trip_m == 184.0
+    path = str(_copy_munich(tmp_path, "town"))
+    with pytest.raises(NoDemandModelError, match="scenario 'town_seed2000000' is none of"):
+        world_family(make_config("berlin_random").replace(scenario="town_seed2000000"), "hedge")  # none drawn here
+    assert world_family(make_instance(path, 2_000_000), "hedge") == path  # its instances drawn: the path read back

@@ -205,14 +205,19 @@ MIN_INFEASIBLE_SHARE = 0.01
 """... and at least this share is not flyable at -3 dB (else the radio would not bind there)."""
 
 
+MAP_SUFFIXES = (".npz", ".txt")
+"""The map files a family is derived from by path: a ``.npz`` of ``uamfleet-radio-map``, a WinProp ASCII ``.txt``."""
+
+
 def is_map_name(key: object) -> bool:
-    """``key`` names a map rather than a named family: a packaged map's name or the path of an existing file."""
+    """``key`` names a map rather than a named family: a packaged map's name or the path of an existing map file
+    (:data:`MAP_SUFFIXES`; another file, e.g. a demand model's ``.json``, names no family)."""
     if not isinstance(key, (str, os.PathLike)) or (isinstance(key, str) and dict.__contains__(FAMILIES, key)):
         return False
     if isinstance(key, str) and key in RADIO_MAPS:
         return True
     try:
-        return Path(key).is_file()
+        return Path(key).suffix in MAP_SUFFIXES and Path(key).is_file()
     except OSError:  # a name too long for a path, say
         return False
 
@@ -279,7 +284,7 @@ def _map_family(key: str) -> InstanceFamily:
 
 
 def map_family(name_or_path: str | os.PathLike[str]) -> InstanceFamily:
-    """The instance family of a map (a packaged map's name, or the path of a ``.npz`` / WinProp file): Berlin's
+    """The instance family of a map (a packaged map's name, or the path of a ``.npz`` / WinProp ``.txt`` file): Berlin's
     rules (2-6 passengers, the first at step 0 and the others over the first 2 minutes, 100 m steps of 3 s, or of
     one raster cell at that speed on a coarser map (:func:`map_step_m`), and ``berlin_random``'s time limit) scaled
     to the map: trips at least ``500 m x side / 3,260 m`` (Berlin's
@@ -289,7 +294,21 @@ def map_family(name_or_path: str | os.PathLike[str]) -> InstanceFamily:
     if isinstance(name_or_path, str) and dict.__contains__(FAMILIES, name_or_path):
         return dict.__getitem__(FAMILIES, name_or_path)
     check_family(name_or_path)
-    return _map_family(os.fspath(name_or_path))
+    fam = _map_family(os.fspath(name_or_path))
+    _MAP_KEYS[map_family_name(name_or_path)] = os.fspath(name_or_path)
+    return fam
+
+
+_MAP_KEYS: dict[str, str] = {}  # the name of each map family this process derived -> its map's name or path
+
+
+def map_family_key(name: str) -> str | None:
+    """The key (map name or path) of the map family named ``name``: a packaged map's name, or a file's family
+    this process has derived (its instances were drawn here); None for any other name. A world knows its family's
+    name (its scenario, ``<name>_seed<seed>``), not the path of its file: this reads the path back."""
+    if name in RADIO_MAPS and not dict.__contains__(FAMILIES, name):
+        return name
+    return _MAP_KEYS.get(name)
 
 
 def check_family(family: str | os.PathLike[str]) -> None:
@@ -297,7 +316,8 @@ def check_family(family: str | os.PathLike[str]) -> None:
     if not isinstance(family, (str, os.PathLike)) or family not in FAMILIES:
         raise ValueError(
             f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}, a packaged map "
-            f"({', '.join(RADIO_MAPS)}) or the path of an existing map file (.npz of uamfleet-radio-map, or WinProp)."
+            f"({', '.join(RADIO_MAPS)}) or the path of an existing map file (.npz of uamfleet-radio-map, or WinProp "
+            ".txt)."
         )
 
 
@@ -606,6 +626,7 @@ __all__ = [
     "make_fleet_instance",
     "make_instance",
     "map_family",
+    "map_family_key",
     "map_provenance",
     "map_thresholds",
     "split_seeds",

@@ -25,7 +25,7 @@ from uamfleet.policies.learned import for_world
 from uamfleet.policies.registry import BASE, PolicyNameError
 from uamfleet.env.protocol import observer_of
 from uamfleet.presets import SCENARIOS
-from uamfleet.instances import FAMILIES, SPLITS, map_family, map_provenance
+from uamfleet.instances import FAMILIES, SPLITS, is_map_name, map_family, map_provenance
 from uamfleet.radio.packaged import RADIO_MAPS, load_radio_map
 from uamfleet.rl.distributed import RankZeroError
 from uamfleet.rl.networks import VARIANTS
@@ -204,7 +204,7 @@ MapName = Annotated[
     tyro.conf.arg(
         metavar="FILE|NAME",
         help=f"fly this radio map: a packaged map ({', '.join(RADIO_MAPS)}) or the path of a map file (.npz of "
-        "uamfleet-radio-map, or WinProp ASCII); its instances are its family's (uamfleet.instances.map_family: "
+        "uamfleet-radio-map, or WinProp ASCII .txt); its instances are its family's (uamfleet.instances.map_family: "
         "Berlin's rules scaled to the map), its provenance is printed above the results",
         help_behavior_hint="(default: the command's own map)",
     ),
@@ -215,23 +215,17 @@ MapName = Annotated[
 def check_map(value: str, flag: str = "--map") -> str:
     """``value`` when it names a map whose instance family can be derived (:func:`uamfleet.instances.map_family`):
     a packaged map or a readable map file; else a UsageError naming ``flag``, the value and the fix."""
-    if not isinstance(value, str) or not value or not (value in RADIO_MAPS or _is_file(value)):
+    if not isinstance(value, str) or not value or not (value in RADIO_MAPS or is_map_name(value)):
         raise UsageError(
-            f"{flag} {value!r}: no packaged map of that name and no such file; give one of {', '.join(RADIO_MAPS)} "
-            "or the path of a map file (a .npz written by uamfleet-radio-map, or a WinProp ASCII file)."
+            f"{flag} {value!r}: no packaged map of that name and no such map file; give one of "
+            f"{', '.join(RADIO_MAPS)} or the path of a map file (a .npz written by uamfleet-radio-map, or a WinProp "
+            "ASCII .txt)."
         )
     try:
         map_family(value)
     except (ValueError, OSError) as err:  # a file that is no map, or a map too small to draw on
         raise UsageError(f"{flag} {value}: {' '.join(str(err).split())}") from None
     return value
-
-
-def _is_file(value: str) -> bool:
-    try:
-        return Path(value).is_file()
-    except OSError:  # too long a name for a path
-        return False
 
 
 FIXED_SCENARIOS: tuple[str, ...] = ("berlin_p4", "detroit_p5", "detroit3gpp_p5")

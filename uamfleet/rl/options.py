@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of, is_map_name, map_family, map_family_name
 from uamfleet.presets import SCENARIOS, make_config
+from uamfleet.radio.packaged import RADIO_MAPS
 from uamfleet.rl.networks import VARIANTS
 from uamfleet.rl.option_groups import Flat, flat_options, grouped_from_flat
 
@@ -37,7 +38,7 @@ class EnvOptions:
     """scenario name"""
     map: str | None = None
     """fly the scenario's world on this radio map: a packaged map's name (berlin, detroit_estimate, detroit_3gpp,
-    munich) or the path of a map file (.npz of uamfleet-radio-map, or WinProp ASCII), at the strictest threshold of
+    munich) or the path of a map file (.npz of uamfleet-radio-map, or WinProp ASCII .txt), at the strictest threshold of
     the map's family (uamfleet.instances.map_family) unless --sinr-min-db says otherwise; --curve-instances then fly
     that family's validation instances. A scenario of random demand (e.g. berlin_instances); None: its own map"""
     sinr_min_db: float | None = None
@@ -409,9 +410,9 @@ class TrainArgs:
         env = self.env
         if env.map is None:
             return
-        if not is_map_name(env.map):
+        if not (env.map in RADIO_MAPS or is_map_name(env.map)):
             raise ConfigError(
-                f"--map={env.map!r}: no packaged map of that name and no such file; give one of berlin, "
+                f"--map={env.map!r}: no packaged map of that name and no such map file; give one of berlin, "
                 "detroit_estimate, detroit_3gpp, munich or the path of a map file (.npz of uamfleet-radio-map)."
             )
         if env.scenario in ("berlin_p4", "detroit_p5", "detroit3gpp_p5"):
