@@ -162,3 +162,21 @@ def test_every_packaged_city_flies_its_test_instances_from_the_benchmark(name: s
     assert [float(r["threshold_db"]) for r in rows] == [
         make_instance(name, s).sinr_min_db for s in split_seeds("test", 2)
     ]
+
+
+def test_expert_iteration_labels_and_validates_on_the_map_family(city: Path, monkeypatch, capsys) -> None:
+    from uamfleet.cli import expert_iteration as exit_cli
+
+    seen = []
+
+    def fake(opts):  # the run itself is the expert iteration's (tests/rl/test_expert_iteration.py)
+        seen.append(opts)
+        return {"round": 0, "val_td_m": 1.0, "vs_replan_m": 0.0, "vs_replan_ci_m": 0.0}
+
+    monkeypatch.setattr(exit_cli, "expert_iteration", fake)
+    assert exit_cli.cli(["--map", str(city), "--run-name", "t"]) == 0
+    assert [opts.family for opts in seen] == [str(city)]
+    assert capsys.readouterr().out.startswith(f"Map: map file {city}: ")
+    assert exit_cli.cli(["--map", "atlantis"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--map 'atlantis': no packaged map of that name" in err and len(seen) == 1
