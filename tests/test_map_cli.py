@@ -180,3 +180,18 @@ def test_expert_iteration_labels_and_validates_on_the_map_family(city: Path, mon
     assert exit_cli.cli(["--map", "atlantis"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--map 'atlantis': no packaged map of that name" in err and len(seen) == 1
+
+
+def test_imitate_rolls_out_and_validates_on_a_map(city: Path, tmp_path: Path, capsys) -> None:
+    from uamfleet.cli import imitate
+
+    argv = ["--map", str(city), "--envs-per-threshold", "1", "--rounds", "1", "--steps-per-round", "6",
+            "--eval-instances", "2", "--epochs", "1", "--minibatch", "16", "--run-dir", str(tmp_path),
+            "--run-name", "tiny"]  # fmt: skip
+    assert imitate.cli(argv) == 0
+    assert capsys.readouterr().out.startswith(f"Map: map file {city}: ")
+    rows = _rows(tmp_path / "tiny" / "progress.csv")
+    assert len(rows) == 2 and float(rows[0]["val_pr_pct"]) > 0  # the start and round 0, on the map's instances
+    assert imitate.cli(["--map", "atlantis", "--run-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--map='atlantis': no packaged map of that name" in err
