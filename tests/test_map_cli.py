@@ -195,3 +195,19 @@ def test_imitate_rolls_out_and_validates_on_a_map(city: Path, tmp_path: Path, ca
     assert imitate.cli(["--map", "atlantis", "--run-dir", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--map='atlantis': no packaged map of that name" in err
+
+
+def test_quickstart_trains_and_flies_the_test_instances_of_a_map(city: Path, tmp_path: Path, capsys) -> None:
+    from uamfleet.cli import quickstart
+
+    argv = ["--map", str(city), "--total-timesteps", "2048", "--test-count", "2", "--run-dir", str(tmp_path)]
+    assert quickstart.cli(argv) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"Map: map file {city}: ")
+    threshold = map_family(str(city)).thresholds_db[-1]
+    assert f"on berlin_instances on {city} at {threshold:g} dB" in out
+    table = out.split("test instances of its family")[1]
+    for name in ("replan", "raster_opt", "MSHA-PPO (ours)", "generalist (shipped, zero-shot)"):
+        assert f"\n{name} " in table
+    saved = _rows(tmp_path / "quickstart" / "progress.csv")
+    assert len(saved) == 2  # the start's evaluation and one iteration
