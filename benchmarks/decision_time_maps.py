@@ -93,11 +93,12 @@ class Timed:
 
 
 def register_munich() -> None:
-    """The family ``munich``: the packaged map's preset ``munich_random`` drawn by Berlin's rules (as fly_city.py)."""
-    if "munich" not in instances.FAMILIES:
-        berlin = instances.FAMILIES["berlin"]
-        instances.FAMILIES["munich"] = instances.InstanceFamily("munich_random", berlin.thresholds_db,
-                                                                berlin.min_trip_m)  # fmt: skip
+    """The family ``munich`` as the recorded rows drew it: the packaged map's preset ``munich_random`` drawn by
+    Berlin's rules unscaled (thresholds -7 ... -3 dB, trips >= 500 m), named in place of the packaged map's derived
+    family (uamfleet.instances.map_family)."""
+    berlin = instances.FAMILIES["berlin"]
+    instances.FAMILIES["munich"] = instances.InstanceFamily("munich_random", berlin.thresholds_db,
+                                                            berlin.min_trip_m)  # fmt: skip
 
 
 def fly_timed(cfg: Any, name: str, policy: Any, is_dispatcher: bool) -> dict[str, Any]:

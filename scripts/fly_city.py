@@ -3,13 +3,13 @@
     .venv/bin/python scripts/fly_city.py --map munich.npz --count 20 --jobs 2 --out-md munich_benchmark.md
     .venv/bin/python scripts/fly_city.py --map munich.npz --fleet 4x24 --count 20 --jobs 2 --out-md munich_fleet.md
 
-The instances are drawn exactly as Berlin's test instances (:func:`uamfleet.instances.make_instance`, family
-``berlin``'s rules: thresholds -7 ... -3 dB, 2-6 passengers, trips >= 500 m, 100 m steps of 3 s) on the given
-map, registered for this process as the family ``<map name>`` (so the seeds draw other instances than Berlin's)
-and the scenario ``<map name>_random`` (``berlin_random`` with ``radio=`` the map). Each instance is flown by
-:func:`uamfleet.cli.benchmark.run_instance`, the rows summarised by :func:`uamfleet.cli.benchmark_tables.markdown`. The
-generalist is ``uamfleet.pretrained("berlin")``'s checkpoint, never trained on this map. Workers are forked (not
-spawned as in uamfleet-benchmark) so that they inherit the registered family.
+The instances are the test instances of the map's family (:func:`uamfleet.instances.map_family`: Berlin's rules
+scaled to the map, thresholds from its SINR quantiles where Berlin's do not bind; ``--map`` is a packaged map's
+name or a map file's path, and the family is named after it, so the seeds draw other instances than Berlin's),
+exactly as ``uamfleet-benchmark --map MAP`` flies them. Each instance is flown by
+:func:`uamfleet.cli.benchmark.run_instance`, the rows summarised by :func:`uamfleet.cli.benchmark_tables.markdown`
+under the map's provenance. The generalist is ``uamfleet.pretrained("berlin")``'s checkpoint, never trained on this
+map. Workers are spawned: each rebuilds the family from the map's name or path.
 
 ``--fleet 4x24`` flies the fleet dispatchers and the first shipped fleet policy
 (``uamfleet.pretrained("berlin_fleet_v1")``, zero-shot, as its recorded rows were flown) on fleet instances of that
@@ -20,34 +20,22 @@ setting instead (:func:`uamfleet.instances.make_fleet_instance`), with
 from __future__ import annotations
 
 import argparse
-import functools
 import multiprocessing as mp
 import sys
 import time
 from pathlib import Path
 
-from uamfleet import instances, presets
+from uamfleet import instances
 from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.cli import benchmark, fleet_benchmark
+from uamfleet.cli._common import UsageError, check_map, with_provenance
 from uamfleet.io import write_csv_atomic, write_text_atomic
-from uamfleet.radio import load_radio_map
 from uamfleet.zoo import pretrained_path
-
-
-def register_city(map_path: str) -> str:
-    """Register the map as an instance family (Berlin's rules) and a ``*_random`` scenario; the family's name."""
-    radio = load_radio_map(map_path)
-    family = radio.name
-    scenario = f"{family}_random"
-    presets.PRESETS[scenario] = functools.partial(presets.PRESETS["berlin_random"], radio=radio, scenario=scenario)
-    berlin = instances.FAMILIES["berlin"]
-    instances.FAMILIES[family] = instances.InstanceFamily(scenario, berlin.thresholds_db, berlin.min_trip_m)
-    return family
 
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--map", required=True, help="a .npz map written by uamfleet-radio-map")
+    parser.add_argument("--map", required=True, help="a packaged map's name or a map file (.npz of uamfleet-radio-map)")
     parser.add_argument("--count", type=int, default=20, help="test instances (seeds 2000000, ...)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--methods", nargs="*", default=list(benchmark.METHODS))
@@ -60,7 +48,11 @@ def main(argv: list[str]) -> int:
         if path is not None and path.exists():
             print(f"fly_city.py: error: {path} exists; remove it or write elsewhere", file=sys.stderr)
             return 2
-    family = register_city(args.map)
+    try:
+        family = check_map(args.map)
+    except UsageError as err:
+        print(f"fly_city.py: error: {err}", file=sys.stderr)
+        return 2
     seeds = instances.split_seeds("test", args.count)
     if args.fleet is not None:
         policies = () if args.no_generalist else (pretrained_path("berlin_fleet_v1"),)  # as recorded: no hover action
@@ -75,7 +67,7 @@ def main(argv: list[str]) -> int:
         flight, table, columns = benchmark.run_instance, benchmark.markdown, benchmark.COLUMNS
     start = time.perf_counter()
     rows = []
-    with mp.get_context("fork").Pool(args.jobs) as pool:
+    with mp.get_context("spawn").Pool(args.jobs) as pool:
         for i, result in enumerate(pool.imap(flight, jobs)):
             rows += result
             print(f"[{i + 1}/{len(jobs)}] {len(result)} rows", flush=True)
@@ -83,8 +75,9 @@ def main(argv: list[str]) -> int:
     command = "python scripts/fly_city.py " + " ".join(argv)
     if args.out_csv is not None:
         write_csv_atomic(args.out_csv, rows, columns)
-    write_text_atomic(args.out_md, table(rows, command, wall))
-    print(table(rows, command, wall))
+    body = with_provenance(table(rows, command, wall), args.map)
+    write_text_atomic(args.out_md, body)
+    print(body)
     return 0
 
 

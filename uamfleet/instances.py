@@ -25,6 +25,13 @@ times uniform over the window (a Poisson process conditioned on its count), as r
 request's origin and destination among the sites, at least ``min_trip_m`` apart. :data:`FLEET_SETTINGS` names
 the settings of the fleet table (1 taxi / 6 requests, 2 / 12, 4 / 24, 8 / 48).
 
+Families of any map (:func:`map_family`): a packaged map's name (:data:`uamfleet.radio.packaged.RADIO_MAPS`, e.g.
+``"munich"``) or a map file's path (a ``.npz`` of ``uamfleet-radio-map`` or a WinProp ASCII file) names a family
+wherever a family's name is taken (``make_instance("munich", seed)``, ``make_fleet_instance("city.npz", ...)``,
+``FAMILIES["munich"]``): it is derived from the map alone, in any process (a spawned worker rebuilds it from the
+name or path), with Berlin's rules scaled to the map (:func:`map_family`). The named families come first: the
+packaged ``"berlin"`` is the ``berlin`` family.
+
 Every start and stop is then checked (in the block under the threshold, in the start's flyable component, and
 reachable on the raster graph the planners use); an instance that fails is redrawn from the same generator, so
 the result stays a function of the seed. Seeds: :data:`TRAIN_SEEDS`, :data:`VALIDATION_SEEDS` and
@@ -33,9 +40,12 @@ the result stays a function of the seed. Seeds: :data:`TRAIN_SEEDS`, :data:`VALI
 
 from __future__ import annotations
 
+import functools
+import os
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -63,6 +73,8 @@ from uamfleet.observe.spec import ObserverSpec
 from uamfleet.paths import DistanceFields
 from uamfleet.paths.grid_graph import UnreachableStopError
 from uamfleet.presets import make_config
+from uamfleet.radio import RadioMap, load_radio_map
+from uamfleet.radio.packaged import RADIO_MAPS
 from uamfleet.sim.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.sim.world import World
 
@@ -91,6 +103,27 @@ class InstanceFamily:
     law: DemandLaw | None = None
     """None: the requests are drawn as the module docstring says (``berlin``, ``detroit3gpp``); a law: the start,
     then :meth:`DemandLaw.draw` (the count, trip length and window fields above then repeat the law's)."""
+    radio: str | None = None
+    """A family of a map (:func:`map_family`): the packaged name or file path of its map, flown on
+    ``scenario``'s preset; None: the preset's own map."""
+    name: str | None = None
+    """A family of a map: its name (the packaged name, or the file's stem), which seeds its instances and names
+    its scenarios; None: the family's key in :data:`FAMILIES`."""
+    step_m: float | None = None
+    """A family of a map whose raster is coarser than the preset's steps: its steps (one raster cell), flown at the
+    preset's speed; None: the preset's."""
+
+    def config(self, **overrides: object) -> EnvConfig:
+        """The family's preset with ``overrides`` (on the family's map, named ``<name>_random``)."""
+        if self.radio is None:
+            return make_config(self.scenario, **overrides)
+        return make_config(
+            self.scenario, radio=_map(self.radio), **_steps(self.scenario, self.step_m), **overrides
+        ).replace(scenario=f"{self.name}_random")
+
+    def seed_name(self, family: str) -> str:
+        """The name mixed into the family's seeds (``crc32``) and its instances' scenario names."""
+        return self.name or family
 
     def window_steps(self, slot_s: float) -> int:
         """The last step a request may be released at, with slots of ``slot_s`` seconds (releases are drawn from
@@ -119,33 +152,193 @@ BERLIN_THRESHOLDS_DB = (-7.0, -6.0, -5.0, -4.0, -3.0)
 BERLIN_HOTSPOTS = ((650.0, 650.0, 300.0), (2050.0, 1550.0, 300.0), (2850.0, 2850.0, 300.0))
 """The ``berlin_stream`` family's hot spots (x_m, y_m, sd_m): three block centres flyable at every threshold."""
 
-FAMILIES: dict[str, InstanceFamily] = {
-    "berlin": InstanceFamily("berlin_random", BERLIN_THRESHOLDS_DB, min_trip_m=500.0),
-    "detroit3gpp": InstanceFamily("detroit3gpp_random", (-21.0, -20.0, -19.0, -18.0, -17.0), min_trip_m=2000.0),
-    # a longer service (6 minutes) with a Poisson stream of 0.6 requests per minute from three hot spots, capped
-    # at the 6 rows of the shipped policies' observer (reached on about 29 % of the instances)
-    "berlin_stream": law_family(
-        "berlin_random",
-        BERLIN_THRESHOLDS_DB,
-        DemandLaw("poisson_stream", 1, 6, window_s=360.0, rate_per_min=0.6, hotspots=BERLIN_HOTSPOTS),
-    ),
-    # a peak of releases in the middle of a 4-minute window
-    "berlin_peak": law_family(
-        "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("peak", 3, 6, window_s=240.0, peak_s=120.0, peak_sd_s=30.0)
-    ),
-    # two requests at once, the others over the first 90 s
-    "berlin_burst": law_family(
-        "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("uniform_window", 4, 5, initial=2, window_s=90.0)
-    ),
-}
-"""The instance families by name. Each has its own seed stream (``SeedSequence([seed, crc32(name)])``) on the same
-train / validation / test ranges."""
+
+class Families(dict[str, InstanceFamily]):
+    """The named instance families; looking up a packaged map's name or a map file's path (a key that is no named
+    family) gives that map's family (:func:`map_family`), derived afresh in each process. Iteration, ``len`` and
+    ``keys`` list the named families only."""
+
+    def __missing__(self, key: str) -> InstanceFamily:
+        return map_family(key)
+
+    def __contains__(self, key: object) -> bool:
+        return dict.__contains__(self, key) or is_map_name(key)
+
+    def get(self, key: str, default: InstanceFamily | None = None) -> InstanceFamily | None:  # type: ignore[override]
+        return self[key] if key in self else default
 
 
-def check_family(family: str) -> None:
+FAMILIES: Families = Families(
+    {
+        "berlin": InstanceFamily("berlin_random", BERLIN_THRESHOLDS_DB, min_trip_m=500.0),
+        "detroit3gpp": InstanceFamily("detroit3gpp_random", (-21.0, -20.0, -19.0, -18.0, -17.0), min_trip_m=2000.0),
+        # a longer service (6 minutes) with a Poisson stream of 0.6 requests per minute from three hot spots, capped
+        # at the 6 rows of the shipped policies' observer (reached on about 29 % of the instances)
+        "berlin_stream": law_family(
+            "berlin_random",
+            BERLIN_THRESHOLDS_DB,
+            DemandLaw("poisson_stream", 1, 6, window_s=360.0, rate_per_min=0.6, hotspots=BERLIN_HOTSPOTS),
+        ),
+        # a peak of releases in the middle of a 4-minute window
+        "berlin_peak": law_family(
+            "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("peak", 3, 6, window_s=240.0, peak_s=120.0, peak_sd_s=30.0)
+        ),
+        # two requests at once, the others over the first 90 s
+        "berlin_burst": law_family(
+            "berlin_random", BERLIN_THRESHOLDS_DB, DemandLaw("uniform_window", 4, 5, initial=2, window_s=90.0)
+        ),
+    }
+)
+"""The instance families by name, and a family for any map (:class:`Families`). Each has its own seed stream
+(``SeedSequence([seed, crc32(name)])``) on the same train / validation / test ranges."""
+
+BERLIN_STEP_M = 100.0
+"""Berlin's steps (and SINR blocks), of 3 s."""
+BERLIN_SIDE_M = 3260.0
+"""The side of the Berlin map's operating square, the extent Berlin's rules are scaled from."""
+BERLIN_FEASIBLE_SHARES = (0.9568, 0.9421, 0.9063, 0.8650, 0.8118)
+"""The share of the Berlin map's 100 m blocks flyable at each of :data:`BERLIN_THRESHOLDS_DB` (-7 ... -3 dB):
+the shares a map's own thresholds reproduce when Berlin's do not bind on it (:func:`map_thresholds`)."""
+MIN_FEASIBLE_SHARE = 0.10
+"""Berlin's thresholds are kept on a map only if at least this share of its blocks is flyable at -7 dB ..."""
+MIN_INFEASIBLE_SHARE = 0.01
+"""... and at least this share is not flyable at -3 dB (else the radio would not bind there)."""
+
+
+MAP_SUFFIXES = (".npz", ".txt")
+"""The map files a family is derived from by path: a ``.npz`` of ``uamfleet-radio-map``, a WinProp ASCII ``.txt``."""
+
+
+def is_map_name(key: object) -> bool:
+    """``key`` names a map rather than a named family: a packaged map's name or the path of an existing map file
+    (:data:`MAP_SUFFIXES`; another file, e.g. a demand model's ``.json``, names no family)."""
+    if not isinstance(key, (str, os.PathLike)) or (isinstance(key, str) and dict.__contains__(FAMILIES, key)):
+        return False
+    if isinstance(key, str) and key in RADIO_MAPS:
+        return True
+    try:
+        return Path(key).suffix in MAP_SUFFIXES and Path(key).is_file()
+    except OSError:  # a name too long for a path, say
+        return False
+
+
+def _steps(scenario: str, step_m: float | None) -> dict[str, float]:
+    """``step_m`` and ``slot_s`` overrides of ``scenario``'s preset for steps of ``step_m`` at its speed (none: {})."""
+    if step_m is None:
+        return {}
+    base = make_config(scenario)
+    return {"step_m": step_m, "slot_s": base.slot_s * step_m / base.step_m}
+
+
+def map_step_m(radio: RadioMap) -> float | None:
+    """The steps of a map's family: Berlin's 100 m, or one raster cell where the map's cells are coarser (blocks
+    hold at least one raster value); None: Berlin's."""
+    return float(radio.resolution_m) if radio.resolution_m > BERLIN_STEP_M else None
+
+
+def map_thresholds(radio: RadioMap) -> tuple[float, ...]:
+    """The thresholds of a map's family: Berlin's (-7 ... -3 dB) where they bind on the map (at -7 dB at least
+    :data:`MIN_FEASIBLE_SHARE` of its 100 m blocks flyable, at -3 dB at least :data:`MIN_INFEASIBLE_SHARE` not);
+    else the map's own quantiles: the five thresholds (rounded down to 0.1 dB) at which the map has Berlin's
+    shares of flyable blocks at -7 ... -3 dB (:data:`BERLIN_FEASIBLE_SHARES`), so that the radio binds on it as
+    much as on Berlin. Blocks with no value (N.C.) are never flyable."""
+    base = make_config("berlin_random", radio=radio, **_steps("berlin_random", map_step_m(radio)))
+    sinr = np.asarray(radio.block_map(base.block_size_m, nc_rule=base.nc_rule).sinr_db, float).ravel()
+    sinr = np.where(np.isnan(sinr), -np.inf, sinr)
+    loosest, strictest = BERLIN_THRESHOLDS_DB[0], BERLIN_THRESHOLDS_DB[-1]
+    if np.mean(sinr >= loosest) >= MIN_FEASIBLE_SHARE and np.mean(sinr < strictest) >= MIN_INFEASIBLE_SHARE:
+        return BERLIN_THRESHOLDS_DB
+    # the share flyable at t is mean(sinr >= t): t = the (1 - share) quantile, rounded down keeps at least the share
+    quantiles = np.quantile(sinr, [1.0 - share for share in BERLIN_FEASIBLE_SHARES], method="lower")
+    if not np.all(np.isfinite(quantiles)):
+        raise ConfigError(
+            f"radio map {radio.label!r} has a value in fewer than {BERLIN_FEASIBLE_SHARES[0]:.0%} of its "
+            f"{base.block_size_m:g} m blocks: too few to draw instances on; give a map with values over its square."
+        )
+    return tuple(float(np.floor(q * 10.0 + 1e-9) / 10.0) for q in quantiles)  # 1e-9: 1.3 * 10 may be 12.999...
+
+
+def map_family_name(name_or_path: str | os.PathLike[str]) -> str:
+    """The name of a map's family: a packaged map's name, or a file's stem (``maps/paris.npz`` -> ``paris``)."""
+    if isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
+        return name_or_path
+    return Path(name_or_path).stem
+
+
+@functools.cache
+def _map(key: str) -> RadioMap:
+    """A map by name or path, read once per process (its block maps and graphs are cached on it)."""
+    return load_radio_map(key)
+
+
+@functools.cache
+def _map_family(key: str) -> InstanceFamily:
+    radio = _map(key)
+    berlin = FAMILIES["berlin"]
+    assert radio.side_m is not None  # a RadioMap infers its side when built without one
+    min_trip_m = float(round(berlin.min_trip_m * radio.side_m / BERLIN_SIDE_M))
+    return InstanceFamily(
+        "berlin_random", map_thresholds(radio), min_trip_m, radio=key, name=map_family_name(key),
+        step_m=map_step_m(radio),
+    )  # fmt: skip
+
+
+def map_family(name_or_path: str | os.PathLike[str]) -> InstanceFamily:
+    """The instance family of a map (a packaged map's name, or the path of a ``.npz`` / WinProp ``.txt`` file): Berlin's
+    rules (2-6 passengers, the first at step 0 and the others over the first 2 minutes, 100 m steps of 3 s, or of
+    one raster cell at that speed on a coarser map (:func:`map_step_m`), and ``berlin_random``'s time limit) scaled
+    to the map: trips at least ``500 m x side / 3,260 m`` (Berlin's
+    shortest trip as the same share of the map's side, rounded to the metre) and the thresholds of
+    :func:`map_thresholds`. Named ``<map name>`` (a file: its stem), which seeds its instances; built from the
+    name or path alone, so any process derives the same family. A bad name or file is refused in one line."""
+    if isinstance(name_or_path, str) and dict.__contains__(FAMILIES, name_or_path):
+        return dict.__getitem__(FAMILIES, name_or_path)
+    check_family(name_or_path)
+    fam = _map_family(os.fspath(name_or_path))
+    _MAP_KEYS[map_family_name(name_or_path)] = os.fspath(name_or_path)
+    return fam
+
+
+_MAP_KEYS: dict[str, str] = {}  # the name of each map family this process derived -> its map's name or path
+
+
+def map_family_key(name: str) -> str | None:
+    """The key (map name or path) of the map family named ``name``: a packaged map's name, or a file's family
+    this process has derived (its instances were drawn here); None for any other name. A world knows its family's
+    name (its scenario, ``<name>_seed<seed>``), not the path of its file: this reads the path back."""
+    if name in RADIO_MAPS and not dict.__contains__(FAMILIES, name):
+        return name
+    return _MAP_KEYS.get(name)
+
+
+def check_family(family: str | os.PathLike[str]) -> None:
     # A non-string (e.g. a list, unhashable) is refused by the same message instead of a TypeError of the lookup.
-    if not isinstance(family, str) or family not in FAMILIES:
-        raise ValueError(f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}.")
+    if not isinstance(family, (str, os.PathLike)) or family not in FAMILIES:
+        raise ValueError(
+            f"unknown instance family {family!r}; choose one of {tuple(FAMILIES)}, a packaged map "
+            f"({', '.join(RADIO_MAPS)}) or the path of an existing map file (.npz of uamfleet-radio-map, or WinProp "
+            ".txt)."
+        )
+
+
+def map_provenance(name_or_path: str | os.PathLike[str] | RadioMap) -> str:
+    """One line on a map a table was flown on: where it comes from (a packaged name or a file's path), its raster
+    (cells and cell size), its operating square and base stations, and the map's own recorded source and
+    provenance (e.g. a ray-traced ``.npz``'s scene, parameters and versions)."""
+    radio = load_radio_map(name_or_path)
+    if isinstance(name_or_path, RadioMap):
+        where = f"map {radio.label!r}"
+    elif isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
+        where = f"packaged map {name_or_path!r}"
+    else:
+        where = f"map file {os.fspath(name_or_path)}"
+    nx, ny = radio.sinr_db.shape
+    line = (
+        f"{where}: {nx} x {ny} cells of {radio.resolution_m:g} m, operating square {radio.side_m:g} m, "
+        f"{len(radio.base_stations)} base station(s), altitude {radio.altitude_m:g} m"
+    )
+    source = " ".join(str(radio.source).split())
+    return line + (f"; source: {source}" if source else "")
 
 
 def split_seeds(split: str, count: int, first: int = 0) -> list[int]:
@@ -166,9 +359,10 @@ def make_instance(
     check_family(family)
     seed = check_integer("seed", seed, 0, MAX_SEED)
     fam = FAMILIES[family]
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode())]))
+    name = fam.seed_name(family)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(name.encode())]))
     threshold = float(rng.choice(fam.thresholds_db))
-    base = make_config(fam.scenario, sinr_min_db=threshold, num_taxis=1, feasibility=feasibility)
+    base = fam.config(sinr_min_db=threshold, num_taxis=1, feasibility=feasibility)
     world = World(base)
     sites = flyable_sites(world)
     graph = DistanceFields(world).graph
@@ -187,7 +381,7 @@ def make_instance(
             requests=tuple(requests),
             demand=base.demand,
             max_passengers=max_passengers,
-            scenario=f"{family}_seed{seed}",
+            scenario=f"{name}_seed{seed}",
         )
     raise RuntimeError(f"no valid instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
 
@@ -236,12 +430,15 @@ def make_fleet_instance(
         family, seed, num_taxis, num_requests, num_vertiports, arrival_window_s
     )
     fam = FAMILIES[family]
-    if hover_action is None:  # the family's fleet preset's rule: a fleet policy waits with the hover
-        hover_action = make_config(f"{family}_fleet").hover_action
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(family.encode()), FLEET_TAG]))
+    name = fam.seed_name(family)
+    if (
+        hover_action is None
+    ):  # the family's fleet preset's rule (a map's: Berlin's): a fleet policy waits with the hover
+        hover_action = make_config("berlin_fleet" if fam.radio is not None else f"{family}_fleet").hover_action
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(name.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
-    base = make_config(
-        fam.scenario, sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation,
+    base = fam.config(
+        sinr_min_db=threshold, num_taxis=num_taxis, feasibility=feasibility, separation=separation,
         hover_action=hover_action,
     )  # fmt: skip
     _check_window(arrival_window_s, base.slot_s)
@@ -269,7 +466,7 @@ def make_fleet_instance(
             requests=tuple(requests),
             time_limit_steps=fleet_time_limit(base.time_limit_steps, window_steps),
             max_passengers=max_passengers,
-            scenario=f"{family}_fleet{num_taxis}x{num_requests}_seed{seed}",
+            scenario=f"{name}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
 
@@ -331,10 +528,14 @@ def _draw_trips(rng: np.random.Generator, sites: np.ndarray, release: np.ndarray
 
 
 def family_of(scenario: str) -> str:
-    """The instance family a training scenario draws like: ``berlin_instances`` / ``berlin_fleet`` -> ``berlin``."""
+    """The instance family a training scenario draws like: ``berlin_instances`` / ``berlin_fleet`` -> ``berlin``;
+    a packaged map's (``munich_instances``) -> the map's family (``munich``)."""
     for family, fam in FAMILIES.items():
         if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
             return family
+    for name in RADIO_MAPS:  # a packaged map's scenarios (munich_random, munich_instances): its map family
+        if scenario in (f"{name}_random", f"{name}_instances", f"{name}_fleet"):
+            return name
     raise ValueError(
         f"scenario {scenario!r} belongs to no instance family; use one of {tuple(FAMILIES)} + '_instances'."
     )
@@ -415,6 +616,7 @@ __all__ = [
     "TEST_SEEDS",
     "TRAIN_SEEDS",
     "VALIDATION_SEEDS",
+    "Families",
     "InstanceFamily",
     "draw_trip",
     "family_of",
@@ -423,6 +625,10 @@ __all__ = [
     "law_family",
     "make_fleet_instance",
     "make_instance",
+    "map_family",
+    "map_family_key",
+    "map_provenance",
+    "map_thresholds",
     "split_seeds",
     "validation_metrics",
 ]

@@ -22,7 +22,7 @@ SECTIONS = {"env": "--scenario", "observer": "--passenger-window", "net": "--d-m
 
 def test_every_option_lies_in_one_group_and_the_flat_dict_reads_back() -> None:
     names = [f.name for cls in GROUPS.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == 68
+    assert len(names) == len(set(names)) == 69
     assert list(GROUPS) == ["env", "observer", "net", "ppo", "eval", "run"]
     default = TrainArgs()
     assert set(default.flat()) == set(names) and default.flat()["run_dir"] == "runs"  # plain values
@@ -94,7 +94,7 @@ def test_the_imitation_options_share_the_trainers_group_names_and_read_flat(caps
     assert (args.env.thresholds, args.observer.lookahead_depth, args.expert.expert_beam, args.fit.seed) == (
         (-5.0, -3.0), 2, 8, 4,
     )  # fmt: skip
-    assert ImitationArgs.from_flat(args.flat()) == args and len(args.flat()) == 30
+    assert ImitationArgs.from_flat(args.flat()) == args and len(args.flat()) == 31
     with pytest.raises(ConfigError, match="--lookahead-depth=2 is the look-ahead's depth"):
         ImitationArgs.from_flat({"lookahead_depth": 2})
     with pytest.raises(ConfigError, match=r"\['beam'\] are no options of ImitationArgs"):

@@ -32,7 +32,7 @@ import numpy as np
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import EnvConfig
 from uamfleet.demand import DemandLaw, Request, binned_intensity
-from uamfleet.instances import FAMILIES, check_family, draw_trip
+from uamfleet.instances import FAMILIES, check_family, draw_trip, map_family_key
 from uamfleet.io import write_text_atomic
 from uamfleet.sim.generator import flyable_sites
 from uamfleet.sim.world import World
@@ -50,14 +50,19 @@ class NoDemandModelError(ValueError):
 def world_family(cfg: EnvConfig, policy: str) -> str:
     """The instance family whose demand model draws ``cfg``'s requests, read from its scenario: a family's instances
     (``berlin_seed3``, ``berlin_fleet4x48_seed3``, :func:`uamfleet.instances.make_instance`) and its training
-    scenarios (``berlin_instances``, ``berlin_fleet``, ``berlin_random``). :class:`NoDemandModelError`, naming
-    ``policy``, for any other world (the paper's fixed scenarios have none)."""
+    scenarios (``berlin_instances``, ``berlin_fleet``, ``berlin_random``), and a map's family
+    (:func:`uamfleet.instances.map_family_key`: ``munich_seed3``, or a file's whose instances this process drew).
+    :class:`NoDemandModelError`, naming ``policy``, for any other world (the paper's fixed scenarios have none)."""
     scenario = cfg.scenario
     for family, fam in FAMILIES.items():
         if scenario in (fam.scenario, f"{family}_instances", f"{family}_fleet"):
             return family
         if re.fullmatch(rf"{re.escape(family)}_(fleet\d+x\d+_)?seed\d+", scenario):
             return family
+    named = re.fullmatch(r"(.+?)_(random|instances|fleet|(fleet\d+x\d+_)?seed\d+)", scenario)
+    key = map_family_key(named.group(1)) if named else None
+    if key is not None:  # a map's family (uamfleet.instances.map_family): munich_seed3, city_fleet2x12_seed3
+        return key
     raise NoDemandModelError(
         f"{policy} reads an instance family's demand model, and scenario {scenario!r} is none of "
         f"{tuple(FAMILIES)}'s: fly it on an instance (uamfleet.instances.make_instance), not a fixed scenario."

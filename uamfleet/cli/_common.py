@@ -25,7 +25,8 @@ from uamfleet.policies.learned import for_world
 from uamfleet.policies.registry import BASE, PolicyNameError
 from uamfleet.env.protocol import observer_of
 from uamfleet.presets import SCENARIOS
-from uamfleet.instances import FAMILIES, SPLITS
+from uamfleet.instances import FAMILIES, SPLITS, is_map_name, map_family, map_provenance
+from uamfleet.radio.packaged import RADIO_MAPS, load_radio_map
 from uamfleet.rl.distributed import RankZeroError
 from uamfleet.rl.networks import VARIANTS
 
@@ -196,6 +197,70 @@ def flight(
     except ValueError as err:
         raise UsageError(f"{flag} {text!r} cannot fly {scored.scenario}: {' '.join(str(err).split())}") from None
     return scored, scored, policy
+
+
+MapName = Annotated[
+    str | None,
+    tyro.conf.arg(
+        metavar="FILE|NAME",
+        help=f"fly this radio map: a packaged map ({', '.join(RADIO_MAPS)}) or the path of a map file (.npz of "
+        "uamfleet-radio-map, or WinProp ASCII .txt); its instances are its family's (uamfleet.instances.map_family: "
+        "Berlin's rules scaled to the map), its provenance is printed above the results",
+        help_behavior_hint="(default: the command's own map)",
+    ),
+]
+"""``--map``: a packaged map's name or a map file's path (checked by :func:`check_map`)."""
+
+
+def check_map(value: str, flag: str = "--map") -> str:
+    """``value`` when it names a map whose instance family can be derived (:func:`uamfleet.instances.map_family`):
+    a packaged map or a readable map file; else a UsageError naming ``flag``, the value and the fix."""
+    if not isinstance(value, str) or not value or not (value in RADIO_MAPS or is_map_name(value)):
+        raise UsageError(
+            f"{flag} {value!r}: no packaged map of that name and no such map file; give one of "
+            f"{', '.join(RADIO_MAPS)} or the path of a map file (a .npz written by uamfleet-radio-map, or a WinProp "
+            "ASCII .txt)."
+        )
+    try:
+        map_family(value)
+    except (ValueError, OSError) as err:  # a file that is no map, or a map too small to draw on
+        raise UsageError(f"{flag} {value}: {' '.join(str(err).split())}") from None
+    return value
+
+
+FIXED_SCENARIOS: tuple[str, ...] = ("berlin_p4", "detroit_p5", "detroit3gpp_p5")
+"""The paper's fixed instances: their stops lie on their own maps, so they fly no other map."""
+
+
+def on_map(map_: str | None, scenario: str, overrides: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """(scenario, config overrides) of a command that flies ``scenario`` on the map ``--map map_``: the scenario's
+    world on that map (``radio``) at the strictest threshold of the map's family
+    (:func:`uamfleet.instances.map_family`) unless ``overrides`` set one; the default fixed scenario
+    ``berlin_p4`` becomes ``berlin_instances`` (one taxi, random demand), another fixed scenario is refused in one line.
+    Without a map, both as given."""
+    if map_ is None:
+        return scenario, overrides
+    check_map(map_)
+    if scenario == "berlin_p4":
+        scenario = "berlin_instances"
+    elif scenario in FIXED_SCENARIOS:
+        raise UsageError(
+            f"--scenario {scenario} with --map {map_}: a fixed scenario's stops lie on its own map; give a scenario "
+            "of random demand (e.g. --scenario berlin_random or berlin_instances) with --map."
+        )
+    threshold = {"sinr_min_db": map_family(map_).thresholds_db[-1]}
+    return scenario, {**threshold, **overrides, "radio": load_radio_map(map_)}
+
+
+def with_provenance(body: str, map_: str | None) -> str:
+    """A results section ``body`` with the provenance line of the map it was flown on
+    (:func:`uamfleet.instances.map_provenance`) above its first table; ``body`` as it is without a map."""
+    if map_ is None:
+        return body
+    line = f"Map: {map_provenance(map_)}."
+    lines = body.split("\n")
+    first = next((i for i, text in enumerate(lines) if text.startswith("|")), len(lines))
+    return "\n".join([*lines[:first], line, "", *lines[first:]])
 
 
 def check_jobs(jobs: int, flag: str = "--jobs") -> int:

@@ -35,15 +35,18 @@ from uamfleet.baselines.step_planner import STEP_PLANNERS, instance_lower_bound_
 from uamfleet.cli._common import (
     Family,
     Feasibility,
+    MapName,
     Scenario,
     Split,
     UsageError,
     check_jobs,
+    check_map,
     check_outputs,
     earlier_rows,
     fmt,
     output_paths,
     run,
+    with_provenance,
 )
 from uamfleet.cli.benchmark_tables import markdown
 from uamfleet.cli.docs_tables import REFRESH_HINT
@@ -81,6 +84,7 @@ COLUMNS = ("set", "instance", "threshold_db", "feasibility", "num_requests", "me
 class Args:
     family: Family = "berlin"
     """instance family"""
+    map: MapName = None
     split: Split = "test"
     count: int = 200
     """instances of the split (0: only --fixed)"""
@@ -285,9 +289,9 @@ def run_instance(job: Job) -> list[dict[str, Any]]:
 
 
 def tasks(args: Args) -> list[Task]:
+    family = args.family if args.map is None else args.map
     out: list[Task] = [
-        (args.split, args.family, seed, None, args.feasibility)
-        for seed in split_seeds(args.split, args.count, args.first)
+        (args.split, family, seed, None, args.feasibility) for seed in split_seeds(args.split, args.count, args.first)
     ]
     if args.fixed:
         for rule in args.fixed_rules:
@@ -365,6 +369,8 @@ def check_args(args: Args) -> list[Task]:
     if args.from_csv is not None:
         return []
     check_jobs(args.jobs)
+    if args.map is not None:
+        check_map(args.map)
     unknown = [m for m in args.methods if m not in METHODS + SLOW_METHODS]
     if unknown:
         raise ValueError(f"unknown --methods {unknown}; choose from {METHODS + SLOW_METHODS}.")
@@ -466,7 +472,9 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     """The CSV and the Markdown section of a complete run (each written atomically)."""
     write_csv_atomic(args.out_csv, rows, COLUMNS)
     command = args.command or (
-        f"uamfleet-benchmark --family {args.family} --split {args.split} --count {args.count} "
+        "uamfleet-benchmark "
+        + (f"--family {args.family} " if args.map is None else f"--map {args.map} ")
+        + f"--split {args.split} --count {args.count} "
         f"--first {args.first} --feasibility {args.feasibility} --jobs {args.jobs} "
         f"--best-known-beams {' '.join(map(str, args.best_known_beams))} --replan-beam {args.replan_beam}"
         + (" --fixed" if args.fixed else "")
@@ -478,12 +486,13 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (" --overwrite" if args.overwrite else "")
     )
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
+    body = with_provenance(markdown(rows, command, wall, note), args.map)
     if args.out_md is None:
-        print(markdown(rows, command, wall, note))
+        print(body)
         print(f"wrote {args.out_csv} ({minutes}){note}")
         print(REFRESH_HINT)
     else:
-        replace_section(args.out_md, args.section, markdown(rows, command, wall, note))
+        replace_section(args.out_md, args.section, body)
         print(f"wrote {args.out_csv} and the {args.section} section of {args.out_md} ({minutes}){note}")
 
 

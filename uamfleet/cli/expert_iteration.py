@@ -2,6 +2,7 @@
 
     uamfleet expert-iteration --run-name exit_berlin                       # 4 rounds from the shipped berlin
     uamfleet expert-iteration --rounds 1 --label-instances 4 --val-instances 4 --run-name try   # a quick look
+    uamfleet expert-iteration --map munich --run-name exit_munich          # another map's instances (or a file's)
 
 Each round labels fresh training instances with the hedge over the current network (worker processes), fits the
 network to the labels held near the round's start, and keeps the fit only if it flies shorter on the validation
@@ -11,13 +12,28 @@ against the round's start and against replan), start.pt, round<k>.pt, best.pt an
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
+from dataclasses import dataclass
 
-from uamfleet.cli._common import run
+from uamfleet.cli._common import MapName, check_map, run
+from uamfleet.instances import map_provenance
 from uamfleet.rl.expert_iteration import ExItOptions, expert_iteration
 
 
-def main(args: ExItOptions) -> int:
+@dataclass(frozen=True)
+class ExItArgs(ExItOptions):
+    """:class:`~uamfleet.rl.expert_iteration.ExItOptions` and ``--map``."""
+
+    map: MapName = None
+    """(labels and validates on the map's instance family, in place of --family)"""
+
+
+def main(args: ExItArgs) -> int:
+    if args.map is not None:
+        check_map(args.map)
+        print(f"Map: {map_provenance(args.map)}.", flush=True)
+        args = dataclasses.replace(args, family=args.map)
     last = expert_iteration(args)
     print(
         f"last round {int(last['round'])}: validation TD {last['val_td_m']:,.0f} m, against replan "
@@ -29,7 +45,7 @@ def main(args: ExItOptions) -> int:
 
 def cli(argv: Sequence[str] | None = None, prog: str = "uamfleet expert-iteration") -> int:
     """The ``uamfleet expert-iteration`` command."""
-    return run(main, ExItOptions, argv, prog, __doc__)
+    return run(main, ExItArgs, argv, prog, __doc__)
 
 
 if __name__ == "__main__":

@@ -42,7 +42,18 @@ from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.checks import ConfigError, check_number
-from uamfleet.cli._common import UsageError, check_jobs, check_outputs, earlier_rows, fmt, output_paths, run
+from uamfleet.cli._common import (
+    MapName,
+    UsageError,
+    check_jobs,
+    check_map,
+    check_outputs,
+    earlier_rows,
+    fmt,
+    output_paths,
+    run,
+    with_provenance,
+)
 from uamfleet.cli.benchmark_tables import ci, command_header
 from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.config import WorldConfig
@@ -64,6 +75,7 @@ COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "
 class Args:
     family: str = "berlin"
     """instance family (uamfleet.instances.FAMILIES)"""
+    map: MapName = None
     settings: tuple[str, ...] = tuple(FLEET_SETTINGS)
     """fleet settings (taxis x requests): uamfleet.instances.FLEET_SETTINGS"""
     split: str = "test"
@@ -270,7 +282,9 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
     if args.from_csv is None:
         write_csv_atomic(args.out_csv, rows, COLUMNS)
     command = args.command or (
-        f".venv/bin/python -m eval.fleet_benchmark --family {args.family} --settings {' '.join(args.settings)} "
+        ".venv/bin/python -m eval.fleet_benchmark "
+        + (f"--family {args.family} " if args.map is None else f"--map {args.map} ")
+        + f"--settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
@@ -282,7 +296,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
-    body = markdown(rows, command, wall, note)
+    body = with_provenance(markdown(rows, command, wall, note), args.map)
     if args.note:
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock
@@ -308,6 +322,8 @@ def check_args(args: Args) -> list[Job]:
     if args.from_csv is not None:
         return []
     check_jobs(args.jobs)
+    if args.map is not None:
+        check_map(args.map)
     _check_names(args)
     if not args.settings or args.count < 1:
         raise UsageError(
@@ -325,7 +341,7 @@ def check_args(args: Args) -> list[Job]:
     check_outputs(args.overwrite, [args.out_csv], args.out_md, args.section)
     return [
         (
-            args.family,
+            family_of_args(args),
             setting,
             seed,
             tuple(args.dispatchers),
@@ -339,6 +355,11 @@ def check_args(args: Args) -> list[Job]:
         for seed in split_seeds(args.split, args.count, args.first)
         for setting in args.settings
     ]
+
+
+def family_of_args(args: Args) -> str:
+    """The family the episodes are drawn from: --map's (its name or path), else --family."""
+    return args.family if args.map is None else args.map
 
 
 def _check_names(args: Args) -> None:
@@ -381,7 +402,7 @@ def _check_checkpoint_flies(checkpoint: Path, args: Args) -> None:
     for setting in settings:
         taxis, requests = setting_size(setting)
         world = make_fleet_instance(
-            args.family, first_seed, taxis, requests,
+            family_of_args(args), first_seed, taxis, requests,
             arrival_window_s=args.arrival_window_s, separation=args.separation, hover_action=args.hover_action,
         ).world  # fmt: skip
         reasons[setting] = refusal(_learned(checkpoint, taxis, requests, passenger_window), world)

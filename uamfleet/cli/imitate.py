@@ -17,10 +17,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from uamfleet.cli._common import fmt, run
+from uamfleet.instances import map_provenance
 from uamfleet.rl.imitation import ImitationArgs, imitate
 
 
 def main(args: ImitationArgs) -> int:
+    if args.env.map is not None:
+        print(f"Map: {map_provenance(args.env.map)}.", flush=True)
     best = imitate(args)
     print(
         f"best validation round {int(best['round'])}: PR {fmt(best['val_pr_pct'], '.1f', ' %')}, mean TD "

@@ -4,6 +4,7 @@
     uamfleet-quickstart --init-from None                  # MSHA-PPO from scratch (150k agent-steps, 6-10 minutes)
     uamfleet-quickstart --init-from None --variant full   # the full MSHA model from scratch (~3x slower per step)
     uamfleet-quickstart --recipe scratch-first-delivery   # a candidate recipe from scratch (RECIPES)
+    uamfleet-quickstart --map munich --test-count 20      # on another map (a packaged one, or a map file's path)
 
 Starts from the shipped generalist (``uamfleet.pretrained("berlin")``, one policy for any Berlin instance, trained
 on random demand) and fine-tunes it with PPO on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold),
@@ -31,6 +32,7 @@ import csv
 import math
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +41,7 @@ from pathlib import Path
 
 
 from uamfleet.checks import ConfigError
-from uamfleet.cli._common import Feasibility, Variant, fmt, run
+from uamfleet.cli._common import Feasibility, MapName, Variant, check_map, fmt, run
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.baselines.planner_policy import PlannerPolicy, planner_configs
 from uamfleet.presets import make_config
@@ -122,6 +124,10 @@ class Args:
     sets")"""
     planner_csv: Path = Path("docs/results/benchmark_berlin_test.csv")
     """the planners' recorded rows on the test instances, shown beside the generalist's (skipped if absent)"""
+    map: MapName = None
+    """(the main job on that map: training on berlin_instances there at the strictest threshold of the map's family,
+    in place of Berlin P4 and --sinr-min-db; then the trained policy, replan, raster_opt and, with --generalist, the
+    shipped generalist zero-shot on the first --test-count test instances of the map's family)"""
 
 
 def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics:
@@ -155,8 +161,10 @@ def training_args(args: Args) -> TrainArgs:
         eval_every=args.eval_every,
         overwrite=args.overwrite or args.run_name == DEFAULT_RUN,  # a rerun retrains its own run, never another
     )  # fmt: skip
+    if args.map is not None:  # its instances' world, at the map family's strictest threshold (TrainArgs.env.map)
+        common.update(scenario="berlin_instances", map=args.map, sinr_min_db=None)
     if args.curve_instances:
-        common.update(curve_instances=args.curve_instances, curve_family="berlin")
+        common.update(curve_instances=args.curve_instances, curve_family=args.map or "berlin")
     if recipe != "fine-tune":
         steps = SCRATCH_STEPS if args.total_timesteps is None else args.total_timesteps
         scratch = {**common, "total_timesteps": steps, "variant": args.variant, "shaping_gamma": args.shaping_gamma}
@@ -178,7 +186,9 @@ def training_args(args: Args) -> TrainArgs:
     ))  # fmt: skip
 
 
-def main(args: Args) -> dict[str, EpisodeMetrics]:
+def main(args: Args) -> dict[str, EpisodeMetrics] | dict[str, list[dict[str, Any]]]:
+    if args.map is not None:
+        return map_job(args)
     train_args = training_args(args)
     scratch = train_args.net.init_from is None
     if scratch:
@@ -221,6 +231,50 @@ def main(args: Args) -> dict[str, EpisodeMetrics]:
     print(f"learning curve (greedy TD and PR against agent-steps): {curve}")
     if args.generalist:
         generalist_report(args.test_count, args.planner_csv)
+    return rows
+
+
+def map_job(args: Args) -> dict[str, list[dict[str, Any]]]:
+    """The main job on ``--map``: training on its ``berlin_instances`` world (:func:`training_args`), then the trained
+    policy beside ``replan`` and ``raster_opt`` (and the shipped generalist, zero-shot) on the first ``--test-count``
+    test instances of the map's family, each flown by :func:`uamfleet.cli.benchmark.run_instance`; rows by method."""
+    from uamfleet.cli.benchmark import Job, job_options, run_instance
+    from uamfleet.cli.benchmark import Args as BenchmarkArgs
+    from uamfleet.instances import map_family, map_provenance, split_seeds
+    from uamfleet.zoo import pretrained_path
+
+    assert args.map is not None
+    check_map(args.map)
+    print(f"Map: {map_provenance(args.map)}.")
+    train_args = training_args(args)
+    threshold = map_family(args.map).thresholds_db[-1]
+    start = "from scratch" if train_args.net.init_from is None else f"from {args.init_from!r}"
+    print(f"training MSHA-PPO {start} on berlin_instances on {args.map} at {threshold:g} dB for "
+          f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
+    result = train(train_args)
+    options = job_options(BenchmarkArgs())
+    seeds = split_seeds("test", args.test_count)
+    flights: list[tuple[tuple[str, ...], Path, str]] = [
+        (("replan", "raster_opt", "learned"), result.run_dir / "best.pt", "")
+    ]
+    if args.generalist:
+        flights.append((("learned",), pretrained_path("berlin"), "generalist (shipped, zero-shot)"))
+    rows: dict[str, list[dict[str, Any]]] = {}
+    for methods, checkpoint, label in flights:
+        for seed in seeds:
+            for row in run_instance(
+                Job(("test", args.map, seed, None, args.feasibility), methods, checkpoint, options)
+            ):
+                name = label or ("MSHA-PPO (ours)" if row["method"] == "learned" else row["method"])
+                rows.setdefault(name, []).append(row)
+    print(f"\n{args.map}: the first {args.test_count} test instances of its family ({args.feasibility} rule), after "
+          f"{result.global_step:,} agent-steps ({result.wall_s:.0f} s)")  # fmt: skip
+    print(f"{'method':<44} {'all delivered %':>15} {'PR %':>6} {'TD m (mean)':>12}")
+    for name, flown in rows.items():
+        pr = np.array([r["pr_pct"] for r in flown])
+        td = np.array([r["td_m"] for r in flown])
+        print(f"{name:<44} {100 * np.mean(pr >= 100):>15.1f} {pr.mean():>6.1f} {td.mean():>12,.0f}")
+    print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
     return rows
 
 

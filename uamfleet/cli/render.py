@@ -25,11 +25,14 @@ from cycler import cycler
 import uamfleet
 from uamfleet.cli._common import (
     SCENARIO_DEFAULT,
+    MapName,
     Policy,
     Scenario,
     UsageError,
+    check_map,
     check_outputs,
     flight,
+    on_map,
     fmt,
     output_path,
     policy_call,
@@ -37,6 +40,7 @@ from uamfleet.cli._common import (
 )
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl.policy import load_policy
+from uamfleet.instances import map_provenance
 from uamfleet.rollout import Trajectory
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.colours import TAXI_HEX
@@ -48,7 +52,8 @@ from uamfleet.viz.strip import plot_sinr_strip
 @dataclass
 class Args:
     scenario: Scenario = "berlin_p4"
-    """scenario name"""
+    """scenario name (with --map: berlin_instances unless named, a scenario of random demand)"""
+    map: MapName = None
     policy: Policy = "raster_replan"
     out: Path = Path("render.html")
     """HTML file to write (relative to the current folder; its folder must exist, or be one new folder in an
@@ -79,11 +84,12 @@ def fly(args: Args) -> tuple[Trajectory, uamfleet.EnvConfig]:
     if args.checkpoint is not None:
         policy, trained = load_policy(args.checkpoint)
         overrides = {"feasibility": trained.env.feasibility, **trained.env_overrides(training=False), **overrides}
-        shown = uamfleet.make_config(
-            trained.env.scenario if args.scenario == "berlin_p4" else args.scenario, **overrides
-        )
+        scenario = trained.env.scenario if args.scenario == "berlin_p4" and args.map is None else args.scenario
+        scenario, overrides = on_map(args.map, scenario, overrides)
+        shown = uamfleet.make_config(scenario, **overrides)
         return fly_episode(shown, policy, seed=args.seed), shown
-    flown, shown, policy = flight(args.scenario, args.policy, args.seed, overrides)
+    scenario, overrides = on_map(args.map, args.scenario, overrides)
+    flown, shown, policy = flight(scenario, args.policy, args.seed, overrides)
     return fly_episode(flown, policy, seed=args.seed), shown
 
 
@@ -100,8 +106,12 @@ def main(args: Args) -> dict[str, Path]:
         raise UsageError(f"--seconds-per-step {args.seconds_per_step}: give a positive playback time (e.g. 0.25).")
     if args.checkpoint is None:
         policy_call(args.policy)
+    if args.map is not None:
+        check_map(args.map)
     output_path(args.out, "--out")
     check_outputs(args.overwrite, [args.out, *(figure_paths(args.out).values() if args.png else ())])
+    if args.map is not None:
+        print(f"Map: {map_provenance(args.map)}.")
     if args.checkpoint is not None:
         args.policy = "msha"
     traj, cfg = fly(args)

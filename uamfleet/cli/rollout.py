@@ -3,6 +3,7 @@ episode's metrics.
 
     uamfleet-rollout --scenario berlin_p4 --policy raster_replan --episodes 3
     .venv/bin/python -m eval.rollout --scenario berlin_random --policy greedy --num-taxis 4
+    uamfleet-rollout --map munich --policy replan --episodes 2       # a packaged map, or a map file's path
     uamfleet-rollout --scenario berlin_p4 --policy "guided:top_k=4(learned:source=berlin_stops)" --episodes 1
 
 ``--policy`` takes any name of :mod:`uamfleet.policies` (``uamfleet.policies.available()``) in its grammar: a
@@ -25,7 +26,19 @@ import numpy as np
 
 import uamfleet
 from uamfleet.env.protocol import observer_of
-from uamfleet.cli._common import SCENARIO_DEFAULT, Policy, Scenario, UsageError, flight, fmt, policy_call, run
+from uamfleet.cli._common import (
+    SCENARIO_DEFAULT,
+    MapName,
+    Policy,
+    Scenario,
+    UsageError,
+    flight,
+    fmt,
+    on_map,
+    policy_call,
+    run,
+)
+from uamfleet.instances import map_provenance
 from uamfleet.metrics import episode_metrics
 from uamfleet.rollout import run_episode
 
@@ -33,7 +46,8 @@ from uamfleet.rollout import run_episode
 @dataclass
 class Args:
     scenario: Scenario = "berlin_p4"
-    """scenario name"""
+    """scenario name (with --map: berlin_instances unless named, a scenario of random demand)"""
+    map: MapName = None
     sinr_min_db: Annotated[float | None, SCENARIO_DEFAULT] = None
     """SINR threshold in dB"""
     num_taxis: Annotated[int | None, SCENARIO_DEFAULT] = None
@@ -64,8 +78,11 @@ def main(args: Args) -> list[dict[str, float]]:
         )
         if v is not None
     }
-    flown, cfg, policy = flight(args.scenario, args.policy, args.seed, overrides)  # cfg: the rules it is scored by
+    scenario, overrides = on_map(args.map, args.scenario, overrides)
+    flown, cfg, policy = flight(scenario, args.policy, args.seed, overrides)  # cfg: the rules it is scored by
     env = uamfleet.VectorEnv(flown, num_envs=1, autoreset=False, observer=observer_of(policy))
+    if args.map is not None:
+        print(f"Map: {map_provenance(args.map)}.")
     print(
         f"{cfg.scenario} on {cfg.radio.label}: {cfg.num_taxis} taxi(s), γ_T = {cfg.sinr_min_db:g} dB, "
         f"{cfg.num_passengers} passenger slot(s), policy={args.policy}"

@@ -4,6 +4,7 @@ runs/<name>/, relative to the current folder).
     uamfleet-train --scenario berlin_p4 --sinr-min-db -3   # or: .venv/bin/python train/ppo.py ...
     uamfleet-train ... --resume                            # continue from runs/<name>/last.pt
     uamfleet-train ... --overwrite                         # replace an existing run of that name
+    uamfleet-train --scenario berlin_instances --map munich # another map: a packaged one, or a map file's path
 
 Data-parallel on one machine (N processes; --num-envs and --total-timesteps are global, split among them):
 
@@ -22,16 +23,20 @@ Ctrl-C saves the last finished iteration and exits with status 130.
 from __future__ import annotations
 
 import faulthandler
+import os
 from collections.abc import Sequence
 
 import torch.distributed as dist
 
 from uamfleet.cli._common import fmt, run
+from uamfleet.instances import map_provenance
 from uamfleet.rl.distributed import leave_rank
 from uamfleet.rl.trainer import TrainArgs, TrainResult, train
 
 
 def main(args: TrainArgs) -> int:
+    if args.env.map is not None and int(os.environ.get("RANK", "0")) == 0:
+        print(f"Map: {map_provenance(args.env.map)}.", flush=True)
     try:
         result = train(args)
     except BaseException:

@@ -37,7 +37,7 @@ from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior
 from uamfleet.baselines.step_planner import SearchSettings
 from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import family_of, validation_metrics
+from uamfleet.instances import BERLIN_THRESHOLDS_DB, FAMILIES, family_of, map_family, validation_metrics
 from uamfleet.observe.legacy import observed_config
 from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
@@ -64,7 +64,11 @@ class ImitationEnvOptions:
     """The envs DAgger rolls out, and its rounds."""
 
     thresholds: tuple[float, ...] = (-7.0, -6.0, -5.0, -4.0, -3.0)
-    """SINR thresholds to roll out on (dB), one group of envs each"""
+    """SINR thresholds to roll out on (dB), one group of envs each; with --map, Berlin's (the default) are read as
+    the map family's"""
+    map: str | None = None
+    """roll out on this radio map (a packaged map's name or the path of a .npz / WinProp .txt map file) and validate
+    on its instance family (uamfleet.instances.map_family); None: the start's own map and family"""
     envs_per_threshold: int = 8
     rounds: int = 6
     steps_per_round: int = 120
@@ -203,6 +207,11 @@ class ImitationArgs:
         self._set("thresholds", thresholds)
         if not thresholds or len(set(thresholds)) != len(thresholds):
             raise ConfigError(f"--thresholds={list(thresholds)} must name one or more distinct dB values.")
+        if self.env.map is not None and self.env.map not in FAMILIES:  # FAMILIES: a packaged map or a map file too
+            raise ConfigError(
+                f"--map={self.env.map!r}: no packaged map of that name and no such map file; give one of berlin, "
+                "detroit_estimate, detroit_3gpp, munich or the path of a map file (.npz of uamfleet-radio-map)."
+            )
         self._set("run_dir", Path(self.run.run_dir))
         check_run_name(self.run.run_name, self.run.run_dir)  # the rule of every command that writes a run
         if net.train == "lookahead" and not observer.lookahead:
@@ -393,7 +402,9 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
         lookahead_depth=args.observer.lookahead_depth,
     )  # fmt: skip
     assert policy.spec is not None, "load_policy gives the spec the policy reads"
-    family = family_of(source_args.env.scenario)
+    if args.env.map is not None:  # the start's world on the map, validated on the map's family (below)
+        source_args = source_args.with_options(map=args.env.map, eval_instances=0)
+    family = args.env.map or family_of(source_args.env.scenario)
     # the source's worlds, observed as the policy reads them
     eval_like = observed_config(run_config(source_args, training=False), policy.spec)[0]
     groups = _groups(args, run_config(source_args, training=True), family, policy.spec)
@@ -425,7 +436,10 @@ def _groups(args: ImitationArgs, base: EnvConfig, family: str, spec: ObserverSpe
     """One group of ``envs_per_threshold`` envs (tables filled), observed by ``spec``, and its expert per training
     threshold."""
     groups = []
-    for i, threshold in enumerate(args.env.thresholds):
+    thresholds = args.env.thresholds
+    if args.env.map is not None and thresholds == BERLIN_THRESHOLDS_DB:
+        thresholds = map_family(args.env.map).thresholds_db
+    for i, threshold in enumerate(thresholds):
         cfg = observed_config(base.replace(sinr_min_db=threshold), spec)[0]
         venv = VectorEnv(cfg, num_envs=args.env.envs_per_threshold, observer=spec)
         table_for(venv.world).fill()

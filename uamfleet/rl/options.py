@@ -15,8 +15,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from uamfleet.config import FEASIBILITY_RULES, MAX_TAXIS, ConfigError, EnvConfig, check_integer, check_number
-from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of
+from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of, is_map_name, map_family, map_family_name
 from uamfleet.presets import SCENARIOS, make_config
+from uamfleet.radio.packaged import RADIO_MAPS
 from uamfleet.rl.networks import VARIANTS
 from uamfleet.rl.option_groups import Flat, flat_options, grouped_from_flat
 
@@ -35,6 +36,11 @@ class EnvOptions:
 
     scenario: ScenarioName = "berlin_p4"
     """scenario name"""
+    map: str | None = None
+    """fly the scenario's world on this radio map: a packaged map's name (berlin, detroit_estimate, detroit_3gpp,
+    munich) or the path of a map file (.npz of uamfleet-radio-map, or WinProp ASCII .txt), at the strictest threshold of
+    the map's family (uamfleet.instances.map_family) unless --sinr-min-db says otherwise; --curve-instances then fly
+    that family's validation instances. A scenario of random demand (e.g. berlin_instances); None: its own map"""
     sinr_min_db: float | None = None
     """SINR threshold in dB; None: the scenario's"""
     num_taxis: int | None = None
@@ -329,6 +335,7 @@ class TrainArgs:
                 f"--eval-instances={evaluation.eval_instances} flies held-out instances of a family; it needs a "
                 f"*_instances or *_fleet scenario (not {env.scenario!r}), e.g. --scenario berlin_instances."
             )
+        self._check_map()
         self._check_curve()
         if net.kl_to_init > 0 and net.init_from is None:
             raise ConfigError(
@@ -394,8 +401,31 @@ class TrainArgs:
                 ) from None
 
     def curve_family_name(self) -> str:
-        """The family of the --curve-instances flights: --curve-family, else the scenario's own."""
-        return self.eval.curve_family or family_of(self.env.scenario)
+        """The family of the --curve-instances flights: --curve-family, else --map's, else the scenario's own."""
+        return self.eval.curve_family or self.env.map or family_of(self.env.scenario)
+
+    def _check_map(self) -> None:
+        """--map names a map (a packaged one or a file), on a scenario of random demand, without --eval-instances
+        (the trainer draws those from the scenario's own family)."""
+        env = self.env
+        if env.map is None:
+            return
+        if not (env.map in RADIO_MAPS or is_map_name(env.map)):
+            raise ConfigError(
+                f"--map={env.map!r}: no packaged map of that name and no such map file; give one of berlin, "
+                "detroit_estimate, detroit_3gpp, munich or the path of a map file (.npz of uamfleet-radio-map)."
+            )
+        if env.scenario in ("berlin_p4", "detroit_p5", "detroit3gpp_p5"):
+            raise ConfigError(
+                f"--map={env.map!r} with --scenario {env.scenario}: a fixed scenario's stops lie on its own map; "
+                "give a scenario of random demand, e.g. --scenario berlin_instances."
+            )
+        if self.eval.eval_instances:
+            raise ConfigError(
+                f"--eval-instances={self.eval.eval_instances} with --map: the trainer draws them from the scenario's "
+                "own family and map; fly the map's validation instances with --curve-instances N, --eval-instances 0."
+            )
+        map_family(env.map)  # a file that is no map, or too small a map, is refused now
 
     def _check_thresholds(self) -> None:
         """--thresholds: a list of distinct dB values, not given together with --sinr-min-db (stored as a tuple)."""
@@ -500,11 +530,15 @@ class TrainArgs:
         if self.run.run_name:
             return self.run.run_name
         sinr = "default" if self.env.sinr_min_db is None else f"{self.env.sinr_min_db:g}"
-        return f"{self.env.scenario}_{sinr}dB_{self.net.variant}_s{self.ppo.seed}"
+        place = "" if self.env.map is None else f"{map_family_name(self.env.map)}_"
+        return f"{place}{self.env.scenario}_{sinr}dB_{self.net.variant}_s{self.ppo.seed}"
 
     def env_overrides(self, training: bool = True) -> dict[str, Any]:
         env, observer = self.env, self.observer
         overrides: dict[str, Any] = {"feasibility": env.feasibility}
+        if env.map is not None:  # the map, at its family's strictest threshold unless one is given
+            overrides["radio"] = env.map
+            overrides["sinr_min_db"] = map_family(env.map).thresholds_db[-1]
         if env.sinr_min_db is not None:
             overrides["sinr_min_db"] = env.sinr_min_db
         taxis = env.num_taxis
