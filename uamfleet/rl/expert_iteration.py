@@ -75,7 +75,8 @@ class ExItOptions:
     workers: int = 2
     epochs: int = 5
     learning_rate: float = 1e-3
-    """chosen with epochs on the first two rounds' labels of a run, on the validation block (reports/2026-12-04-expert-iteration)"""
+    """chosen with ``epochs`` on the first two rounds' labels of a run, flown on the validation block
+    (reports/2026-12-04-expert-iteration)"""
     minibatch: int = 256
     kl_anchor: float = 1.0
     """weight of the KL divergence from the round's start over the headings (given no hover)"""
