@@ -422,6 +422,35 @@ SETUP = {
 }  # fmt: skip
 
 
+def expert_iteration_claims() -> list[str]:
+    """The README's figures of the policy after expert iteration, recomputed from the test rows it names: greedy
+    against ``replan`` (paired mean and 95 % half-width), its and the hedge's mean TD / ``best_known``, and AWT."""
+    planners = {(r["method"], r["instance"]): r for r in rows("benchmark_berlin_test.csv")
+                if r["feasibility"] == "endpoint_block"}  # fmt: skip
+    exit_rows = {(r["method"], r["instance"]): r for r in rows("benchmark_berlin_test_exit.csv")}
+    instances = sorted(i for method, i in exit_rows if method == "learned")
+    assert len(instances) == 200
+
+    def col(table: dict[tuple[str, str], dict[str, str]], method: str, column: str = "td_m") -> np.ndarray:
+        return np.array([float(table[(method, i)][column]) for i in instances])
+
+    diff = col(exit_rows, "learned") - col(planners, "replan")
+    half = 1.96 * diff.std(ddof=1) / np.sqrt(len(diff))
+    best = col(planners, "best_known")
+    return [
+        f"{-diff.mean():,.0f} ± {half:,.0f} m per instance less than `replan`",
+        f"({np.mean(col(exit_rows, 'learned') / best):.3f} × `best_known`",
+        f"hedging, {np.mean(col(exit_rows, 'learned_hedge') / best):.3f})",
+        f"AWT {col(exit_rows, 'learned', 'awt_s').mean():.0f} s against "
+        f"{col(planners, 'replan', 'awt_s').mean():.0f} s",
+    ]
+
+
+def test_the_expert_iteration_figures_are_the_test_rows():
+    for claim in expert_iteration_claims():
+        says(RESULTS, claim)
+
+
 def test_every_result_number_is_accounted_for():
     """Every number in the quick start's prose and the results at a glance is one a test above recomputes, a
     setting of the experiment (SETUP) or a measurement the README dates (MEASURED)."""
@@ -430,6 +459,7 @@ def test_every_result_number_is_accounted_for():
             [
                 pct(mean_of_ratios("raster_opt")), pct(mean_of_ratios("replan")), pct(mean_of_ratios("learned")),
                 m(td("learned").mean()), m(td("replan").mean()), RESULTS_MD, BENCHMARKS_MD,
+                *expert_iteration_claims(),
             ]
         )
     )  # fmt: skip
