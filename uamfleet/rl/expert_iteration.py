@@ -9,8 +9,8 @@ Silver et al. 2017) and hedges again with the network it made:
    the hedge over it scores its candidates in sampled futures (soft targets over the candidates) while a request may
    still come, and the step-level solver over the then-complete requests labels the steps after.
 2. **Fit** every parameter to the aggregated labels: the weighted cross-entropy to the soft targets plus
-   ``kl_anchor`` times the KL divergence from the round's start network on the same states (a fit that drifts off
-   the stops it flew well is held back).
+   ``kl_anchor`` times the KL divergence from the round's start network over the headings on the same states (a fit
+   that drifts off the headings it flew well is held back, while whether to hover is left to the labels).
 3. **Validate** the fitted network greedily on the validation block, paired per instance against the round's start
    network, and accept the round only if it flies shorter on average without delivering fewer passengers; a rejected
    round keeps the start network (its labels stay in the data). Stop after ``patience`` rejections in a row.
