@@ -38,6 +38,13 @@ RECORDED: dict[str, tuple[str, dict]] = {
     "learned_guided_h80": ("guided", {"horizon": 80, "base": L}),
     "learned_guided_h120": ("guided", {"horizon": 120, "base": L}),
     "learned_hedge": ("hedge", {"base": ("learned", {"traced": True})}),
+    **{
+        f"hedge:demand=reports/2026-12-04-demand-models/{family}.json(learned:traced=true)": (
+            "hedge",
+            {"demand": f"reports/2026-12-04-demand-models/{family}.json", "base": ("learned", {"traced": True})},
+        )
+        for family in ("berlin_burst", "berlin_peak", "berlin_stream")
+    },  # the hedge with an estimated demand model (docs/results.md, "Learning from the hedge")
     "greedy": ("greedy", {}),
     "insertion": ("insertion", {}),
     "batch_assignment": ("batch_assignment", {}),
@@ -104,7 +111,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 65
+    assert len(recorded) == 68
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))
