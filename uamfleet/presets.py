@@ -123,6 +123,12 @@ def _munich_random(**overrides: Any) -> EnvConfig:
     return _berlin_random(**{"radio": load_radio_map("munich"), "scenario": "munich_random", **overrides})
 
 
+def _munich_3km_random(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_random` on the packaged ``munich_3km`` map (Munich's scene ray-traced over a 3 km square, 16
+    GBS), where the radio binds: at -3 dB 15 % of its 100 m blocks are not flyable."""
+    return _berlin_random(**{"radio": load_radio_map("munich_3km"), "scenario": "munich_3km_random", **overrides})
+
+
 INSTANCE_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, pickup=0.0, dropoff=0.0)
 """The *_instances scenarios' reward: the distance flown is what is scored, so ``step`` per step and nothing
 else. An episode ends only when everyone is delivered, so the return is the shorter the sooner the tour ends,
@@ -159,6 +165,11 @@ def _munich_instances(**overrides: Any) -> EnvConfig:
     """:func:`_berlin_instances` (one taxi, Berlin's instance demand, the generalist's layout) on the packaged
     ray-traced Munich map."""
     return _berlin_instances(**{"radio": load_radio_map("munich"), "scenario": "munich_instances", **overrides})
+
+
+def _munich_3km_instances(**overrides: Any) -> EnvConfig:
+    """:func:`_berlin_instances` on the packaged ``munich_3km`` map."""
+    return _berlin_instances(**{"radio": load_radio_map("munich_3km"), "scenario": "munich_3km_instances", **overrides})
 
 
 FLEET_REWARD = RewardConfig(explore=0.0, explore_repeat=0.0, separation=-20.0, shield=-20.0)
@@ -233,9 +244,11 @@ PRESETS: dict[str, Callable[..., EnvConfig]] = {
     "berlin_random": _berlin_random,
     "detroit3gpp_random": _detroit3gpp_random,
     "munich_random": _munich_random,
+    "munich_3km_random": _munich_3km_random,
     "berlin_instances": _berlin_instances,
     "detroit3gpp_instances": _detroit3gpp_instances,
     "munich_instances": _munich_instances,
+    "munich_3km_instances": _munich_3km_instances,
     "berlin_fleet": _berlin_fleet,
     "detroit3gpp_fleet": _detroit3gpp_fleet,
 }
@@ -245,8 +258,9 @@ _STOPS: dict[str, Any] = {"stops": {"rivals": False, "claims": False}}
 _CLAIMS: dict[str, Any] = {"stops": {"rivals": False, "claims": True}}
 OBSERVERS: dict[str, dict[str, Any]] = {
     "berlin_p4": {}, "detroit_p5": {}, "detroit3gpp_p5": {},
-    "berlin_random": {}, "detroit3gpp_random": {}, "munich_random": {},
+    "berlin_random": {}, "detroit3gpp_random": {}, "munich_random": {}, "munich_3km_random": {},
     "berlin_instances": _STOPS, "detroit3gpp_instances": _STOPS, "munich_instances": _STOPS,
+    "munich_3km_instances": _STOPS,
     "berlin_fleet": _CLAIMS, "detroit3gpp_fleet": _CLAIMS,
 }  # fmt: skip
 """The observer each scenario is flown with, as ``uamfleet.observe.spec.ObserverSpec.from_dict`` values (plain

@@ -24,11 +24,12 @@ BERLIN_TXT = SHARED / "berlin" / "berlin_UAM_SNIR_100.txt"
 
 
 def test_names() -> None:
-    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp", "munich")
+    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp", "munich", "munich_3km")
 
 
 def test_unknown_name() -> None:
-    with pytest.raises(ValueError, match=r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*'munich'.*WinProp"):
+    names = r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*'munich'.*'munich_3km'.*WinProp"
+    with pytest.raises(ValueError, match=names):
         load_radio_map("paris")
 
 
