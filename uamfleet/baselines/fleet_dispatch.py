@@ -45,7 +45,7 @@ from uamfleet.env.protocol import PolicyBase
 from uamfleet.paths import DistanceFields
 from uamfleet.sim.core import Simulator
 from uamfleet.sim.motion import passes_within
-from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
+from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
 SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 """The schedule dispatchers (:mod:`~uamfleet.baselines.batch_assignment`), whose names take the options of
@@ -256,12 +256,13 @@ class ScheduleFleetPolicy(PolicyBase):
         self.speed_mps = sim.cfg.step_m / sim.cfg.slot_s
         self.seats = sim.cfg.seats
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
-        # feasible-path distances, looked up once: [2P, 2P] stop to stop (row 2p: origin of p, 2p + 1: its
-        # destination; a column is filled the first time its stop is asked for), and [A, 2P] from each taxi's
-        # position to every active stop, for one decision (_taxi_key: the state it holds for, _this_decision)
+        # feasible-path distances, looked up once: stop to stop, by column (stop row 2p: origin of p, 2p + 1: its
+        # destination; column j, [2P] from every stop to stop j, is looked up the first time stop j is asked for and
+        # dropped once its passenger is delivered, so memory follows the open requests, not the episode's: a
+        # [2P, 2P] matrix was 128 MB at 2,000 requests), and [A, 2P] from each taxi's position to every active
+        # stop, for one decision (_taxi_key: the state it holds for, _this_decision)
         self._every_stop = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
-        self._stop_to_stop = np.zeros((len(self._every_stop), len(self._every_stop)))
-        self._column_known = np.zeros(len(self._every_stop), dtype=bool)
+        self._to_stop: dict[int, np.ndarray] = {}
         self._taxi_key: tuple[int, bytes] | None = None
         self._taxi_to_stop = np.zeros((sim.num_taxis, len(self._every_stop)))
         self._taxi_known = np.zeros(len(self._every_stop), dtype=bool)
@@ -306,13 +307,20 @@ class ScheduleFleetPolicy(PolicyBase):
         return self._taxi_to_stop[:, rows]
 
     def _between_stops(self, rows: np.ndarray) -> np.ndarray:
-        """[len(rows), len(rows)] feasible-path distance from stop to stop (each column looked up once an
-        episode, from every stop at once)."""
-        if not self._column_known[rows].all():
-            missing = np.unique(rows[~self._column_known[rows]])
-            self._stop_to_stop[:, missing] = self.fields.remaining_many(self._every_stop[missing], self._every_stop)
-            self._column_known[missing] = True
-        return self._stop_to_stop[rows[:, None], rows]
+        """[len(rows), len(rows)] feasible-path distance from stop to stop (each column looked up once while its
+        passenger is open, from every stop at once)."""
+        missing = np.unique([j for j in rows.tolist() if j not in self._to_stop])
+        if missing.size:
+            columns = self.fields.remaining_many(self._every_stop[missing], self._every_stop)  # [2P, missing]
+            self._to_stop.update((int(j), columns[:, i].copy()) for i, j in enumerate(missing))
+        if not rows.size:
+            return np.zeros((0, 0))
+        return np.stack([self._to_stop[j][rows] for j in rows.tolist()], axis=1)
+
+    def _forget_delivered(self, status: np.ndarray) -> None:
+        """Drop the stop-to-stop columns of delivered passengers: no schedule asks for their stops again."""
+        for j in [j for j in self._to_stop if status[j // 2] == DELIVERED]:
+            del self._to_stop[j]
 
     def stop_matrix(self, taxi: int, passengers: Sequence[int]) -> np.ndarray:
         """[1 + 2N, 1 + 2N] distances in :mod:`~uamfleet.baselines.sequencing`'s node order: the taxi's position,
@@ -447,6 +455,7 @@ class ScheduleFleetPolicy(PolicyBase):
         assert self.sim is not None
         s = self.sim.state
         status, carrier = s.pax_status[0], s.pax_taxi[0]
+        self._forget_delivered(status)
         for a in range(self.num_taxis):
             kept = self._open_stops(a, status, carrier)
             self.routes[a] = kept
