@@ -44,7 +44,7 @@ from uamfleet.config import heading_vectors
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.paths import DistanceFields
 from uamfleet.sim.core import Simulator
-from uamfleet.sim.motion import passes_within
+from uamfleet.sim.motion import passes_within_each
 from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
 SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
@@ -211,16 +211,18 @@ def make_way(sim: Simulator, actions: np.ndarray, idle: Sequence[bool], idle_at:
     pos, allowed = s.pos_m[0], s.action_mask[0]
     moves = sim.cfg.step_m * heading_vectors()
     radius = sim.cfg.min_separation_m
-    busy_moves = [
-        (pos[b], pos[b] + moves[k]) for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]
-    ]
-    for a in np.flatnonzero(idle):
-        headed_to = [end for start, end in busy_moves if passes_within(start, end, pos[a], radius)]
+    busy = [b for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]]
+    idle_taxis = np.flatnonzero(idle)
+    if not busy or not idle_taxis.size:
+        return
+    busy_ends = pos[busy] + moves[actions[busy]]  # [B, 2] where each busy taxi's move ends
+    near = passes_within_each(pos[busy], busy_ends, pos[idle_taxis], radius)  # [I, B], one compiled pass
+    for i, a in enumerate(idle_taxis):
         headings = np.flatnonzero(allowed[a, :NUM_HEADINGS])
-        if not headed_to or not headings.size:
+        if not near[i].any() or not headings.size:
             continue
         ends = pos[a] + moves[headings]  # [H, 2]
-        clearance = np.linalg.norm(ends[:, None] - np.asarray(headed_to)[None], axis=-1).min(axis=1)
+        clearance = np.linalg.norm(ends[:, None] - busy_ends[near[i]][None], axis=-1).min(axis=1)
         actions[a] = headings[int(np.argmax(clearance))]
         idle_at[a] = None
 
