@@ -296,7 +296,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f"--family {args.family} " if args.map is None else f"--map {args.map} ")
         + f"--settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
-        + (f" --threads {args.threads}" if args.threads != 1 else "")
+        + f" --threads {args.threads}" * (args.threads != 1)  # (no branch: write_outputs is complex enough)
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
