@@ -152,7 +152,7 @@ def test_stop_matrix_is_the_feasible_path_distance_at_every_step():
 
 def test_stop_distances_are_held_only_for_open_requests():
     """The stop-to-stop distances a dispatcher keeps follow the open requests, not the episode's (a [2P, 2P] matrix
-    was 128 MB at 2,000 requests): at every decision it holds columns only of passengers not yet delivered, and
+    was 32 MB at 1,000 requests): at every decision it holds columns only of passengers not yet delivered, and
     the passengers it held columns for include ones delivered since, whose columns are gone."""
     cfg = _walled_scene(seats=1)
     policy = BatchAssignmentPolicy()

@@ -261,7 +261,7 @@ class ScheduleFleetPolicy(PolicyBase):
         # feasible-path distances, looked up once: stop to stop, by column (stop row 2p: origin of p, 2p + 1: its
         # destination; column j, [2P] from every stop to stop j, is looked up the first time stop j is asked for and
         # dropped once its passenger is delivered, so memory follows the open requests, not the episode's: a
-        # [2P, 2P] matrix was 128 MB at 2,000 requests), and [A, 2P] from each taxi's position to every active
+        # [2P, 2P] matrix was 32 MB at 1,000 requests), and [A, 2P] from each taxi's position to every active
         # stop, for one decision (_taxi_key: the state it holds for, _this_decision)
         self._every_stop = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
         self._to_stop: dict[int, np.ndarray] = {}
