@@ -38,6 +38,13 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--map", required=True, help="a packaged map's name or a map file (.npz of uamfleet-radio-map)")
     parser.add_argument("--count", type=int, default=20, help="test instances (seeds 2000000, ...)")
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="torch CPU threads per worker (default 1: the workers "
+        "share the cores; torch's default of every core made Munich's decisions 8 x slower)",
+    )
     parser.add_argument("--methods", nargs="*", default=list(benchmark.METHODS))
     parser.add_argument("--no-generalist", action="store_true", help="fly only the planners")
     parser.add_argument("--fleet", default=None, help="a fleet setting (e.g. 4x24): the fleet table instead")
@@ -48,6 +55,9 @@ def main(argv: list[str]) -> int:
         if path is not None and path.exists():
             print(f"fly_city.py: error: {path} exists; remove it or write elsewhere", file=sys.stderr)
             return 2
+    if args.threads < 1:
+        print(f"fly_city.py: error: --threads {args.threads}: give at least 1 thread per worker", file=sys.stderr)
+        return 2
     try:
         family = check_map(args.map)
     except UsageError as err:
@@ -67,7 +77,7 @@ def main(argv: list[str]) -> int:
         flight, table, columns = benchmark.run_instance, benchmark.markdown, benchmark.COLUMNS
     start = time.perf_counter()
     rows = []
-    with mp.get_context("spawn").Pool(args.jobs) as pool:
+    with mp.get_context("spawn").Pool(args.jobs, fleet_benchmark.limit_threads, (args.threads,)) as pool:
         for i, result in enumerate(pool.imap(flight, jobs)):
             rows += result
             print(f"[{i + 1}/{len(jobs)}] {len(result)} rows", flush=True)

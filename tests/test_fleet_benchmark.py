@@ -76,3 +76,25 @@ def test_dispatchers_are_read_in_the_grammar_and_as_recorded() -> None:
     _check_names(Args(count=1, dispatchers=("greedy", "insertion:wait=2")))
     with pytest.raises(ValueError, match=r"unknown --dispatchers \['learned:berlin_fleet', 'guided\(learned\)'\]"):
         _check_names(Args(count=1, dispatchers=("learned:berlin_fleet", "guided(learned)")))
+
+
+def test_workers_run_one_torch_thread_unless_told(tmp_path) -> None:
+    """--threads (default 1) is every worker's torch thread count: torch's default of every core made two workers'
+    threads spin against each other (reports/2026-12-04-decision-time-maps); 0 is refused before anything flies."""
+    import torch
+
+    from uamfleet.checks import ConfigError
+    from uamfleet.cli.fleet_benchmark import limit_threads
+
+    assert Args().threads == 1
+    with pytest.raises(ConfigError, match=r"--threads=0 must be an integer in \[1, 1024\]"):
+        main(Args(threads=0, count=1, settings=("2x4",), out_csv=tmp_path / "never.csv"))
+    assert not (tmp_path / "never.csv").exists()
+    before = torch.get_num_threads()
+    try:
+        limit_threads(1)
+        assert torch.get_num_threads() == 1
+        limit_threads(2)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

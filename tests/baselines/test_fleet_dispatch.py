@@ -150,6 +150,31 @@ def test_stop_matrix_is_the_feasible_path_distance_at_every_step():
     assert traj.terminated and checked > 20
 
 
+def test_stop_distances_are_held_only_for_open_requests():
+    """The stop-to-stop distances a dispatcher keeps follow the open requests, not the episode's (a [2P, 2P] matrix
+    was 32 MB at 1,000 requests): at every decision it holds columns only of passengers not yet delivered, and
+    the passengers it held columns for include ones delivered since, whose columns are gone."""
+    cfg = _walled_scene(seats=1)
+    policy = BatchAssignmentPolicy()
+    held: list[set[int]] = []
+
+    class _Probe(_Checked):
+        def __call__(self, obs):
+            actions = super().__call__(obs)
+            status = env.state.pax_status[0]
+            passengers = {j // 2 for j in policy._to_stop}  # the columns held after this decision
+            assert all(status[p] != DELIVERED for p in passengers), (env.state.t[0], passengers)
+            held.append(passengers)
+            return actions
+
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    traj = run_episode(env, _Probe(policy), seed=0)
+    assert traj.terminated
+    ever = set().union(*held)
+    assert ever == {0, 1, 2, 3}  # every request's stops were asked for once it was open
+    assert len(held[-1]) < len(ever)  # and those delivered by the last decision were dropped
+
+
 def _brute_force(trips, num_taxis, penalty):
     by_taxi = [[k for k, t in enumerate(trips) if t[0] == a] for a in range(num_taxis)]
     best = (np.inf, None)

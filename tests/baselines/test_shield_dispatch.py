@@ -15,7 +15,7 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.metrics import episode_metrics
 from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
-from uamfleet.sim.motion import passes_within
+from uamfleet.sim.motion import passes_within, passes_within_each
 from uamfleet.types import HOVER_ACTION
 
 OPEN_10 = "\n".join(["." * 10] * 10)
@@ -124,6 +124,22 @@ def test_passes_within_is_the_shields_conflict_test_against_a_taxi_staying_put()
     assert not passes_within(start, end, np.array([-60.0, 0.0]), 50.0)  # flies away from 60 m
     # a pair that starts closer needs only a clear end (the shield's rule): 30 m at the start, 104 m at the end
     assert not passes_within(start, end, np.array([0.0, 30.0]), 50.0)
+
+
+def test_every_pair_at_once_is_the_test_of_each_pair():
+    """passes_within_each (make_way's one pass over idle taxis x busy moves) is passes_within of each pair, on the
+    hand-checked cases above and on moves and points drawn around them (both outcomes occur)."""
+    start, end = np.array([0.0, 0.0]), np.array([100.0, 0.0])
+    points = np.array([[50.0, 40.0], [50.0, 60.0], [130.0, 0.0], [-60.0, 0.0], [0.0, 30.0]])
+    assert passes_within_each(start[None], end[None], points, 50.0)[:, 0].tolist() == [True, False, True, False, False]
+    rng = np.random.default_rng(7)
+    starts = rng.uniform(0, 300, (9, 2))
+    ends = starts + rng.uniform(-100, 100, (9, 2))
+    points = rng.uniform(0, 300, (11, 2))
+    got = passes_within_each(starts, ends, points, 60.0)
+    each = [[passes_within(starts[b], ends[b], points[i], 60.0) for b in range(9)] for i in range(11)]
+    assert got.tolist() == each and 0 < got.sum() < got.size
+    assert passes_within_each(starts[:0], ends[:0], points, 60.0).shape == (11, 0)
 
 
 @pytest.mark.slow

@@ -44,8 +44,8 @@ from uamfleet.config import heading_vectors
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.paths import DistanceFields
 from uamfleet.sim.core import Simulator
-from uamfleet.sim.motion import passes_within
-from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
+from uamfleet.sim.motion import passes_within_each
+from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
 
 SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 """The schedule dispatchers (:mod:`~uamfleet.baselines.batch_assignment`), whose names take the options of
@@ -211,16 +211,18 @@ def make_way(sim: Simulator, actions: np.ndarray, idle: Sequence[bool], idle_at:
     pos, allowed = s.pos_m[0], s.action_mask[0]
     moves = sim.cfg.step_m * heading_vectors()
     radius = sim.cfg.min_separation_m
-    busy_moves = [
-        (pos[b], pos[b] + moves[k]) for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]
-    ]
-    for a in np.flatnonzero(idle):
-        headed_to = [end for start, end in busy_moves if passes_within(start, end, pos[a], radius)]
+    busy = [b for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]]
+    idle_taxis = np.flatnonzero(idle)
+    if not busy or not idle_taxis.size:
+        return
+    busy_ends = pos[busy] + moves[actions[busy]]  # [B, 2] where each busy taxi's move ends
+    near = passes_within_each(pos[busy], busy_ends, pos[idle_taxis], radius)  # [I, B], one compiled pass
+    for i, a in enumerate(idle_taxis):
         headings = np.flatnonzero(allowed[a, :NUM_HEADINGS])
-        if not headed_to or not headings.size:
+        if not near[i].any() or not headings.size:
             continue
         ends = pos[a] + moves[headings]  # [H, 2]
-        clearance = np.linalg.norm(ends[:, None] - np.asarray(headed_to)[None], axis=-1).min(axis=1)
+        clearance = np.linalg.norm(ends[:, None] - busy_ends[near[i]][None], axis=-1).min(axis=1)
         actions[a] = headings[int(np.argmax(clearance))]
         idle_at[a] = None
 
@@ -256,12 +258,13 @@ class ScheduleFleetPolicy(PolicyBase):
         self.speed_mps = sim.cfg.step_m / sim.cfg.slot_s
         self.seats = sim.cfg.seats
         self.origin_m, self.dest_m = s.pax_origin_m[0].copy(), s.pax_dest_m[0].copy()
-        # feasible-path distances, looked up once: [2P, 2P] stop to stop (row 2p: origin of p, 2p + 1: its
-        # destination; a column is filled the first time its stop is asked for), and [A, 2P] from each taxi's
-        # position to every active stop, for one decision (_taxi_key: the state it holds for, _this_decision)
+        # feasible-path distances, looked up once: stop to stop, by column (stop row 2p: origin of p, 2p + 1: its
+        # destination; column j, [2P] from every stop to stop j, is looked up the first time stop j is asked for and
+        # dropped once its passenger is delivered, so memory follows the open requests, not the episode's: a
+        # [2P, 2P] matrix was 32 MB at 1,000 requests), and [A, 2P] from each taxi's position to every active
+        # stop, for one decision (_taxi_key: the state it holds for, _this_decision)
         self._every_stop = np.stack([self.origin_m, self.dest_m], axis=1).reshape(-1, 2)
-        self._stop_to_stop = np.zeros((len(self._every_stop), len(self._every_stop)))
-        self._column_known = np.zeros(len(self._every_stop), dtype=bool)
+        self._to_stop: dict[int, np.ndarray] = {}
         self._taxi_key: tuple[int, bytes] | None = None
         self._taxi_to_stop = np.zeros((sim.num_taxis, len(self._every_stop)))
         self._taxi_known = np.zeros(len(self._every_stop), dtype=bool)
@@ -306,13 +309,20 @@ class ScheduleFleetPolicy(PolicyBase):
         return self._taxi_to_stop[:, rows]
 
     def _between_stops(self, rows: np.ndarray) -> np.ndarray:
-        """[len(rows), len(rows)] feasible-path distance from stop to stop (each column looked up once an
-        episode, from every stop at once)."""
-        if not self._column_known[rows].all():
-            missing = np.unique(rows[~self._column_known[rows]])
-            self._stop_to_stop[:, missing] = self.fields.remaining_many(self._every_stop[missing], self._every_stop)
-            self._column_known[missing] = True
-        return self._stop_to_stop[rows[:, None], rows]
+        """[len(rows), len(rows)] feasible-path distance from stop to stop (each column looked up once while its
+        passenger is open, from every stop at once)."""
+        missing = np.unique([j for j in rows.tolist() if j not in self._to_stop])
+        if missing.size:
+            columns = self.fields.remaining_many(self._every_stop[missing], self._every_stop)  # [2P, missing]
+            self._to_stop.update((int(j), columns[:, i].copy()) for i, j in enumerate(missing))
+        if not rows.size:
+            return np.zeros((0, 0))
+        return np.stack([self._to_stop[j][rows] for j in rows.tolist()], axis=1)
+
+    def _forget_delivered(self, status: np.ndarray) -> None:
+        """Drop the stop-to-stop columns of delivered passengers: no schedule asks for their stops again."""
+        for j in [j for j in self._to_stop if status[j // 2] == DELIVERED]:
+            del self._to_stop[j]
 
     def stop_matrix(self, taxi: int, passengers: Sequence[int]) -> np.ndarray:
         """[1 + 2N, 1 + 2N] distances in :mod:`~uamfleet.baselines.sequencing`'s node order: the taxi's position,
@@ -447,6 +457,7 @@ class ScheduleFleetPolicy(PolicyBase):
         assert self.sim is not None
         s = self.sim.state
         status, carrier = s.pax_status[0], s.pax_taxi[0]
+        self._forget_delivered(status)
         for a in range(self.num_taxis):
             kept = self._open_stops(a, status, carrier)
             self.routes[a] = kept

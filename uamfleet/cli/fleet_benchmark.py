@@ -41,7 +41,7 @@ import numpy as np
 from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
 from uamfleet.baselines.fleet_dispatch import shared_fields
-from uamfleet.checks import ConfigError, check_number
+from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.cli._common import (
     MapName,
     UsageError,
@@ -106,6 +106,9 @@ class Args:
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     """requests are released over the first this many seconds of each episode (the episode's time limit follows)"""
     jobs: int = 2
+    threads: int = 1
+    """torch CPU threads of each worker process (torch's default, every core, makes the workers' threads spin against
+    each other on shared cores: the decision times of reports/2026-12-04-decision-time-maps)"""
     out_csv: Path = Path("docs/results/fleet_benchmark.csv")
     out_md: Path | None = None
     """Markdown file whose marked section is (re)written; without it no Markdown is written (the results pages are
@@ -188,6 +191,13 @@ def dispatcher(name: str, taxis: int, value_path: Path | None, arrival_window_s:
         if arrival_window_s is not None:
             options["arrival_window_s"] = arrival_window_s
     return make(call, **options)
+
+
+def limit_threads(threads: int) -> None:
+    """Give this process's torch ``threads`` CPU threads (a worker pool's initializer)."""
+    import torch  # here, not at the top: the dispatchers alone never load it
+
+    torch.set_num_threads(threads)
 
 
 def run_episode_set(job: Job) -> list[dict[str, Any]]:
@@ -286,6 +296,7 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f"--family {args.family} " if args.map is None else f"--map {args.map} ")
         + f"--settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
+        + f" --threads {args.threads}" * (args.threads != 1)  # (no branch: write_outputs is complex enough)
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
@@ -322,6 +333,7 @@ def check_args(args: Args) -> list[Job]:
     if args.from_csv is not None:
         return []
     check_jobs(args.jobs)
+    check_integer("--threads", args.threads, 1, 1024, fix=" (torch CPU threads per worker; 1 shares cores best)")
     if args.map is not None:
         check_map(args.map)
     _check_names(args)
@@ -426,7 +438,7 @@ def main(args: Args) -> list[dict[str, Any]]:
         return earlier
     start = last = time.perf_counter()
     rows: list[dict[str, Any]] = []
-    with mp.get_context("spawn").Pool(min(args.jobs, len(jobs))) as pool:
+    with mp.get_context("spawn").Pool(min(args.jobs, len(jobs)), limit_threads, (args.threads,)) as pool:
         for i, result in enumerate(pool.imap(run_episode_set, jobs)):
             rows += result
             print(f"[{i + 1}/{len(jobs)}] {result[0]['setting']} seed {result[0]['seed']}: "

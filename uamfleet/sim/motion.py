@@ -105,6 +105,17 @@ def passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, min_sep
 
 
 @njit(cache=True)
+def passes_within_each(starts: np.ndarray, ends: np.ndarray, points: np.ndarray, min_separation_m: float) -> np.ndarray:
+    """[I, B] bool: :func:`passes_within` of each move ``starts[b]`` -> ``ends[b]`` [B, 2] against each taxi staying
+    at ``points[i]`` [I, 2], in one compiled pass (every idle taxi against every busy one's move, each step)."""
+    out = np.zeros((points.shape[0], starts.shape[0]), np.bool_)
+    for i in range(points.shape[0]):
+        for b in range(starts.shape[0]):
+            out[i, b] = passes_within(starts[b], ends[b], points[i], min_separation_m)
+    return out
+
+
+@njit(cache=True)
 def stayed_steps(pos: np.ndarray, history: np.ndarray) -> np.ndarray:
     """[A] int64: the steps each taxi has stayed where it is (history rows, most recent first, equal to its
     position), at most the history's length: the shield's first priority."""
