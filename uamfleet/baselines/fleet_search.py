@@ -10,14 +10,17 @@ and with each β of ``waits`` (how much a second of wait weighs against a second
 the fleet leans towards short waits or short flights as the sampled demand ahead makes worth it, and never
 switches away from the base unless the rollouts say so (ties go to candidate 0).
 
-Each rollout starts from the base's own schedules (its routes, the requests it has seen) and runs the candidate
-for ``horizon`` steps (None: to the episode's end), scored by the fleet metric's two parts over that span:
-distance flown (seconds at the env's speed) plus ``wait_cost`` times the seconds passengers spent waiting
-(released, not yet picked up). Futures come from :class:`FleetDemand`, the demand law of the fleet instances
+Each rollout starts from the base's own schedules (its routes, the requests it has seen) and runs the candidate for
+``horizon`` steps (None: to the episode's end), scored by the fleet metric's two parts over that span: distance
+flown (seconds at the env's speed) plus ``wait_cost`` times the seconds passengers spent waiting (released, not yet
+picked up). Futures come from :class:`FleetDemand`, the demand law of the fleet instances
 (:func:`uamfleet.instances.make_fleet_instance`) given what has been released: the search reads the simulator's
-released requests only (:func:`known_state` blanks every hidden row before anything is sampled), the clock and
-the taxis. Every move it returns is one the separation shield leaves as it is (:func:`shield_passed`): where the
-shield would turn or hold a taxi, the search asks for what the shield would fly instead.
+released requests only (:func:`known_state` blanks every hidden row before anything is sampled), the clock and the
+taxis. The futures' trips are drawn among ``sites`` of the map's flyable sites, sampled uniformly once per map
+(:meth:`FleetSearch.site_sample`): each site is equally likely, as in the instances, and every stop a rollout steers
+to has its distance field made at reset instead of inside a decision. Every move it returns is one the separation
+shield leaves as it is (:func:`shield_passed`): where the shield would turn or hold a taxi, the search asks for what
+the shield would fly instead.
 """
 
 from __future__ import annotations
@@ -46,6 +49,8 @@ from uamfleet.types import HIDDEN, HOVER_ACTION, NUM_HEADINGS, WAITING, FleetSta
 
 MAX_FUTURES = 64
 """Upper bound of ``futures``: each future is one rollout per candidate."""
+MAX_SITES = 4096
+"""Upper bound of ``sites``: each is one distance field made at reset."""
 MAX_CANDIDATES = 8
 """Upper bound of the candidates (the base and its ``waits``)."""
 
@@ -170,7 +175,7 @@ class FleetSearch(PolicyBase):
     def __init__(
         self, base: ScheduleFleetPolicy, waits: Sequence[float] = (0.0, 3.0), futures: int = 3,
         horizon: int | None = 10, every: int = 5, wait_cost: float = 1.0,
-        arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S, seed: int = 0,
+        arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S, seed: int = 0, sites: int = 48,
     ) -> None:  # fmt: skip
         if not isinstance(base, ScheduleFleetPolicy):
             raise ConfigError(f"fleet_search rolls a schedule dispatcher forward; base={base!r} is none (give e.g. "
@@ -188,6 +193,7 @@ class FleetSearch(PolicyBase):
         self.wait_cost = check_number("wait_cost", wait_cost, minimum=0.0)
         self.arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
         self.seed = check_integer("seed", seed, 0, MAX_SEED)
+        self.sites = check_integer("sites", sites, 2, MAX_SITES, fix=" (sites the futures' trips are drawn among)")
         self.base = base
         self.sim: Simulator | None = None
         # one unflown copy of the base per candidate, each reset on the scratch core for every rollout
@@ -199,15 +205,28 @@ class FleetSearch(PolicyBase):
     def reset(self, sim: Simulator) -> None:
         if sim.num_envs != 1:
             raise ValueError(f"FleetSearch drives a one-env core, got num_envs={sim.num_envs}")
-        self.demand = FleetDemand.of_fleet(sim.cfg, flyable_sites(sim.world), self.arrival_window_s)
+        self.demand = FleetDemand.of_fleet(sim.cfg, self.site_sample(sim), self.arrival_window_s)
         self.sim = sim
         self.base.wait_weight = self.wait_weights[0]
         self.base.reset(sim)
-        self.fields: DistanceFields = self.base.fields  # rollouts steer by the same per-stop fields (every site's)
+        self.fields: DistanceFields = self.base.fields  # rollouts steer by the same per-stop fields
+        for site in self.demand.sites:  # each sampled stop's field made now, not inside a decision
+            self.fields.remaining_m(site, site[None])
         self.scratch = Simulator(sim.cfg, 1, autoreset=False)
         self.scratch.reset(seed=0)  # its state is overwritten by a future before every rollout
         self.speed_mps = sim.cfg.step_m / sim.cfg.slot_s
         self.decisions = []
+
+    def site_sample(self, sim: Simulator) -> np.ndarray:
+        """[min(sites, S), 2] the flyable sites the futures' trips are drawn among: a uniform sample of the map's,
+        drawn from ``seed`` alone (the same every episode of a map). Every stop of a rollout then steers by one of
+        that many distance fields, made at reset (the map's ~1,000 sites' would take 5 s on Berlin, 110 s on the
+        Detroit-like map, and more memory than a field cache holds there)."""
+        every = flyable_sites(sim.world)
+        if self.sites >= len(every):
+            return every
+        rng = np.random.default_rng([self.seed, len(every)])
+        return every[np.sort(rng.choice(len(every), self.sites, replace=False))]
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         assert self.sim is not None, "call reset(sim) first (run_episode does)"

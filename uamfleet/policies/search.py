@@ -15,7 +15,7 @@ from typing import Any
 
 from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, check_wait_weight
-from uamfleet.baselines.fleet_search import MAX_CANDIDATES, FleetSearch
+from uamfleet.baselines.fleet_search import MAX_CANDIDATES, MAX_SITES, FleetSearch
 from uamfleet.baselines.fleet_search import MAX_FUTURES as MAX_FLEET_FUTURES
 from uamfleet.checks import MAX_SEED, check_integer, check_number
 from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
@@ -116,8 +116,9 @@ class FinishOptions:
 class FleetSearchOptions:
     """``fleet_search``: every ``every`` steps, the schedule dispatcher BASE with its own wait weight and with each
     of ``waits`` rolled ``horizon`` steps (0: to the end) in ``futures`` futures sampled from the fleet demand of a
-    service of ``arrival_window_s`` (draws from ``seed``); the least mean of distance flown plus ``wait_cost`` times
-    the passengers' waiting, both in seconds, is flown (:mod:`uamfleet.baselines.fleet_search`)."""
+    service of ``arrival_window_s`` (draws from ``seed``; trips among ``sites`` of the map's flyable sites); the
+    least mean of distance flown plus ``wait_cost`` times the passengers' waiting, both in seconds, is flown
+    (:mod:`uamfleet.baselines.fleet_search`)."""
 
     waits: tuple[float, ...] = (0.0, 3.0)
     futures: int = 3
@@ -126,8 +127,10 @@ class FleetSearchOptions:
     wait_cost: float = 1.0
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     seed: int = 0
+    sites: int = 48
 
     def __post_init__(self) -> None:
+        check_integer("sites", self.sites, 2, MAX_SITES, fix=" (sites the futures' trips are drawn among, e.g. 48)")
         for weight in self.waits:
             check_wait_weight("waits", weight)
         if len(self.waits) + 1 > MAX_CANDIDATES:
@@ -148,7 +151,7 @@ def _fleet_search(o: FleetSearchOptions, base: Any) -> FleetSearch:
         )
     return FleetSearch(
         base, o.waits, futures=o.futures, horizon=o.horizon or None, every=o.every, wait_cost=o.wait_cost,
-        arrival_window_s=o.arrival_window_s, seed=o.seed,
+        arrival_window_s=o.arrival_window_s, seed=o.seed, sites=o.sites,
     )  # fmt: skip
 
 
