@@ -184,3 +184,14 @@ def test_its_default_base_is_the_chosen_dispatcher():
     assert parse(BASE) == CHOSEN_DISPATCHER
     built = make("fleet_search")
     assert isinstance(built, FleetSearch) and built.base.wait_weight == 1.0 and built.base.value is not None
+
+
+def test_the_fleet_benchmark_flies_it_over_a_dispatcher_and_refuses_it_over_another_base():
+    from uamfleet.cli.fleet_benchmark import Args, _check_names, dispatcher
+
+    built = dispatcher(f"fleet_search:futures=2,waits=0({BASE})", 4, None, 300.0)
+    assert isinstance(built, FleetSearch) and (built.futures, built.wait_weights) == (2, (1.0, 0.0))
+    assert built.arrival_window_s == 300.0 and built.base.value.arrival_window_s == 300.0  # the service's window
+    _check_names(Args(count=1, settings=("4x8",), dispatchers=(f"fleet_search({BASE})",)))
+    with pytest.raises(ValueError, match="unknown --dispatchers"):
+        _check_names(Args(count=1, settings=("4x8",), dispatchers=("fleet_search(learned)",)))
