@@ -91,6 +91,9 @@ RECORDED: dict[str, tuple[str, dict]] = {
     f"{V}:50+wait=1+release@refit_both": (V, {**W1R, "value_price_s": 50.0, "value": "refit_both"}),
     f"{V}:100+wait=1+release@refit_both": (V, {**W1R, "value_price_s": 100.0, "value": "refit_both"}),
     f"{V}:200+wait=1+release@refit_both": (V, {**W1R, "value_price_s": 200.0, "value": "refit_both"}),
+    # the fleet search at decision time over the chosen dispatcher (docs/results/fleet_search_val_*.csv)
+    f"fleet_search({V}:100+wait=1+release+price=1000+guard=600)": ("fleet_search", {"base": (
+        V, {**W1R, "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0, "value_price_s": 100.0})}),
     # a recorded learned fleet is the FILE it flew (berlin_fleet.pt, not PRETRAINED["berlin_fleet"]), or a run
     "learned:berlin_fleet": ("learned", {"source": str(SHIPPED / "berlin_fleet.pt"), "passenger_slots": "world"}),
     "learned:berlin_fleet4": ("learned", {"source": str(SHIPPED / "berlin_fleet4.pt"), "passenger_slots": "world"}),
@@ -111,7 +114,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 68
+    assert len(recorded) == 69
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

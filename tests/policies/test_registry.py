@@ -39,7 +39,7 @@ def test_available_lists_every_kind_and_the_benchmarks_policies() -> None:
         "straight": "planner", "replan": "planner", "best_known": "planner", "replan_futures": "planner",
         "random": "planner", "greedy": "dispatcher", "insertion": "dispatcher", "batch_assignment": "dispatcher",
         "batch_assignment_value": "dispatcher", "learned": "learned", "argmax": "search", "guided": "search",
-        "hedge": "search", "finish": "search",
+        "hedge": "search", "finish": "search", "fleet_search": "search",
     }  # fmt: skip
     assert set(policies.available("dispatcher")) == {"greedy", "insertion", "batch_assignment", V}
 

@@ -62,6 +62,8 @@ from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_flee
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.policies import PolicyNameError, available, make, make_flown, parse
+from uamfleet.policies.registry import BASE
+from uamfleet.policies.search import FLEET_SEARCH
 from uamfleet.rollout import fly
 
 COLUMNS = ("family", "setting", "taxis", "seed", "threshold_db", "dispatcher", "num_requests", "delivered",
@@ -85,7 +87,8 @@ class Args:
     """index of the first seed in the split"""
     dispatchers: tuple[str, ...] = FLEET_DISPATCHERS
     """(insertion, batch_assignment and batch_assignment_value[:<price_s>] may end in +wait=<β>: schedules cost
-    ride time + β · wait; the batch assignments also in +release: re-assigned at every release too)"""
+    ride time + β · wait; the batch assignments also in +release: re-assigned at every release too; a dispatcher
+    searched at decision time: fleet_search:OPTIONS(<dispatcher>), uamfleet.baselines.fleet_search)"""
     assignment_value: Path | None = None
     """the value file of the dispatchers batch_assignment_value[:<price_s>] (default: the shipped one,
     uamfleet/data/pretrained/assignment_value.json; train one with python -m train.assignment_value); with another
@@ -185,12 +188,25 @@ def dispatcher(name: str, taxis: int, value_path: Path | None, arrival_window_s:
     call, options = parse(name)
     if available()[call][0] == "planner" and not options:
         return make_flown(call, num_taxis=taxis)
+    if call == FLEET_SEARCH:  # the search over a dispatcher: its base as a dispatcher, its futures over the window
+        base, base_options = options[BASE]
+        options[BASE] = (base, _value_options(base, dict(base_options), value_path, arrival_window_s))
+        if arrival_window_s is not None:
+            options.setdefault("arrival_window_s", arrival_window_s)
+        return make(call, **options)
+    return make(call, **_value_options(call, options, value_path, arrival_window_s))
+
+
+def _value_options(
+    call: str, options: dict[str, Any], value_path: Path | None, arrival_window_s: float | None
+) -> dict[str, Any]:
+    """``options`` of the dispatcher ``call``, a valued one reading ``value_path`` for ``arrival_window_s``."""
     if call == VALUE_DISPATCHER:
         if value_path is not None:
             options.setdefault("value", str(value_path))
         if arrival_window_s is not None:
             options["arrival_window_s"] = arrival_window_s
-    return make(call, **options)
+    return options
 
 
 def limit_threads(threads: int) -> None:
@@ -381,18 +397,27 @@ def _check_names(args: Args) -> None:
     repeated = sorted({d for d in args.dispatchers if list(args.dispatchers).count(d) > 1})
     if repeated:
         raise UsageError(f"--dispatchers names {', '.join(repeated)} more than once; name each dispatcher once.")
-    unknown = [d for d in args.dispatchers if _kind(d) not in ("planner", "dispatcher")]
+    unknown = [d for d in args.dispatchers if _kind(d) not in ("planner", "dispatcher") and not _searches_fleet(d)]
     if unknown:
         raise ValueError(
             f"unknown --dispatchers {unknown}; choose from {(*FLEET_DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
             "dispatchers with options such as +wait=<β> and +release, or batch_assignment:wait=1,release=true: "
-            "uamfleet.policies.names)."
+            f"uamfleet.policies.names), or {FLEET_SEARCH}(<dispatcher>)."
         )
     # a name's options, value file and price are checked now, before anything flies (at the smallest fleet named,
     # where a one-taxi planner is still allowed)
     taxis = min((setting_size(setting)[0] for setting in args.settings), default=1)
     for name in args.dispatchers:
         dispatcher(name, taxis, args.assignment_value, args.arrival_window_s)
+
+
+def _searches_fleet(name: str) -> bool:
+    """Whether ``name`` is the fleet search over a dispatcher (``fleet_search:OPTIONS(DISPATCHER)``)."""
+    try:
+        call, options = parse(name)
+    except PolicyNameError:
+        return False
+    return call == FLEET_SEARCH and available()[options[BASE][0]][0] == "dispatcher"
 
 
 def _kind(name: str) -> str | None:

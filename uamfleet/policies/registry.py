@@ -47,21 +47,25 @@ class Entry:
     kind: str
     options: type
     build: Callable[[Any, Any], Any]
+    default_base: Any = DEFAULT_BASE  # a search wrapper's base when make() is given none
 
 
 _REGISTRY: dict[str, Entry] = {}
 
 
-def register(name: str, kind: str, options: type, build: Callable[[Any, Any], Any]) -> None:
+def register(
+    name: str, kind: str, options: type, build: Callable[[Any, Any], Any], default_base: Any = DEFAULT_BASE
+) -> None:
     """Register the policy ``name`` of ``kind`` (:data:`KINDS`), its frozen options dataclass and its builder
-    ``build(options, base)``; a name registered twice is refused."""
+    ``build(options, base)`` (a search wrapper: with ``default_base`` when given none); a name registered twice is
+    refused."""
     if kind not in KINDS:
         raise PolicyNameError(f"policy {name!r}: kind {kind!r} is none of {KINDS}; register it as one of those.")
     if not (dataclasses.is_dataclass(options) and options.__dataclass_params__.frozen):  # type: ignore[attr-defined]
         raise PolicyNameError(f"policy {name!r}: options {options!r} must be a frozen dataclass; declare it so.")
     if name in _REGISTRY:
         raise PolicyNameError(f"policy {name!r} is registered already (as {_REGISTRY[name].kind}); pick another name.")
-    _REGISTRY[name] = Entry(kind, options, build)
+    _REGISTRY[name] = Entry(kind, options, build, default_base)
 
 
 def available(kind: str | None = None) -> dict[str, tuple[str, type]]:
@@ -210,9 +214,10 @@ def markdown_table() -> str:
 
 def make(name: str, **options: Any) -> Any:
     """The policy ``name`` (:func:`available`) with ``options`` (its options dataclass's fields; a search wrapper
-    also takes ``base``: a policy, a ``(name, options)`` pair or a name, default :data:`DEFAULT_BASE`)."""
+    also takes ``base``: a policy, a ``(name, options)`` pair or a name, default its registration's, mostly
+    :data:`DEFAULT_BASE`)."""
     e = entry(name)
-    base = options.pop(BASE, DEFAULT_BASE if e.kind == "search" else None)
+    base = options.pop(BASE, e.default_base if e.kind == "search" else None)
     if base is not None and e.kind != "search":
         raise PolicyNameError(f"policy {name!r} is a {e.kind}, which searches over no base; drop base= or wrap it.")
     built = options_of(name, options)

@@ -14,7 +14,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from uamfleet.baselines.finish import FinishWithSearch
-from uamfleet.checks import check_integer, check_number
+from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, check_wait_weight
+from uamfleet.baselines.fleet_search import MAX_CANDIDATES, MAX_SITES, FleetSearch
+from uamfleet.baselines.fleet_search import MAX_FUTURES as MAX_FLEET_FUTURES
+from uamfleet.checks import MAX_SEED, check_integer, check_number
+from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
 from uamfleet.policies.registry import NoOptions, PolicyNameError, register
 from uamfleet.rl.guided import (
     MAX_EXPERT_BEAM,
@@ -28,6 +32,16 @@ from uamfleet.rl.guided import (
 )
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.types import NUM_HEADINGS
+
+
+FLEET_SEARCH = "fleet_search"
+"""The search at decision time over a fleet dispatcher: ``fleet_search:OPTIONS(DISPATCHER)``, a fleet method the
+fleet benchmark flies like a dispatcher."""
+CHOSEN_DISPATCHER: tuple[str, dict[str, Any]] = ("batch_assignment_value", {
+    "wait": 1.0, "release": True, "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0, "value_price_s": 100.0,
+})  # fmt: skip
+"""The fleet search's base when given none: the chosen loaded dispatcher,
+``batch_assignment_value:100+wait=1+release+price=1000+guard=600`` (docs/results.md "Fleets")."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +112,49 @@ class FinishOptions:
         check_integer("beam", self.beam, 1, fix=" (e.g. 16)")
 
 
+@dataclass(frozen=True)
+class FleetSearchOptions:
+    """``fleet_search``: every ``every`` steps, the schedule dispatcher BASE with its own wait weight and with each
+    of ``waits`` rolled ``horizon`` steps (0: to the end) in ``futures`` futures sampled from the fleet demand of a
+    service of ``arrival_window_s`` (draws from ``seed``; trips among ``sites`` of the map's flyable sites); the
+    least mean of distance flown plus ``wait_cost`` times the passengers' waiting, both in seconds, is flown
+    (:mod:`uamfleet.baselines.fleet_search`)."""
+
+    waits: tuple[float, ...] = (0.0, 3.0)
+    futures: int = 3
+    horizon: int = 10
+    every: int = 5
+    wait_cost: float = 1.0
+    arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
+    seed: int = 0
+    sites: int = 48
+
+    def __post_init__(self) -> None:
+        check_integer("sites", self.sites, 2, MAX_SITES, fix=" (sites the futures' trips are drawn among, e.g. 48)")
+        for weight in self.waits:
+            check_wait_weight("waits", weight)
+        if len(self.waits) + 1 > MAX_CANDIDATES:
+            raise PolicyNameError(f"waits={self.waits!r}: at most {MAX_CANDIDATES - 1} (e.g. waits=0;3).")
+        check_integer("futures", self.futures, 1, MAX_FLEET_FUTURES, fix=" (e.g. 3)")
+        check_integer("horizon", self.horizon, 0, MAX_STEPS, fix=" (0: to the end), e.g. 10")
+        check_integer("every", self.every, 1, MAX_STEPS, fix=" (steps between searches, e.g. 5)")
+        check_number("wait_cost", self.wait_cost, minimum=0.0)
+        check_number("arrival_window_s", self.arrival_window_s, positive=True)
+        check_integer("seed", self.seed, 0, MAX_SEED)
+
+
+def _fleet_search(o: FleetSearchOptions, base: Any) -> FleetSearch:
+    if not isinstance(base, ScheduleFleetPolicy):
+        raise PolicyNameError(
+            f"fleet_search rolls a schedule dispatcher forward; give one as its base, e.g. "
+            f"fleet_search(batch_assignment_value:100+wait=1+release+price=1000+guard=600), not {base!r}."
+        )
+    return FleetSearch(
+        base, o.waits, futures=o.futures, horizon=o.horizon or None, every=o.every, wait_cost=o.wait_cost,
+        arrival_window_s=o.arrival_window_s, seed=o.seed, sites=o.sites,
+    )  # fmt: skip
+
+
 def _learned_base(name: str, base: Any) -> GreedyPolicy:
     if not isinstance(base, GreedyPolicy):
         raise PolicyNameError(f"{name} searches over a learned policy's logits; give base=learned:…, not {base!r}.")
@@ -123,5 +180,6 @@ register("argmax", "search", NoOptions, lambda _o, base: base)
 register("guided", "search", GuidedOptions, _guided)
 register("hedge", "search", HedgeOptions, _hedge)
 register("finish", "search", FinishOptions, lambda o, base: FinishWithSearch.of_world(base, o.beam))
+register(FLEET_SEARCH, "search", FleetSearchOptions, _fleet_search, default_base=CHOSEN_DISPATCHER)
 
-__all__ = ["FinishOptions", "GuidedOptions", "HedgeOptions"]
+__all__ = ["CHOSEN_DISPATCHER", "FLEET_SEARCH", "FinishOptions", "FleetSearchOptions", "GuidedOptions", "HedgeOptions"]
