@@ -18,6 +18,7 @@ from uamfleet.config import ConfigError, Request
 from uamfleet.metrics import episode_metrics
 from uamfleet.rl import warm_start
 from uamfleet.rl.trainer import TrainArgs, load_policy, train
+from tests.rl import test_schedules as schedules
 from uamfleet.rollout import fly
 
 TWO_PASSENGERS = small_config(
@@ -27,15 +28,12 @@ TWO_PASSENGERS = small_config(
 
 
 def tiny_args(tmp_path: Path, **overrides: object) -> TrainArgs:
-    """Iterations of 4 envs x 16 steps (one taxi) with a one-round warm start and the KL term."""
-    base = dict(
-        total_timesteps=2 * 4 * 16, num_envs=4, num_steps=16, num_minibatches=2, update_epochs=1, eval_every=1,
-        checkpoint_every=1, run_dir=tmp_path, run_name="warm", progress=False, tensorboard=False, threads=1,
-        time_limit_steps=40, eval_time_limit_steps=40, d_model=16, num_heads=2, learning_rate=3e-4,
-        warm_start_rounds=2, kl_to_init=0.05, device="cpu",
+    """test_schedules' tiny run with iterations of 4 envs x 16 steps, a two-round warm start and the KL term."""
+    warm = dict(
+        total_timesteps=2 * 4 * 16, num_envs=4, num_steps=16, num_minibatches=2, time_limit_steps=40,
+        eval_time_limit_steps=40, learning_rate=3e-4, warm_start_rounds=2, kl_to_init=0.05, run_name="warm",
     )  # fmt: skip
-    base.update(overrides)
-    return TrainArgs.from_flat(base)
+    return schedules.tiny_args(tmp_path, **{**warm, **overrides})
 
 
 def progress(run: Path) -> list[dict[str, str]]:
@@ -61,7 +59,7 @@ def test_the_warm_start_is_the_kl_reference_and_a_resumed_run_reads_it_back(tmp_
     """A run of one iteration, resumed to two: the reference saved at the warm start is the network of iteration 0
     (best.pt, written by that evaluation before PPO), the KL column is logged after every update, and the resumed
     run neither warm-starts again nor leaves the statistics the labels were fitted on."""
-    args = tiny_args(tmp_path, total_timesteps=4 * 16)
+    args = tiny_args(tmp_path, total_timesteps=4 * 16, warm_start_rounds=1)
     train(args, env_config=TWO_PASSENGERS)
     folder = tmp_path / "warm"
     reference = torch.load(folder / warm_start.REFERENCE_FILE, weights_only=True)
