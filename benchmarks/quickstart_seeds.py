@@ -10,7 +10,9 @@ quickstart printed for its policy (PR / TD / ATT / AWT / ELR / connectivity, fro
 quickstart's own ``fly``), TD over ``best_known`` (4,900 m at -3 dB, endpoint-block rule:
 docs/results/benchmark_fixed.csv), whether that is within 5 % of it, the agent-steps trained, when a greedy
 evaluation first delivered everyone and when the kept one was made (progress.csv), the seconds of training and of
-the whole command, and the machine's 1-minute load average before and after the seed (the machine may be shared).
+the whole command, the machine's 1-minute load average before and after the seed (the machine may be shared), and
+the greedy evaluation of the run's start (iteration 0: a fine-tuning run's start, a warm-started run's warm start;
+blank from scratch).
 Rows are appended to ``--out-csv`` as each seed ends, so a stopped sweep keeps its rows. ``--plot PATH`` then draws
 the seeds' learning curves in one figure (uamfleet.viz.curves: each seed's line, their median and range, best_known
 and its 5 % band); with ``--plot-only`` it draws the seeds already under ``--run-dir`` without training.
@@ -30,7 +32,7 @@ BEST_KNOWN_M = {-3.0: 4900.0}  # Berlin P4, endpoint-block rule (docs/results/be
 WITHIN = 1.05  # the issue's target: within 5 % of best_known
 COLUMNS = ["recipe", "seed", "pr_pct", "td_m", "att_s", "awt_s", "elr_pct", "connectivity_pct",
            "td_over_best_known", "within_5pct", "agent_steps", "steps_to_pr100", "best_step", "train_wall_s",
-           "wall_s", "load_before", "load_after"]  # fmt: skip
+           "wall_s", "load_before", "load_after", "start_pr_pct", "start_td_m"]  # fmt: skip
 
 
 def seed_row(recipe: str, seed: int, run_dir: Path, extra: list[str], pass_recipe: bool) -> dict[str, object]:
@@ -52,6 +54,7 @@ def seed_row(recipe: str, seed: int, run_dir: Path, extra: list[str], pass_recip
     evals = [r for r in rows if r.get("eval/pr_pct")]
     first = next((int(float(r["global_step"])) for r in evals if float(r["eval/pr_pct"]) >= 100.0), "")
     best = min(evals, key=lambda r: (-float(r["eval/pr_pct"]), float(r["eval/td_m"])))
+    start = rows[0] if rows[0]["iteration"] == "0" else {}  # a fine-tuning or warm-started run's start
     ratio = float(td) / BEST_KNOWN_M[-3.0]
     return {
         "recipe": recipe, "seed": seed, "pr_pct": float(pr), "td_m": float(td), "att_s": att, "awt_s": awt,
@@ -60,6 +63,7 @@ def seed_row(recipe: str, seed: int, run_dir: Path, extra: list[str], pass_recip
         "agent_steps": int(float(rows[-1]["global_step"])), "steps_to_pr100": first,
         "best_step": int(float(best["global_step"])), "train_wall_s": round(float(rows[-1]["wall_s"])),
         "wall_s": round(wall), "load_before": round(load_before, 2), "load_after": round(os.getloadavg()[0], 2),
+        "start_pr_pct": start.get("eval/pr_pct", ""), "start_td_m": start.get("eval/td_m", ""),
     }  # fmt: skip
 
 

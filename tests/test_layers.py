@@ -61,6 +61,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
         (
             "uamfleet.rl.trainer",
             "uamfleet.rl.learner",
+            "uamfleet.rl.warm_start",  # the search warm start: the experts' labels into the learner's network
             "uamfleet.rl.policy",
             "uamfleet.rl.imitation",
             "uamfleet.rl.expert_iteration",

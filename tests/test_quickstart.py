@@ -93,7 +93,7 @@ def test_the_old_recipe_is_one_flag_pair_away(tmp_path):
     assert (old.env.shaping_gamma, old.eval.eval_every, old.ppo.seed) == (0.9, 5, 3)
 
 
-SCRATCH_RECIPES = ("scratch", "scratch-first-delivery", "scratch-workers")
+SCRATCH_RECIPES = ("scratch", "scratch-first-delivery", "scratch-workers", "scratch-search-start")
 
 
 def test_each_recipe_builds_its_trainer_options(tmp_path):
@@ -108,6 +108,13 @@ def test_each_recipe_builds_its_trainer_options(tmp_path):
     workers = trainer_options(tmp_path, ["--recipe", "scratch-workers"])
     assert workers == scratch.with_options(schedule_clock="first_delivery", num_envs=64, env_workers=2)
     assert workers.chosen_backend() == "workers"
+    search = trainer_options(tmp_path, ["--recipe", "scratch-search-start"])  # R2: the search warm start
+    assert search == delivery.with_options(
+        warm_start_rounds=2, kl_to_init=0.01, learning_rate=3e-4, total_timesteps=100_000
+    )
+    assert trainer_options(tmp_path, ["--recipe", "scratch-search-start", "--total-timesteps", "4096"]) == (
+        search.with_options(total_timesteps=4096)
+    )
     assert set(quickstart.RECIPES) == {"fine-tune", *SCRATCH_RECIPES}
     for recipe in SCRATCH_RECIPES:  # from scratch whatever --init-from says (its default is the generalist)
         assert trainer_options(tmp_path, ["--recipe", recipe, "--init-from", "berlin"]).net.init_from is None

@@ -451,6 +451,24 @@ def test_the_expert_iteration_figures_are_the_test_rows():
         says(RESULTS, claim)
 
 
+def search_start_claims() -> list[str]:
+    """The figures of ``--recipe scratch-search-start`` over the reported seeds, recomputed from its rows: the tour
+    every run kept (best_known's), the range of its training seconds, and the runs whose kept checkpoint was the
+    warm start (best_step 0)."""
+    runs = quickstart_seeds("scratch-search-start")
+    assert sorted(int(r["seed"]) for r in runs) == list(range(1, 11))
+    (kept,) = {float(r["td_m"]) for r in runs}
+    assert all(r["pr_pct"] == "100.0" for r in runs) and kept == fixed("berlin_p4@-3dB", "best_known")
+    secs = sorted(int(r["train_wall_s"]) for r in runs)
+    starts = sum(r["best_step"] == "0" for r in runs)
+    claim = (f"Over the same 10 seeds every run kept {m(kept)} m, `best_known` itself, with {secs[0]}–{secs[-1]} "
+             f"s of training on the shared machine. The warm start alone already flew {m(kept)} m on {starts} "
+             "of them")  # fmt: skip
+    says(QUICK, claim)
+    assert len(runs) - starts == 1, "the other one"
+    return [str(secs[0]), str(secs[-1]), str(starts)]
+
+
 def test_every_result_number_is_accounted_for():
     """Every number in the quick start's prose and the results at a glance is one a test above recomputes, a
     setting of the experiment (SETUP) or a measurement the README dates (MEASURED)."""
@@ -459,7 +477,7 @@ def test_every_result_number_is_accounted_for():
             [
                 pct(mean_of_ratios("raster_opt")), pct(mean_of_ratios("replan")), pct(mean_of_ratios("learned")),
                 m(td("learned").mean()), m(td("replan").mean()), RESULTS_MD, BENCHMARKS_MD,
-                *expert_iteration_claims(),
+                *expert_iteration_claims(), *search_start_claims(),
             ]
         )
     )  # fmt: skip

@@ -48,7 +48,7 @@ from uamfleet.presets import make_config
 from uamfleet.metrics import EpisodeMetrics, episode_metrics
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.legacy import checkpoint_args
-from uamfleet.rl.trainer import TrainArgs, load_policy, train
+from uamfleet.rl.trainer import TrainArgs, TrainResult, load_policy, train
 from uamfleet.rollout import fly as fly_episode
 from uamfleet.viz.curves import plot_learning_curve
 
@@ -58,12 +58,18 @@ DEFAULT_RUN = "quickstart"
 
 FINE_TUNE_STEPS = 49_152  # 24 iterations of 32 envs x 64 steps
 SCRATCH_STEPS = 150_000
+SEARCH_START_ROUNDS = 2
+SEARCH_START_STEPS = 100_000
+"""DAgger rounds of the search warm start (``--recipe scratch-search-start``)"""
 RECIPES: dict[str, str] = {
     "fine-tune": "PPO from --init-from (the shipped generalist) with a KL term toward it, 49,152 agent-steps",
     "scratch": "the de_msfea network from scratch, 150,000 agent-steps, shaping that pays only for progress",
     "scratch-first-delivery": "scratch, with the learning-rate decay and the shaping anneal counted from the first "
     "greedy evaluation that delivers everyone (--schedule-clock first_delivery)",
     "scratch-workers": "scratch-first-delivery with 64 envs stepped in 2 worker processes (--env-workers 2)",
+    "scratch-search-start": "the de_msfea network from random weights, warm-started by 2 rounds of DAgger from "
+    "replan's search on P4 (--warm-start-rounds 2), then 100,000 agent-steps of PPO (learning rate 3e-4, a KL term "
+    "toward the warm start, schedules on the first-delivery clock)",
 }
 """The main job's trainings, by ``--recipe`` name."""
 FIXED_CSV = Path("docs/results/benchmark_fixed.csv")
@@ -166,10 +172,13 @@ def training_args(args: Args) -> TrainArgs:
     if args.curve_instances:
         common.update(curve_instances=args.curve_instances, curve_family=args.map or "berlin")
     if recipe != "fine-tune":
-        steps = SCRATCH_STEPS if args.total_timesteps is None else args.total_timesteps
+        steps = SEARCH_START_STEPS if recipe == "scratch-search-start" else SCRATCH_STEPS
+        steps = steps if args.total_timesteps is None else args.total_timesteps
         scratch = {**common, "total_timesteps": steps, "variant": args.variant, "shaping_gamma": args.shaping_gamma}
-        if recipe in ("scratch-first-delivery", "scratch-workers"):
+        if recipe in ("scratch-first-delivery", "scratch-workers", "scratch-search-start"):
             scratch["schedule_clock"] = "first_delivery"
+        if recipe == "scratch-search-start":
+            scratch.update(warm_start_rounds=SEARCH_START_ROUNDS, kl_to_init=args.kl_to_init, learning_rate=3e-4)
         if recipe == "scratch-workers":
             scratch.update(num_envs=64, env_workers=2)
         return TrainArgs.from_flat(scratch)
@@ -218,13 +227,7 @@ def main(args: Args) -> dict[str, EpisodeMetrics] | dict[str, list[dict[str, Any
     for name, m in rows.items():
         print(f"{name:<26} {fmt(m.pr_pct, '.0f'):>5} {fmt(m.td_m, '.0f'):>6} {fmt(m.att_s, '.2f'):>7} "
               f"{fmt(m.awt_s, '.2f'):>7} {fmt(m.elr_pct, '.2f'):>6} {fmt(m.connectivity_pct, '.1f'):>8}")  # fmt: skip
-    if not scratch:
-        kept = (
-            "the start itself: no evaluation beat it"
-            if result.best_step == 0
-            else (f"the evaluation after {result.best_step:,} agent-steps")
-        )
-        print(f"kept: {kept}")
+    print_start(result, train_args)
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
     title = f"Berlin P4 at {args.sinr_min_db:g} dB"
     curve = plot_learning_curve(result.run_dir, best_known_m=recorded_best_known(args), title=title)
@@ -276,6 +279,34 @@ def map_job(args: Args) -> dict[str, list[dict[str, Any]]]:
         print(f"{name:<44} {100 * np.mean(pr >= 100):>15.1f} {pr.mean():>6.1f} {td.mean():>12,.0f}")
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
     return rows
+
+
+def print_start(result: TrainResult, train_args: TrainArgs) -> None:
+    """What a run with a start (fine-tuning, or a search warm start) kept: the start itself, or a PPO evaluation;
+    for a warm start also its evaluation, so the output shows what PPO added to it."""
+    warm = warm_start_row(result.run_dir) if train_args.net.warm_start_rounds else None
+    if warm is not None:
+        print(f"search warm start ({warm['warm/wall_s']:.0f} s, {warm['warm/solves']:.0f} solves of replan's "
+              f"search, {warm['warm/labels']:.0f} labels): PR {warm['eval/pr_pct']:.0f} %, "
+              f"TD {warm['eval/td_m']:.0f} m")  # fmt: skip
+    if train_args.net.init_from is None and warm is None:
+        return
+    kept = (
+        "the start itself: no evaluation beat it"
+        if result.best_step == 0
+        else f"the evaluation after {result.best_step:,} agent-steps"
+    )
+    print(f"kept: {kept}")
+
+
+def warm_start_row(run_dir: Path) -> dict[str, float] | None:
+    """The row of a warm-started run's iteration 0 in its progress.csv (the warm start's statistics and greedy
+    evaluation, before any PPO update); None when the run has none."""
+    with (run_dir / "progress.csv").open(encoding="utf-8") as f:
+        first = next(csv.DictReader(f), None)
+    if first is None or not first.get("warm/labels"):
+        return None
+    return {k: float(v) for k, v in first.items() if v != ""}
 
 
 def recorded_best_known(args: Args, path: Path = FIXED_CSV) -> float | None:

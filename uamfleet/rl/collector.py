@@ -71,6 +71,7 @@ class Run:
     agent_rows: np.ndarray | None = None  # a mixture of fleet sizes: flat indices of the real taxis in [E * A_max]
     obs: dict[str, np.ndarray] = field(default_factory=dict)
     start_time: float = field(default_factory=time.time)
+    obs_stats_frozen: bool = False  # after a search warm start: its network was fitted on these statistics
 
     @property
     def batch_size(self) -> int:  # global
@@ -278,10 +279,10 @@ def normalise(
     run: Run, normalizer: ObservationNormalizer | None, obs: dict[str, np.ndarray], update: bool
 ) -> dict[str, np.ndarray]:
     """``obs`` standardised by ``normalizer`` (unchanged without one); with ``update`` its statistics first take
-    ``obs`` in, pooled over the run's ranks."""
+    ``obs`` in, pooled over the run's ranks, unless the run's statistics are frozen (:attr:`Run.obs_stats_frozen`)."""
     if normalizer is None:
         return obs
-    if update:
+    if update and not run.obs_stats_frozen:
         normalizer.update(obs, run.ranks)
     return normalizer(obs)
 

@@ -153,7 +153,10 @@ class NetOptions:
     kl_to_init: float = 0.0
     """weight of KL(pi || pi_init), the new policy's divergence from the --init-from policy averaged over each
     minibatch, in the loss: PPO may leave the start where the return pays for it, not drift where it does not
-    (0: no such term)"""
+    (0: no such term; from scratch it needs --warm-start-rounds, whose network is then the start)"""
+    warm_start_rounds: int = 0
+    """from scratch: rounds of DAgger from replan's search on the run's world before PPO (uamfleet.rl.warm_start;
+    a lone taxi, one process); 0: none"""
 
 
 @dataclass(frozen=True)
@@ -324,7 +327,7 @@ class TrainArgs:
                 raise ConfigError(f"TrainArgs.{group}={getattr(self, group)!r} must be a {cls.__name__}.")
         self._check_numbers()
         self._check_thresholds()
-        env, net, evaluation = self.env, self.net, self.eval
+        env, evaluation = self.env, self.eval
         if evaluation.eval_instances > len(VALIDATION_SEEDS):
             raise ConfigError(
                 f"--eval-instances={evaluation.eval_instances} exceeds the {len(VALIDATION_SEEDS):,} seeds of the "
@@ -337,23 +340,32 @@ class TrainArgs:
             )
         self._check_map()
         self._check_curve()
-        if net.kl_to_init > 0 and net.init_from is None:
-            raise ConfigError(
-                f"--kl-to-init={net.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
-                "with --init-from (a shipped name such as berlin, or a checkpoint file), or drop --kl-to-init."
-            )
         self._check_fleet_mixture()
         self._check_vector_backend()
-        if net.reinit_critic and net.init_from is None:
-            raise ConfigError(
-                "--reinit-critic starts the critic of an --init-from policy afresh; give that policy with "
-                "--init-from, or drop --reinit-critic (a run from scratch starts every weight afresh)."
-            )
+        self._check_start()
         for name in ("scenario", "run_name", "init_from"):
             value = self._get(name)
             if value is not None and not isinstance(value, str):
                 raise ConfigError(f"{_flag(name)}={value!r} must be a string.")
         self._set("run_dir", Path(self.run.run_dir))
+
+    def _check_start(self) -> None:
+        """What a run starts from: --kl-to-init, --reinit-critic and --warm-start-rounds need (or refuse) a start."""
+        net = self.net
+        if net.kl_to_init > 0 and net.init_from is None and not net.warm_start_rounds:
+            raise ConfigError(
+                f"--kl-to-init={net.kl_to_init:g} pulls the policy toward the one it starts from; give that policy "
+                "with --init-from (a shipped name such as berlin, or a checkpoint file) or build it with "
+                "--warm-start-rounds, or drop --kl-to-init."
+            )
+        if net.warm_start_rounds and net.init_from is not None:
+            raise ConfigError(f"--warm-start-rounds={net.warm_start_rounds} warm-starts a network from scratch; drop "
+                              f"it or --init-from={net.init_from!r}.")  # fmt: skip
+        if net.reinit_critic and net.init_from is None:
+            raise ConfigError(
+                "--reinit-critic starts the critic of an --init-from policy afresh; give that policy with "
+                "--init-from, or drop --reinit-critic (a run from scratch starts every weight afresh)."
+            )
 
     def _check_numbers(self) -> None:
         """The integer options against their lower bounds, the float options against their intervals."""
@@ -564,6 +576,7 @@ _COUNTS: dict[str, int] = {
     "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
     "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
     "checkpoint_every": 1, "threads": 0, "eval_instances": 0, "env_workers": 0, "curve_instances": 0,
+    "warm_start_rounds": 0,
 }  # fmt: skip
 # (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
 _RANGES: dict[str, tuple[float, float | None, bool]] = {

@@ -59,6 +59,7 @@ from uamfleet.rl.learner import (
 from uamfleet.rl.options import TrainArgs, make_env_config
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.ppo import PPOLossInfo
+from uamfleet.rl.warm_start import warm_started
 from uamfleet.rl.runs import RUN_FILES, RUN_NAME, Logger, RunClaim, TrainResult, claim_run, read_progress, run_folder
 from uamfleet.rollout import fly
 
@@ -230,6 +231,17 @@ def evaluate_start(run: Run, learner: Learner, counters: Counters) -> dict[str, 
     return row
 
 
+def start_row(run: Run, learner: Learner, counters: Counters) -> list[dict[str, float]]:
+    """The run's start before PPO: the search warm start (``--warm-start-rounds``; a resumed run reads its
+    reference back), then, for a fresh run from ``--init-from`` or a warm start, rank 0's row of iteration 0
+    (:func:`evaluate_start`, with the warm start's statistics); no row otherwise."""
+    args, fresh = run.args, counters.iteration == 0
+    warm = warm_started(run, learner, not fresh) if args.net.warm_start_rounds else {}
+    if fresh and run.ranks.is_main and (args.net.init_from is not None or args.net.warm_start_rounds):
+        return [{**evaluate_start(run, learner, counters), **warm}]
+    return []
+
+
 # ---- the loop --------------------------------------------------------------------------------------------------
 
 
@@ -285,8 +297,7 @@ def _train(
     args, ranks = run.args, run.ranks
     learner = make_learner(run)
     counters, rows = start(run, learner, claim)
-    if args.net.init_from is not None and counters.iteration == 0 and ranks.is_main:
-        rows.append(evaluate_start(run, learner, counters))
+    rows += start_row(run, learner, counters)
     clock_start = first_delivery(run, rows)
     if counters.iteration >= run.num_iterations:
         _say_finished(run, counters)
