@@ -6,8 +6,9 @@ the expert's own headings (``beta`` = 1), round ``r`` each env's heading is the 
 ``0.5 ** r``, else the network's greedy one, so the later rounds label the states the network itself reaches
 (Ross et al. 2011). After each round the actor is fitted to every label so far (cross-entropy on the masked
 logits, a separate Adam: PPO's optimiser starts afresh). The observation statistics are updated with the raw
-observations as PPO's collector updates them, and the labels are fitted on the statistics as they stand after the
-last round, which PPO goes on updating. The critic is left as it is.
+observations as PPO's collector updates them, the labels are fitted on the statistics as they stand after the
+last round, and those statistics are then frozen for the rest of the run (:attr:`Run.obs_stats_frozen`). The
+critic is fitted last, on a few of PPO's own rollouts of the warm-started policy (:func:`_fit_critic`).
 
 PPO then trains from the warm-started network, and with ``--kl-to-init`` it is the reference of that term (saved
 as ``warm_start.pt`` in the run folder, so a resumed run finds it again).
