@@ -64,6 +64,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.warm_start",  # the search warm start: the experts' labels into the learner's network
             "uamfleet.rl.policy",
             "uamfleet.rl.imitation",
+            "uamfleet.rl.fleet_imitation",  # DAgger from a fleet dispatcher: the learned policies' loader, rollout
             "uamfleet.rl.expert_iteration",
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",

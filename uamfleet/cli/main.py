@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "train": "train",
     "imitate": "imitate",
     "expert-iteration": "expert_iteration",
+    "fleet-imitate": "fleet_imitate",
     "quickstart": "quickstart",
     "rollout": "rollout",
     "render": "render",

@@ -1,0 +1,134 @@
+"""DAgger from a fleet dispatcher (uamfleet/rl/fleet_imitation.py): its labels are the dispatcher's own actions, the
+fit lowers the imitation loss, and the trained checkpoint flies any fleet size with one set of weights."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+
+from uamfleet.checks import ConfigError
+from uamfleet.instances import make_fleet_instance, split_seeds
+from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
+from uamfleet.rl.fleet_imitation import (
+    TEACHER,
+    FleetImitationArgs,
+    fleet_imitate,
+    fleet_policy,
+    label_episode,
+    make_teacher,
+)
+from uamfleet.rl.imitation import Dataset, fit
+from uamfleet.rl.networks import obs_to_torch
+from uamfleet.rl.policy import load_policy
+from uamfleet.rollout import fly
+
+
+def small_scene(taxis: int = 2, requests: int = 4, seed_index: int = 0):
+    """A small drawn Berlin fleet scene under the shield with the hover action (as the fleet benchmark flies)."""
+    seed = split_seeds("train", seed_index + 1)[seed_index]
+    return make_fleet_instance("berlin", seed, taxis, requests, separation="shield", hover_action=True)
+
+
+class Recording:
+    """The dispatcher flying alone, its actions recorded: the independent account of what it does at each step."""
+
+    def __init__(self, dispatcher) -> None:
+        self.dispatcher, self.actions = dispatcher, []
+
+    def reset(self, sim) -> None:
+        self.dispatcher.reset(sim)
+
+    def act(self, obs):
+        action = self.dispatcher.act(obs)
+        self.actions.append(np.asarray(action)[0].copy())
+        return action
+
+
+def test_labels_at_beta_one_are_the_dispatchers_own_actions_when_it_flies_alone() -> None:
+    cfg = small_scene()
+    alone = Recording(make_teacher(TEACHER, cfg.num_taxis))
+    traj = fly(cfg, alone)
+    episode = label_episode(cfg, fleet_policy("berlin_fleet", 24), make_teacher(TEACHER, 2), 1.0,
+                            np.random.default_rng(0))  # fmt: skip
+    expected = np.stack(alone.actions)  # [T, A]
+    assert episode.teacher_actions.shape == expected.shape == (len(traj.events), 2)
+    assert np.array_equal(episode.teacher_actions, expected)
+    assert np.array_equal(episode.flown, expected)  # β = 1: every step the dispatcher's joint move
+    assert episode.teacher_steps == episode.steps == len(expected)
+    # the fitted labels are the taught subset of them, the rest counted as ruled out
+    assert len(episode.labels) + episode.ruled_out == expected.size
+    assert set(np.unique(episode.labels)) <= set(np.unique(expected))
+
+
+def test_labels_on_the_policys_own_states_are_what_a_dispatcher_replayed_on_those_moves_does() -> None:
+    # β = 0: the policy flies; replaying its joint moves in a fresh env with a fresh dispatcher watching each step
+    # must give the same labels (the dispatcher's commitments depend on the states it watched, nothing else)
+    cfg = small_scene(seed_index=1)
+    episode = label_episode(cfg, fleet_policy("berlin_fleet", 24), make_teacher(TEACHER, 2), 0.0,
+                            np.random.default_rng(0))  # fmt: skip
+    moves = iter(episode.flown)
+    replayed = Recording(make_teacher(TEACHER, 2))
+
+    class Replay:
+        def reset(self, sim) -> None:
+            replayed.reset(sim)
+
+        def act(self, obs):
+            replayed.act(obs)
+            return next(moves)[None]
+
+    fly(cfg, Replay())
+    assert np.array_equal(np.stack(replayed.actions), episode.teacher_actions)
+    assert episode.teacher_steps == 0
+    assert not np.array_equal(episode.flown, episode.teacher_actions)  # the policy's own states, not the teacher's
+
+
+def test_the_fit_lowers_the_imitation_loss_on_a_small_fixed_dataset() -> None:
+    torch.manual_seed(0)
+    policy = fleet_policy("berlin_fleet", 24)
+    episode = label_episode(small_scene(), policy, make_teacher(TEACHER, 2), 1.0, np.random.default_rng(0))
+    data = Dataset()
+    data.add(episode.obs, episode.labels, episode.corrected)
+
+    def loss() -> float:
+        with torch.no_grad():
+            logits = policy.net.masked_logits(obs_to_torch(episode.obs, "cpu"))
+            return float(F.cross_entropy(logits, torch.as_tensor(episode.labels)))
+
+    before = loss()
+    args = FleetImitationArgs(epochs=20, minibatch=64, learning_rate=3e-4)
+    optimizer = torch.optim.Adam(policy.net.parameters(), lr=args.learning_rate)
+    fit(policy.net, data, args.fit_args(), optimizer, np.random.default_rng(0))
+    after = loss()
+    assert np.isfinite(before) and after < 0.8 * before, (before, after)
+
+
+def test_the_trained_checkpoint_flies_any_fleet_size_with_one_set_of_weights(tmp_path: Path) -> None:
+    args = FleetImitationArgs(mixture=("2x4", "4x8"), rounds=1, epochs=1, run_dir=tmp_path, run_name="tiny")
+    rows = fleet_imitate(args)
+    assert len(rows) == 1 and rows[0]["samples"] > 0 and rows[0]["teacher_steps"] == rows[0]["steps"]
+    path = tmp_path / "tiny" / "round0.pt"
+    trained = torch.load(path, weights_only=True)["model"]
+    shipped = Checkpoint.load(pretrained_path("berlin_fleet")).model
+    assert trained.keys() == shipped.keys()
+    assert any(not torch.equal(trained[k], shipped[k]) for k in trained)  # fitted
+    policy = fleet_policy(str(path), 24)
+    for taxis, requests in ((1, 3), (3, 6), (8, 16)):
+        traj = fly(small_scene(taxis, requests, seed_index=2), policy)
+        assert traj.events[0].pos_m.shape[1] == taxis
+    # the same network object flew every size: nothing was resized but the shapes it checks
+    assert load_policy(path)[0].net.state_dict().keys() == trained.keys()
+
+
+def test_bad_options_are_refused_naming_them() -> None:
+    with pytest.raises(ConfigError, match="--mixture setting '4by8'"):
+        FleetImitationArgs(mixture=("4by8",))
+    with pytest.raises(ConfigError, match="--beta0=2"):
+        FleetImitationArgs(beta0=2.0)
+    for name in ("replan", "learned:source=berlin_fleet", "no_such_dispatcher"):
+        with pytest.raises(ConfigError, match=f"--teacher='{name}' is not a fleet dispatcher"):
+            make_teacher(name, 2)

@@ -1,0 +1,315 @@
+"""A fleet policy taught by a fleet dispatcher: DAgger on the fleet policy's own states (Ross et al. 2011).
+
+The teacher is a schedule dispatcher (by default the chosen one, :data:`TEACHER`). It keeps commitments: each
+taxi's stop schedule, repaired every step and re-assigned at releases. So its label at a state is only the
+dispatcher's own action where the dispatcher has watched the whole episode up to that state. Every episode is
+therefore flown with the teacher **observing every step** (its ``act`` is called on the env's simulator at every
+step, exactly as when it flies), while the step flown is, with probability β (:attr:`FleetImitationArgs.beta`),
+the teacher's joint move and otherwise the policy's greedy joint move. The label of every taxi at every step is
+the teacher's action for it there (a heading toward its next stop along feasible paths, the hover where it has
+nothing to do, a step aside under the shield): what the dispatcher itself would fly from that state, given the
+schedules it would hold after watching those steps.
+
+One network for every taxi and every fleet size: each taxi's observation row is one sample, read as the policy
+reads it at that fleet size (its window of passenger rows, its normaliser fitted to the world), and the other-taxi
+rows are padded to the largest fleet the network reads with masked rows (a masked mean ignores them, as in
+:mod:`uamfleet.env.mixture`). The fit is :func:`uamfleet.rl.imitation.fit` (cross-entropy on the masked logits,
+data aggregated over rounds in :class:`~uamfleet.rl.imitation.Dataset`). A label the policy's stop head rules out
+(log-probability at or below :data:`~uamfleet.rl.heads.PRIOR_FLOOR`: a heading toward no stop it reads, such as a
+step aside under the shield, or a hover while it has a stop to fly to) is flown but never fitted: the network can
+learn which stop each taxi flies for and when it waits, not headings off its stops' paths.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from uamfleet.checks import ConfigError, check_integer, check_number
+from uamfleet.config import FLEET_ARRIVAL_WINDOW_S, EnvConfig
+from uamfleet.env.mixture import OTHER_TAXI_FIELDS
+from uamfleet.env.protocol import PolicyBase
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import make_fleet_instance, split_seeds
+from uamfleet.io import write_csv_atomic
+from uamfleet.policies import PolicyNameError, available, make_flown, parse
+from uamfleet.policies.learned import LearnedOptions, spec_of
+from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
+from uamfleet.rl.heads import PRIOR_FLOOR
+from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit
+from uamfleet.rl.policy import GreedyPolicy, load_policy
+from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
+from uamfleet.rollout import observer_of
+from uamfleet.types import HOVER_ACTION
+
+TEACHER = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
+"""The chosen dispatcher (docs/results.md "Fleets"): the default teacher."""
+
+MIXTURE: tuple[str, ...] = ("2x12", "2x24", "4x24", "4x48", "8x48", "8x96")
+"""The fleet settings (taxis x requests) of the training episodes: 2 to 8 taxis, light and loaded, as the shipped
+fleet policy's fine-tune flew."""
+
+
+@dataclass(frozen=True)
+class FleetImitationArgs:
+    """DAgger from a fleet dispatcher (every option is a flag of ``uamfleet fleet-imitate``)."""
+
+    init: str = "berlin_fleet"
+    """the policy to start from: a shipped policy's name (uamfleet.zoo.PRETRAINED) or a checkpoint file"""
+    teacher: str = TEACHER
+    """the dispatcher whose actions are the labels (a fleet dispatcher's name, uamfleet.policies)"""
+    family: str = "berlin"
+    """instance family of the training episodes (its training seeds; uamfleet.instances.FAMILIES)"""
+    mixture: tuple[str, ...] = MIXTURE
+    """fleet settings of the training episodes (<taxis>x<requests>), ``episodes_per_setting`` of each per round"""
+    passenger_window: int = 24
+    """passenger rows each taxi reads (the shipped fleet policy flies 24)"""
+    rounds: int = 6
+    episodes_per_setting: int = 1
+    """episodes of each mixture setting per round (fresh training seeds every round)"""
+    beta0: float = 1.0
+    """share of steps flown by the teacher in round 0 (1: the teacher's own episodes)"""
+    beta_decay: float = 0.5
+    epochs: int = 2
+    minibatch: int = 512
+    learning_rate: float = 1e-4
+    max_samples: int = 300_000
+    seed: int = 0
+    run_dir: Path = Path("runs")
+    run_name: str = "fleet_dagger"
+    overwrite: bool = False
+    threads: int = 1
+    max_wall_s: float | None = None
+    """stop starting rounds after this many seconds"""
+
+    def __post_init__(self) -> None:
+        for name in ("passenger_window", "rounds", "episodes_per_setting", "epochs", "minibatch", "threads"):
+            check_integer(f"--{name.replace('_', '-')}", getattr(self, name), 1)
+        check_integer("--max-samples", self.max_samples, self.minibatch)
+        check_number("--learning-rate", self.learning_rate, positive=True)
+        for name in ("beta0", "beta_decay"):
+            value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), minimum=0.0)
+            if value > 1:
+                raise ConfigError(f"--{name.replace('_', '-')}={value} is a probability: use a value in [0, 1].")
+        if not self.mixture:
+            raise ConfigError(f"--mixture is empty: give fleet settings <taxis>x<requests>, e.g. {' '.join(MIXTURE)}.")
+        for setting in self.mixture:
+            setting_size(setting)
+        check_run_name(self.run_name, self.run_dir)
+
+    def beta(self, round_index: int) -> float:
+        """Probability that a step of round ``round_index`` flies the teacher's joint move."""
+        return self.beta0 * self.beta_decay**round_index
+
+    def fit_args(self) -> ImitationArgs:
+        """The options :func:`uamfleet.rl.imitation.fit` reads (its fit group)."""
+        options = FitOptions(self.epochs, self.minibatch, self.learning_rate, max_samples=self.max_samples)
+        return ImitationArgs(fit=dataclasses.replace(options, seed=self.seed))
+
+
+def setting_size(setting: str) -> tuple[int, int]:
+    """(taxis, requests) of a fleet setting ``<taxis>x<requests>`` (e.g. ``8x96``); ConfigError naming it else."""
+    taxis, sep, requests = setting.partition("x")
+    if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
+        raise ConfigError(f"--mixture setting {setting!r} is not <taxis>x<requests> with both >= 1 (e.g. 4x48).")
+    return int(taxis), int(requests)
+
+
+def fleet_policy(init: str, passenger_window: int) -> GreedyPolicy:
+    """A fresh copy of the greedy policy ``init`` (a shipped name or a file) reading ``passenger_window`` rows per
+    taxi: one network for every fleet size (fitted to each world at reset). Fresh, so that fitting it never changes
+    the process's cached shipped policy."""
+    policy = load_policy(checkpoint_source(init))[0]
+    return policy.reading(spec_of(policy, LearnedOptions(passenger_window=passenger_window)))
+
+
+def padded_rows(policy: GreedyPolicy, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each taxi's normalised observation row as the network reads it (``[A, ...]``), its other-taxi rows padded
+    with masked rows to the largest fleet the network reads (its ``shapes``), so rows of any fleet size stack."""
+    rows = policy.network_input(obs)
+    out = {}
+    for key, value in rows.items():
+        if key in OTHER_TAXI_FIELDS:
+            if value.shape[1] > policy.net.shapes[key][0]:
+                raise ConfigError(
+                    f"a fleet of {value.shape[1] + 1} taxis: this network reads at most {policy.net.shapes[key][0] + 1}"
+                    "; train on fleets no larger (--mixture)."
+                )
+            full = np.zeros((value.shape[0], *policy.net.shapes[key]), value.dtype)
+            full[:, : value.shape[1]] = value
+            value = full
+        out[key] = value
+    return out
+
+
+@dataclass
+class EpisodeLabels:
+    """One labelled episode: its rows and labels (:class:`~uamfleet.rl.imitation.Dataset`'s parts) and counts."""
+
+    obs: dict[str, np.ndarray]
+    labels: np.ndarray
+    corrected: np.ndarray
+    teacher_actions: np.ndarray  # [T, A] the teacher's action for every taxi at every step, fitted or not
+    flown: np.ndarray  # [T, A] the joint move flown at every step (the teacher's or the policy's)
+    steps: int
+    teacher_steps: int
+    ruled_out: int  # labels the policy's stop head rules out (log-probability <= PRIOR_FLOOR): flown, never fitted
+    ruled_out_hovers: int  # of them, hovers (the teacher waits where the policy's stop head sees a stop)
+
+
+def label_episode(
+    cfg: EnvConfig, policy: GreedyPolicy, teacher: PolicyBase, beta: float, rng: np.random.Generator
+) -> EpisodeLabels:
+    """Fly one episode of ``cfg`` with ``teacher`` observing every step (module docstring): each step is the
+    teacher's joint move with probability ``beta``, else the policy's greedy one; every taxi's state is labelled
+    with the teacher's action there."""
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
+    obs, _ = env.reset(seed=0)
+    policy.reset(env.sim)
+    teacher.reset(env.sim)
+    parts: list[dict[str, np.ndarray]] = []
+    labels, corrected, teacher_actions, flown = [], [], [], []
+    steps = teacher_steps = 0
+    while True:
+        label = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
+        rows = padded_rows(policy, obs)
+        own = policy.act(obs)  # [1, A] greedy, with the loop guard (as it flies)
+        logits = policy.logits_of(policy.network_input(obs))  # [A, 16 or 17]
+        log_probs = torch.log_softmax(logits, -1).numpy()
+        fitted = log_probs[np.arange(label.shape[1]), label[0]] > PRIOR_FLOOR
+        parts.append({k: v[fitted] for k, v in rows.items()})
+        labels.append(label[0][fitted])
+        corrected.append((label[0] != own[0])[fitted])
+        by_teacher = bool(rng.random() < beta)
+        teacher_steps += by_teacher
+        teacher_actions.append(label[0])
+        flown.append((label if by_teacher else own)[0])
+        obs, _, terminated, truncated, _ = env.step(label if by_teacher else own)
+        steps += 1
+        if terminated[0] or truncated[0]:
+            break
+    stacked = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    taught, all_labels = np.concatenate(labels), np.stack(teacher_actions)
+    ruled_out = all_labels.size - len(taught)
+    hovers = int((all_labels == HOVER_ACTION).sum() - (taught == HOVER_ACTION).sum())
+    return EpisodeLabels(stacked, taught, np.concatenate(corrected), all_labels, np.stack(flown), steps, teacher_steps,
+                         ruled_out, hovers)  # fmt: skip
+
+
+def training_episodes(args: FleetImitationArgs, round_index: int) -> list[EnvConfig]:
+    """Round ``round_index``'s episodes: ``episodes_per_setting`` of each mixture setting, on training seeds no
+    other round or setting uses, under the shield with the hover action (as the fleet benchmark flies)."""
+    per_round = len(args.mixture) * args.episodes_per_setting
+    seeds = split_seeds("train", per_round, first=args.seed * 100_000 + round_index * per_round)
+    cfgs = []
+    for i, setting in enumerate(args.mixture):
+        taxis, requests = setting_size(setting)
+        for j in range(args.episodes_per_setting):
+            seed = seeds[i * args.episodes_per_setting + j]
+            cfgs.append(make_fleet_instance(args.family, seed, taxis, requests, separation="shield", hover_action=True))
+    return cfgs
+
+
+def fleet_imitate(args: FleetImitationArgs) -> list[dict[str, float]]:
+    """Run DAgger from the teacher (module docstring); writes ``round<r>.pt`` after every round's fit, ``last.pt``
+    and ``progress.csv`` in the run folder, and returns the progress rows. Checkpoints are chosen afterwards on
+    validation episodes (``uamfleet fleet-bench --split validation``), never here."""
+    with claim_run(args.run_dir, args.run_name, overwrite=args.overwrite, resumable=False) as claim:
+        return _fleet_imitate(args, claim)
+
+
+def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, float]]:
+    torch.set_num_threads(args.threads)
+    torch.manual_seed(args.seed)
+    rng = np.random.default_rng(args.seed)
+    start = time.time()
+    source = checkpoint_source(args.init)
+    policy = fleet_policy(args.init, args.passenger_window)  # one set of weights, flown by every fleet size
+    net = policy.net
+    optimizer = torch.optim.Adam(net.parameters(), lr=args.learning_rate)
+    fit_args = args.fit_args()
+    claim.clear()
+    data, rows = Dataset(), []
+    for r in range(args.rounds):
+        if args.max_wall_s is not None and time.time() - start > args.max_wall_s:
+            break
+        counts = _collect_round(args, r, policy, data, rng)
+        data.trim(args.max_samples)
+        stats = fit(net, data, fit_args, optimizer, rng)
+        rows.append({"round": r, "beta": args.beta(r), **counts, "samples": len(data), **stats,
+                     "wall_s": time.time() - start})  # fmt: skip
+        print(", ".join(f"{k}={v:.4g}" for k, v in rows[-1].items()), flush=True)
+        save_fleet_checkpoint(claim.folder / f"round{r}.pt", source, net, args, rows[-1])
+        save_fleet_checkpoint(claim.folder / "last.pt", source, net, args, rows[-1])
+        write_csv_atomic(claim.folder / "progress.csv", rows, list(rows[0]))
+    return rows
+
+
+def _collect_round(
+    args: FleetImitationArgs, r: int, policy: GreedyPolicy, data: Dataset, rng: np.random.Generator
+) -> dict[str, float]:
+    """Label round ``r``'s episodes (flown by ``policy`` and the teacher) into ``data``; the round's counts."""
+    counts: dict[str, float] = {"new_samples": 0, "corrections": 0, "ruled_out": 0, "ruled_out_hovers": 0, "steps": 0,
+              "teacher_steps": 0}  # fmt: skip
+    for cfg in training_episodes(args, r):
+        teacher = make_teacher(args.teacher, cfg.num_taxis)
+        episode = label_episode(cfg, policy, teacher, args.beta(r), rng)
+        data.add(episode.obs, episode.labels, episode.corrected)
+        counts["new_samples"] += len(episode.labels)
+        counts["corrections"] += int(episode.corrected.sum())
+        counts["ruled_out"] += episode.ruled_out
+        counts["ruled_out_hovers"] += episode.ruled_out_hovers
+        counts["steps"] += episode.steps
+        counts["teacher_steps"] += episode.teacher_steps
+    return counts
+
+
+def make_teacher(name: str, taxis: int) -> PolicyBase:
+    """The fleet dispatcher ``name`` (uamfleet.policies' grammar, e.g. :data:`TEACHER`) for ``taxis`` taxis, built
+    as the fleet benchmark flies it (a valued one for the benchmark's arrival window); another kind of policy is
+    refused in one line."""
+    try:
+        kind = available()[parse(name)[0]][0]
+    except PolicyNameError:
+        kind = None
+    if kind != "dispatcher":
+        raise ConfigError(f"--teacher={name!r} is not a fleet dispatcher; give one such as {TEACHER!r}.")
+    return make_flown(name, num_taxis=taxis, arrival_window_s=FLEET_ARRIVAL_WINDOW_S)
+
+
+def save_fleet_checkpoint(
+    path: Path, source: Path, net: torch.nn.Module, args: FleetImitationArgs, row: dict[str, Any]
+) -> None:
+    """The source checkpoint with the fitted weights (the same network, normaliser and spec: it loads and flies
+    like the source, any fleet size), its DAgger options and this round's row recorded, without optimiser state."""
+    ckpt = Checkpoint.load(source)
+    options = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
+               for k, v in dataclasses.asdict(args).items()}  # fmt: skip
+    out = dataclasses.replace(
+        ckpt,
+        model={k: v.detach().clone() for k, v in net.state_dict().items()},
+        args={**ckpt.args, "fleet_imitation": options},
+        best_eval={k: float(v) for k, v in row.items()},
+        optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
+    )  # fmt: skip
+    out.save(path)
+
+
+__all__ = [
+    "MIXTURE",
+    "TEACHER",
+    "EpisodeLabels",
+    "FleetImitationArgs",
+    "fleet_imitate",
+    "label_episode",
+    "make_teacher",
+    "padded_rows",
+    "save_fleet_checkpoint",
+    "training_episodes",
+]
