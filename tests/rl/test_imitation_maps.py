@@ -55,3 +55,20 @@ def test_an_unknown_map_is_refused_with_every_packaged_map_named() -> None:
     with pytest.raises(ConfigError) as err:
         ImitationArgs.from_flat(dict(map="atlantis"))
     assert all(name in str(err.value) for name in RADIO_MAPS)  # munich_3km too, from RADIO_MAPS
+
+
+def test_the_command_prints_every_map_it_rolls_out_on(monkeypatch, capsys) -> None:
+    from uamfleet.cli import imitate as imitate_cli
+    from uamfleet.instances import map_provenance
+
+    seen: list[ImitationArgs] = []
+
+    def fake(args: ImitationArgs) -> dict[str, float]:  # the run itself is tested above
+        seen.append(args)
+        return {"round": 0, "val_pr_pct": 100.0, "val_td_m": 1.0}
+
+    monkeypatch.setattr(imitate_cli, "imitate", fake)
+    assert imitate_cli.cli(["--map", "berlin", "--also-maps", "munich", "munich_3km", "--run-name", "t"]) == 0
+    assert [args.maps() for args in seen] == [("berlin", "munich", "munich_3km")]
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[:3] == [f"Map: {map_provenance(name)}." for name in ("berlin", "munich", "munich_3km")]
