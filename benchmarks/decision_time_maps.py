@@ -143,8 +143,49 @@ def summary(key: tuple[str, str, str], taxis: int, setting: str, threads: int, r
     }  # fmt: skip
 
 
-def main(args: Args) -> list[dict[str, Any]]:
+def fleet_config(args: Args, family: str, seed: int, separation: str) -> Any:
+    """The fleet instance of ``seed`` at ``args.setting``, hovering, under ``separation``."""
     taxis, requests = setting_size(args.setting)
+    return make_fleet_instance(family, seed, taxis, requests, separation=separation, hover_action=True)
+
+
+def warm_up(args: Args, methods: dict[str, tuple[Any, bool]], seed: int) -> dict[tuple[str, str, str], float]:
+    """One untimed episode of each method on each map and shield on a seed not measured; the first call's ms per
+    taxi of each (map, separation, method)."""
+    taxis, _ = setting_size(args.setting)
+    first_call: dict[tuple[str, str, str], float] = {}
+    for separation in args.separations:
+        for family in args.maps:
+            cfg = fleet_config(args, family, seed, separation)
+            for name, (policy, is_dispatcher) in methods.items():
+                run = fly_timed(cfg, name, policy, is_dispatcher)
+                first_call[(family, separation, name)] = 1000.0 * run["wall_s"][0] / taxis
+    return first_call
+
+
+def measure(
+    args: Args, methods: dict[str, tuple[Any, bool]], seeds: list[int]
+) -> dict[tuple[str, str, str], list[dict[str, Any]]]:
+    """Each method's timed episodes on each seed, map and shield (the maps' order alternating by seed, so neither
+    map always runs first), printed as they end."""
+    taxis, _ = setting_size(args.setting)
+    runs: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for i, seed in enumerate(seeds):
+        for separation in args.separations:
+            for family in args.maps if i % 2 == 0 else args.maps[::-1]:
+                cfg = fleet_config(args, family, seed, separation)
+                for name, (policy, is_dispatcher) in methods.items():
+                    run = fly_timed(cfg, name, policy, is_dispatcher)
+                    runs.setdefault((family, separation, name), []).append(run)
+                    ms = 1000.0 * np.asarray(run["wall_s"]) / taxis
+                    print(f"{seed} {family:>7} {separation:>6} {name:>22}: {len(ms)} steps, delivered "
+                          f"{run['delivered']}, TD {run['td_m']:,.0f} m; ms per taxi-step p50 {np.median(ms):.3f} "
+                          f"max {ms.max():.1f}", flush=True)  # fmt: skip
+    return runs
+
+
+def main(args: Args) -> list[dict[str, Any]]:
+    taxis, _ = setting_size(args.setting)
     if args.seeds < 1 or args.threads < 1:
         raise ValueError(f"--seeds {args.seeds} --threads {args.threads}: give both >= 1.")
     torch.set_num_threads(args.threads)
@@ -157,32 +198,11 @@ def main(args: Args) -> list[dict[str, Any]]:
     print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s); {omp}; {args.setting}, {args.seeds} "
           f"seed(s), methods {list(methods)}", flush=True)  # fmt: skip
     *seeds, warm_seed = split_seeds("test", args.seeds + 1)
-
-    def config(family: str, seed: int, separation: str) -> Any:
-        return make_fleet_instance(family, seed, taxis, requests, separation=separation, hover_action=True)
-
     start = time.perf_counter()
-    first_call: dict[tuple[str, str, str], float] = {}
-    for separation in args.separations:  # warm-up, untimed: one whole episode of each on a seed not measured
-        for family in args.maps:
-            cfg = config(family, warm_seed, separation)
-            for name, (policy, is_dispatcher) in methods.items():
-                run = fly_timed(cfg, name, policy, is_dispatcher)
-                first_call[(family, separation, name)] = 1000.0 * run["wall_s"][0] / taxis
+    first_call = warm_up(args, methods, warm_seed)
     print(f"warm-up: {time.perf_counter() - start:.1f} s; first call ms per taxi: "
           + ", ".join(f"{'/'.join(k)} {v:.1f}" for k, v in first_call.items()), flush=True)  # fmt: skip
-    runs: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
-    for i, seed in enumerate(seeds):
-        for separation in args.separations:
-            for family in args.maps if i % 2 == 0 else args.maps[::-1]:
-                cfg = config(family, seed, separation)
-                for name, (policy, is_dispatcher) in methods.items():
-                    run = fly_timed(cfg, name, policy, is_dispatcher)
-                    runs.setdefault((family, separation, name), []).append(run)
-                    ms = 1000.0 * np.asarray(run["wall_s"]) / taxis
-                    print(f"{seed} {family:>7} {separation:>6} {name:>22}: {len(ms)} steps, delivered "
-                          f"{run['delivered']}, TD {run['td_m']:,.0f} m; ms per taxi-step p50 {np.median(ms):.3f} "
-                          f"max {ms.max():.1f}", flush=True)  # fmt: skip
+    runs = measure(args, methods, seeds)
     rows = [summary(key, taxis, args.setting, args.threads, r, first_call[key]) for key, r in runs.items()]
     print_table(rows, args.maps)
     print(f"wall-clock {time.perf_counter() - start:.0f} s")

@@ -36,7 +36,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
     (0, ("uamfleet.types", "uamfleet.io", "uamfleet.checks")),
     (1, ("uamfleet.radio",)),
     # uamfleet.presets: the named scenarios (make_config), built from the config classes beside them.
-    (2, ("uamfleet.config", "uamfleet.demand", "uamfleet.presets")),
+    # uamfleet.map_rules: Berlin's instance rules scaled to a map (its steps and thresholds), read from presets.
+    (2, ("uamfleet.config", "uamfleet.demand", "uamfleet.presets", "uamfleet.map_rules")),
     (3, ("uamfleet.paths",)),
     # The simulator (world, rules, motion, reward) reads no observation; the observers and faces sit above it.
     (4, ("uamfleet.sim",)),

@@ -1,6 +1,5 @@
-"""The main job's training recipe (uamfleet/cli/quickstart.py): what it hands the trainer, and why (issue 20, part 4).
-
-The 10-seed measurement behind the recipe is in docs/results.md, "The main job over 10 seeds (issue 20)"."""
+"""The main job's training recipes (uamfleet/cli/quickstart.py): what each hands the trainer, and why (issues 20 and
+41). Their runs over 10 seeds are docs/results/quickstart_seeds.csv (docs/getting-started.md, "The main job")."""
 
 from __future__ import annotations
 
@@ -44,11 +43,30 @@ def shaping_of(args: TrainArgs, potential: float, next_potential: float) -> floa
     return reward.shaping * (reward.shaping_gamma * next_potential - potential)
 
 
-def test_the_main_job_fine_tunes_the_shipped_generalist_on_its_own_reward(tmp_path, capsys):
-    """The default recipe starts from uamfleet.pretrained("berlin") with a KL term toward it, evaluates after every
-    iteration (and the start first: tests/rl/test_fine_tuning.py), and trains on the reward the start was trained
-    on (read here from the shipped checkpoint itself), so the value head and the advantages mean what they meant."""
+def test_the_main_job_trains_from_random_weights_with_the_search_warm_start(tmp_path, capsys):
+    """The default recipe (issue 41: the main job's training from scratch) is scratch-search-start: no start policy,
+    2 rounds of DAgger from replan's search, then 100k agent-steps of PPO (whole iterations: 48 of 32 envs x 64
+    steps, 98,304 agent-steps) with a KL term toward the warm start, evaluating after every iteration."""
     recipe = trainer_options(tmp_path, [])
+    assert quickstart.DEFAULT_RECIPE == "scratch-search-start"
+    assert recipe == trainer_options(tmp_path, ["--recipe", "scratch-search-start"])
+    assert recipe.net.init_from is None and recipe.net.warm_start_rounds == 2 and recipe.net.kl_to_init == 0.01
+    assert recipe.eval.eval_every == 1 and recipe.run.threads == 1 and recipe.ppo.seed == 1
+    assert recipe.env.scenario == "berlin_p4" and recipe.env.sinr_min_db == -3.0 and recipe.net.variant == "de_msfea"
+    assert recipe.ppo.total_timesteps == 100_000
+    assert (recipe.eval.curve_instances, recipe.eval.curve_family) == (10, "berlin")  # the curve's validation panel
+    out = capsys.readouterr().out
+    assert "training MSHA-PPO (de_msfea) from scratch on Berlin P4 at -3 dB for 100,000 agent-steps" in out
+    assert "recipe scratch-search-start" in out
+
+
+def test_fine_tuning_starts_from_the_shipped_generalist_on_its_own_reward(tmp_path, capsys):
+    """--recipe fine-tune starts from uamfleet.pretrained("berlin") with a KL term toward it, evaluates after every
+    iteration (and the start first: tests/rl/test_fine_tuning.py), and trains on the reward the start was trained
+    on (read here from the shipped checkpoint itself), so the value head and the advantages mean what they meant.
+    Naming a start with --init-from selects it too."""
+    recipe = trainer_options(tmp_path, ["--recipe", "fine-tune"])
+    assert recipe == trainer_options(tmp_path, ["--init-from", "berlin"])
     assert recipe.net.init_from == "berlin" and recipe.net.kl_to_init == 0.01 and recipe.eval.eval_every == 1
     assert recipe.env.scenario == "berlin_p4" and recipe.env.sinr_min_db == -3.0 and recipe.run.threads == 1
     assert recipe.ppo.total_timesteps == quickstart.FINE_TUNE_STEPS == 24 * 32 * 64  # whole iterations
@@ -62,17 +80,17 @@ def test_the_recipe_from_scratch_pays_nothing_for_staying_away_from_the_stops(tm
     (Phi = -20) earns w (1 - 0.9) 20 = 100 per step: the hover trap that stalled seeds 3 and 6 of the earlier recipe
     (docs/results.md). The quickstart's recipe shapes with gamma_Phi = 1: standing still pays 0, progress pays w
     per step of progress, at any distance."""
-    recipe = trainer_options(tmp_path, ["--init-from", "None"])
+    recipe = trainer_options(tmp_path, ["--recipe", "scratch"])
     for phi in (-20.0, -5.0, -1.0):
         assert shaping_of(recipe, phi, phi) == 0.0
         assert shaping_of(recipe, phi, phi + 1) == pytest.approx(50.0)
-    old = trainer_options(tmp_path, ["--init-from", "None", "--shaping-gamma", "0.9"])
+    old = trainer_options(tmp_path, ["--recipe", "scratch", "--shaping-gamma", "0.9"])
     assert shaping_of(old, -20.0, -20.0) == pytest.approx(100.0)
     assert "training MSHA-PPO (de_msfea) from scratch" in capsys.readouterr().out
 
 
 def test_the_recipe_from_scratch_evaluates_every_iteration_and_keeps_the_rest_of_the_trainer_defaults(tmp_path):
-    recipe = trainer_options(tmp_path, ["--init-from", "None"])
+    recipe = trainer_options(tmp_path, ["--recipe", "scratch"])
     assert recipe.net.init_from is None and recipe.net.kl_to_init == 0.0
     assert recipe.eval.eval_every == 1  # best.pt: the shortest greedy tour of any iteration, not of every 5th
     assert recipe.run.threads == 1 and recipe.ppo.seed == 1 and recipe.ppo.total_timesteps == 150_000
@@ -84,11 +102,11 @@ def test_the_recipe_from_scratch_evaluates_every_iteration_and_keeps_the_rest_of
 
 
 def test_the_old_recipe_is_one_flag_pair_away(tmp_path):
-    """--init-from None --shaping-gamma 0.9 --eval-every 5 is the recipe of the README before issue 20 (its 10
-    seeds are in docs/results.md), and --init-from None alone the from-scratch recipe after it, so both measurements
-    can be repeated."""
+    """--recipe scratch --shaping-gamma 0.9 --eval-every 5 is the recipe of the README before issue 20 (its 10
+    seeds are in docs/results/quickstart_seeds.csv), and --recipe scratch alone the from-scratch recipe after it, so
+    both measurements can be repeated."""
     old = trainer_options(
-        tmp_path, ["--init-from", "None", "--shaping-gamma", "0.9", "--eval-every", "5", "--seed", "3"]
+        tmp_path, ["--recipe", "scratch", "--shaping-gamma", "0.9", "--eval-every", "5", "--seed", "3"]
     )
     assert (old.env.shaping_gamma, old.eval.eval_every, old.ppo.seed) == (0.9, 5, 3)
 
@@ -97,11 +115,10 @@ SCRATCH_RECIPES = ("scratch", "scratch-first-delivery", "scratch-workers", "scra
 
 
 def test_each_recipe_builds_its_trainer_options(tmp_path):
-    """--recipe names the training: fine-tune is the default's, scratch what --init-from None trains, and the
-    candidates from scratch differ from scratch only in the options they name (plan of issue 41, section 3.2)."""
-    assert trainer_options(tmp_path, ["--recipe", "fine-tune"]) == trainer_options(tmp_path, [])
+    """--recipe names the training: scratch-search-start is the default's, fine-tune what --init-from selects, and
+    the recipes from scratch differ from scratch only in the options they name (plan of issue 41, section 3.2)."""
+    assert trainer_options(tmp_path, ["--recipe", "scratch-search-start"]) == trainer_options(tmp_path, [])
     scratch = trainer_options(tmp_path, ["--recipe", "scratch"])
-    assert scratch == trainer_options(tmp_path, ["--init-from", "None"])
     assert scratch.net.init_from is None and scratch.ppo.schedule_clock == "steps"
     delivery = trainer_options(tmp_path, ["--recipe", "scratch-first-delivery"])
     assert delivery == scratch.with_options(schedule_clock="first_delivery")
@@ -116,8 +133,6 @@ def test_each_recipe_builds_its_trainer_options(tmp_path):
         search.with_options(total_timesteps=4096)
     )
     assert set(quickstart.RECIPES) == {"fine-tune", *SCRATCH_RECIPES}
-    for recipe in SCRATCH_RECIPES:  # from scratch whatever --init-from says (its default is the generalist)
-        assert trainer_options(tmp_path, ["--recipe", recipe, "--init-from", "berlin"]).net.init_from is None
     curve = trainer_options(tmp_path, ["--recipe", "scratch", "--curve-instances", "5"])
     assert (curve.eval.curve_instances, curve.eval.curve_family) == (5, "berlin")
     assert curve == scratch.with_options(curve_instances=5, curve_family="berlin")
@@ -128,8 +143,11 @@ def test_a_recipe_the_quickstart_does_not_know_is_a_one_line_error(tmp_path, cap
     err = capsys.readouterr().err
     assert err.startswith("uamfleet-quickstart: error: --recipe='scratch-fast' is unknown; use one of fine-tune, ")
     assert err.count("\n") == 1
-    assert quickstart.cli(["--recipe", "fine-tune", "--init-from", "None", "--run-dir", str(tmp_path)]) == 2
-    assert "--recipe fine-tune trains from --init-from, which is None" in capsys.readouterr().err
+    for recipe in SCRATCH_RECIPES:  # a start named for a recipe from random weights is a contradiction, not ignored
+        assert quickstart.cli(["--recipe", recipe, "--init-from", "berlin", "--run-dir", str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert f"--recipe {recipe} trains from random weights, but --init-from='berlin' names a start" in err
+        assert "use --recipe fine-tune to train from it" in err and err.count("\n") == 1
 
 
 @pytest.mark.slow

@@ -75,6 +75,20 @@ from uamfleet.paths.grid_graph import UnreachableStopError
 from uamfleet.presets import make_config
 from uamfleet.radio import RadioMap, load_radio_map
 from uamfleet.radio.packaged import RADIO_MAPS
+from uamfleet.map_rules import (
+    BERLIN_FEASIBLE_SHARES,
+    BERLIN_SIDE_M,
+    BERLIN_STEP_M,
+    BERLIN_THRESHOLDS_DB,
+    MAP_SUFFIXES,
+    MIN_FEASIBLE_SHARE,
+    MIN_INFEASIBLE_SHARE,
+    map_family_name,
+    map_provenance,
+    map_step_m,
+    map_thresholds,
+    scaled_steps,
+)
 from uamfleet.sim.generator import InfeasibleInstanceError, flyable_sites, validate_instance
 from uamfleet.sim.world import World
 
@@ -118,7 +132,7 @@ class InstanceFamily:
         if self.radio is None:
             return make_config(self.scenario, **overrides)
         return make_config(
-            self.scenario, radio=_map(self.radio), **_steps(self.scenario, self.step_m), **overrides
+            self.scenario, radio=_map(self.radio), **scaled_steps(self.scenario, self.step_m), **overrides
         ).replace(scenario=f"{self.name}_random")
 
     def seed_name(self, family: str) -> str:
@@ -148,7 +162,6 @@ def law_family(scenario: str, thresholds_db: tuple[float, ...], law: DemandLaw) 
                           law.window_s, law=law)  # fmt: skip
 
 
-BERLIN_THRESHOLDS_DB = (-7.0, -6.0, -5.0, -4.0, -3.0)
 BERLIN_HOTSPOTS = ((650.0, 650.0, 300.0), (2050.0, 1550.0, 300.0), (2850.0, 2850.0, 300.0))
 """The ``berlin_stream`` family's hot spots (x_m, y_m, sd_m): three block centres flyable at every threshold."""
 
@@ -192,22 +205,6 @@ FAMILIES: Families = Families(
 """The instance families by name, and a family for any map (:class:`Families`). Each has its own seed stream
 (``SeedSequence([seed, crc32(name)])``) on the same train / validation / test ranges."""
 
-BERLIN_STEP_M = 100.0
-"""Berlin's steps (and SINR blocks), of 3 s."""
-BERLIN_SIDE_M = 3260.0
-"""The side of the Berlin map's operating square, the extent Berlin's rules are scaled from."""
-BERLIN_FEASIBLE_SHARES = (0.9568, 0.9421, 0.9063, 0.8650, 0.8118)
-"""The share of the Berlin map's 100 m blocks flyable at each of :data:`BERLIN_THRESHOLDS_DB` (-7 ... -3 dB):
-the shares a map's own thresholds reproduce when Berlin's do not bind on it (:func:`map_thresholds`)."""
-MIN_FEASIBLE_SHARE = 0.10
-"""Berlin's thresholds are kept on a map only if at least this share of its blocks is flyable at -7 dB ..."""
-MIN_INFEASIBLE_SHARE = 0.01
-"""... and at least this share is not flyable at -3 dB (else the radio would not bind there)."""
-
-
-MAP_SUFFIXES = (".npz", ".txt")
-"""The map files a family is derived from by path: a ``.npz`` of ``uamfleet-radio-map``, a WinProp ASCII ``.txt``."""
-
 
 def is_map_name(key: object) -> bool:
     """``key`` names a map rather than a named family: a packaged map's name or the path of an existing map file
@@ -220,49 +217,6 @@ def is_map_name(key: object) -> bool:
         return Path(key).suffix in MAP_SUFFIXES and Path(key).is_file()
     except OSError:  # a name too long for a path, say
         return False
-
-
-def _steps(scenario: str, step_m: float | None) -> dict[str, float]:
-    """``step_m`` and ``slot_s`` overrides of ``scenario``'s preset for steps of ``step_m`` at its speed (none: {})."""
-    if step_m is None:
-        return {}
-    base = make_config(scenario)
-    return {"step_m": step_m, "slot_s": base.slot_s * step_m / base.step_m}
-
-
-def map_step_m(radio: RadioMap) -> float | None:
-    """The steps of a map's family: Berlin's 100 m, or one raster cell where the map's cells are coarser (blocks
-    hold at least one raster value); None: Berlin's."""
-    return float(radio.resolution_m) if radio.resolution_m > BERLIN_STEP_M else None
-
-
-def map_thresholds(radio: RadioMap) -> tuple[float, ...]:
-    """The thresholds of a map's family: Berlin's (-7 ... -3 dB) where they bind on the map (at -7 dB at least
-    :data:`MIN_FEASIBLE_SHARE` of its 100 m blocks flyable, at -3 dB at least :data:`MIN_INFEASIBLE_SHARE` not);
-    else the map's own quantiles: the five thresholds (rounded down to 0.1 dB) at which the map has Berlin's
-    shares of flyable blocks at -7 ... -3 dB (:data:`BERLIN_FEASIBLE_SHARES`), so that the radio binds on it as
-    much as on Berlin. Blocks with no value (N.C.) are never flyable."""
-    base = make_config("berlin_random", radio=radio, **_steps("berlin_random", map_step_m(radio)))
-    sinr = np.asarray(radio.block_map(base.block_size_m, nc_rule=base.nc_rule).sinr_db, float).ravel()
-    sinr = np.where(np.isnan(sinr), -np.inf, sinr)
-    loosest, strictest = BERLIN_THRESHOLDS_DB[0], BERLIN_THRESHOLDS_DB[-1]
-    if np.mean(sinr >= loosest) >= MIN_FEASIBLE_SHARE and np.mean(sinr < strictest) >= MIN_INFEASIBLE_SHARE:
-        return BERLIN_THRESHOLDS_DB
-    # the share flyable at t is mean(sinr >= t): t = the (1 - share) quantile, rounded down keeps at least the share
-    quantiles = np.quantile(sinr, [1.0 - share for share in BERLIN_FEASIBLE_SHARES], method="lower")
-    if not np.all(np.isfinite(quantiles)):
-        raise ConfigError(
-            f"radio map {radio.label!r} has a value in fewer than {BERLIN_FEASIBLE_SHARES[0]:.0%} of its "
-            f"{base.block_size_m:g} m blocks: too few to draw instances on; give a map with values over its square."
-        )
-    return tuple(float(np.floor(q * 10.0 + 1e-9) / 10.0) for q in quantiles)  # 1e-9: 1.3 * 10 may be 12.999...
-
-
-def map_family_name(name_or_path: str | os.PathLike[str]) -> str:
-    """The name of a map's family: a packaged map's name, or a file's stem (``maps/paris.npz`` -> ``paris``)."""
-    if isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
-        return name_or_path
-    return Path(name_or_path).stem
 
 
 @functools.cache
@@ -319,26 +273,6 @@ def check_family(family: str | os.PathLike[str]) -> None:
             f"({', '.join(RADIO_MAPS)}) or the path of an existing map file (.npz of uamfleet-radio-map, or WinProp "
             ".txt)."
         )
-
-
-def map_provenance(name_or_path: str | os.PathLike[str] | RadioMap) -> str:
-    """One line on a map a table was flown on: where it comes from (a packaged name or a file's path), its raster
-    (cells and cell size), its operating square and base stations, and the map's own recorded source and
-    provenance (e.g. a ray-traced ``.npz``'s scene, parameters and versions)."""
-    radio = load_radio_map(name_or_path)
-    if isinstance(name_or_path, RadioMap):
-        where = f"map {radio.label!r}"
-    elif isinstance(name_or_path, str) and name_or_path in RADIO_MAPS:
-        where = f"packaged map {name_or_path!r}"
-    else:
-        where = f"map file {os.fspath(name_or_path)}"
-    nx, ny = radio.sinr_db.shape
-    line = (
-        f"{where}: {nx} x {ny} cells of {radio.resolution_m:g} m, operating square {radio.side_m:g} m, "
-        f"{len(radio.base_stations)} base station(s), altitude {radio.altitude_m:g} m"
-    )
-    source = " ".join(str(radio.source).split())
-    return line + (f"; source: {source}" if source else "")
 
 
 def split_seeds(split: str, count: int, first: int = 0) -> list[int]:
@@ -431,9 +365,7 @@ def make_fleet_instance(
     )
     fam = FAMILIES[family]
     name = fam.seed_name(family)
-    if (
-        hover_action is None
-    ):  # the family's fleet preset's rule (a map's: Berlin's): a fleet policy waits with the hover
+    if hover_action is None:  # the family's fleet preset's rule (a map's: Berlin's): a fleet policy hovers to wait
         hover_action = make_config("berlin_fleet" if fam.radio is not None else f"{family}_fleet").hover_action
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(name.encode()), FLEET_TAG]))
     threshold = float(rng.choice(fam.thresholds_db))
@@ -452,14 +384,7 @@ def make_fleet_instance(
         starts = flyable[rng.choice(len(flyable), num_taxis, replace=False)]
         release = np.sort(rng.integers(0, window_steps, size=num_requests))
         requests = _draw_trips(rng, sites, release, fam.min_trip_m)
-        if len(requests) < num_requests:
-            continue
-        try:
-            validate_instance(world, starts, requests)
-        except InfeasibleInstanceError:
-            continue
-        stops = np.array([p for r in requests for p in (r.origin_m, r.destination_m)])
-        if not all(np.isfinite(fields.remaining_m(start, stops)).all() for start in starts[:1]):
+        if len(requests) < num_requests or not _fleet_draw_valid(world, fields, starts, requests):
             continue
         return base.replace(
             starts_m=tuple(map(tuple, starts)),
@@ -469,6 +394,17 @@ def make_fleet_instance(
             scenario=f"{name}_fleet{num_taxis}x{num_requests}_seed{seed}",
         )
     raise RuntimeError(f"no valid fleet instance for {family!r} seed {seed} in {MAX_ATTEMPTS} draws; check the map.")
+
+
+def _fleet_draw_valid(world: World, fields: DistanceFields, starts: np.ndarray, requests: list[Request]) -> bool:
+    """A fleet draw's starts and stops pass the env's checks, and every stop is reachable from the first start
+    (the starts share its component: validate_instance)."""
+    try:
+        validate_instance(world, starts, requests)
+    except InfeasibleInstanceError:
+        return False
+    stops = np.array([p for r in requests for p in (r.origin_m, r.destination_m)])
+    return bool(np.isfinite(fields.remaining_m(starts[0], stops)).all())
 
 
 def _check_fleet_args(
@@ -609,9 +545,16 @@ def validation_metrics(
 
 
 __all__ = [
+    "BERLIN_FEASIBLE_SHARES",
     "BERLIN_HOTSPOTS",
+    "BERLIN_SIDE_M",
+    "BERLIN_STEP_M",
+    "BERLIN_THRESHOLDS_DB",
     "FAMILIES",
     "FLEET_SETTINGS",
+    "MAP_SUFFIXES",
+    "MIN_FEASIBLE_SHARE",
+    "MIN_INFEASIBLE_SHARE",
     "SPLITS",
     "TEST_SEEDS",
     "TRAIN_SEEDS",
@@ -627,7 +570,9 @@ __all__ = [
     "make_instance",
     "map_family",
     "map_family_key",
+    "map_family_name",
     "map_provenance",
+    "map_step_m",
     "map_thresholds",
     "split_seeds",
     "validation_metrics",

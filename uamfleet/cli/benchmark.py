@@ -363,6 +363,19 @@ def _check_guided_search(args: Args) -> None:
         )
 
 
+def check_hedge_demand(args: Args) -> None:
+    """Each --hedge-demand model: a known spec (a fitted model's .json must exist), with a learned policy to hedge."""
+    for model in args.hedge_demand:
+        if args.checkpoint is None:
+            raise UsageError(f"--hedge-demand {model} hedges with a learned policy: give --checkpoint.")
+        try:
+            check_demand_spec(model)
+        except ValueError as err:
+            raise UsageError(f"--hedge-demand {model}: {err}") from None
+        if model.endswith(".json") and not Path(model).is_file():
+            raise UsageError(f"--hedge-demand {model}: no such file; fit one with `uamfleet demand fit`.")
+
+
 def check_args(args: Args) -> list[Task]:
     """The instances to fly, once every option is valid, the selection is not empty and no existing result would
     be replaced without --overwrite: all checked before anything is flown or written."""
@@ -377,15 +390,7 @@ def check_args(args: Args) -> list[Task]:
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     check_guided(args)
-    for model in args.hedge_demand:
-        if args.checkpoint is None:
-            raise UsageError(f"--hedge-demand {model} hedges with a learned policy: give --checkpoint.")
-        try:
-            check_demand_spec(model)
-        except ValueError as err:
-            raise UsageError(f"--hedge-demand {model}: {err}") from None
-        if model.endswith(".json") and not Path(model).is_file():
-            raise UsageError(f"--hedge-demand {model}: no such file; fit one with `uamfleet demand fit`.")
+    check_hedge_demand(args)
     selected = tasks(args)
     if not selected:
         raise UsageError(

@@ -304,15 +304,15 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
         return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
 
 
-def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
-    if args.from_csv is None:
-        write_csv_atomic(args.out_csv, rows, COLUMNS)
-    command = args.command or (
+def rerun_command(args: Args) -> str:
+    """The command line that flies this table again (printed above it): --command, else the options that differ
+    from their defaults."""
+    return args.command or (
         ".venv/bin/python -m eval.fleet_benchmark "
         + (f"--family {args.family} " if args.map is None else f"--map {args.map} ")
         + f"--settings {' '.join(args.settings)} "
         f"--split {args.split} --count {args.count} --first {args.first} --jobs {args.jobs}"
-        + f" --threads {args.threads}" * (args.threads != 1)  # (no branch: write_outputs is complex enough)
+        + f" --threads {args.threads}" * (args.threads != 1)
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
@@ -323,7 +323,12 @@ def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
         + (" --overwrite" if args.overwrite else "")
     )
-    body = with_provenance(markdown(rows, command, wall, note), args.map)
+
+
+def write_outputs(args: Args, rows: list[dict[str, Any]], wall: float, note: str = "") -> None:
+    if args.from_csv is None:
+        write_csv_atomic(args.out_csv, rows, COLUMNS)
+    body = with_provenance(markdown(rows, rerun_command(args), wall, note), args.map)
     if args.note:
         body = body.replace("```\n\n", f"```\n\n{args.note}\n\n", 1)
     minutes = fmt(wall / 60, ".1f", " min")  # "–" when re-rendered from a CSV of unknown wall-clock

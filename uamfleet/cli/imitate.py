@@ -5,6 +5,8 @@ validation instances shortest.
 
     uamfleet-imitate --run-name berlin_dagger                  # or: .venv/bin/python train/imitate.py ...
     uamfleet-imitate --rounds 2 --steps-per-round 30 --eval-instances 10 --run-name try   # a quick look
+    uamfleet-imitate --init berlin --map berlin --also-maps munich munich_3km --run-name mix   # several maps at
+        # once: one group of envs per map and threshold, validated on the mean over the maps' validation instances
     uamfleet-imitate --init berlin --lookahead --lookahead-depth 2 --expert futures --run-name fut   # teacher:
         # replan_futures' decisions (it anticipates releases; ~1 s per decision at the default futures settings)
 
@@ -22,8 +24,8 @@ from uamfleet.rl.imitation import ImitationArgs, imitate
 
 
 def main(args: ImitationArgs) -> int:
-    if args.env.map is not None:
-        print(f"Map: {map_provenance(args.env.map)}.", flush=True)
+    for name in args.maps():  # --map, then --also-maps
+        print(f"Map: {map_provenance(name)}.", flush=True)
     best = imitate(args)
     print(
         f"best validation round {int(best['round'])}: PR {fmt(best['val_pr_pct'], '.1f', ' %')}, mean TD "

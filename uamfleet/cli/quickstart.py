@@ -1,29 +1,33 @@
-"""The main job: the shipped Berlin generalist fine-tuned with PPO on Berlin P4, then its evaluation beside the paper.
+"""The main job: MSHA-PPO trained from random weights on Berlin P4, then its evaluation beside the paper.
 
-    uamfleet-quickstart                                   # 2-4 minutes of fine-tuning on a shared 2-core machine
-    uamfleet-quickstart --init-from None                  # MSHA-PPO from scratch (150k agent-steps, 6-10 minutes)
-    uamfleet-quickstart --init-from None --variant full   # the full MSHA model from scratch (~3x slower per step)
-    uamfleet-quickstart --recipe scratch-first-delivery   # a candidate recipe from scratch (RECIPES)
+    uamfleet-quickstart                                   # from scratch: search warm start + PPO, 2-3 min on 2 cores
+    uamfleet-quickstart --recipe fine-tune                # PPO from the shipped generalist (--init-from berlin)
+    uamfleet-quickstart --recipe scratch                  # pure PPO from scratch (150k agent-steps, 6-10 minutes)
+    uamfleet-quickstart --recipe scratch --variant full   # the full MSHA model from scratch (~3x slower per step)
     uamfleet-quickstart --map munich --test-count 20      # on another map (a packaged one, or a map file's path)
 
-Starts from the shipped generalist (``uamfleet.pretrained("berlin")``, one policy for any Berlin instance, trained
-on random demand) and fine-tunes it with PPO on Berlin P4 at γ_T = -3 dB (the paper's hardest Berlin threshold),
-with a KL term toward the start (``--kl-to-init``). The start is evaluated first and after every iteration, and
-the shortest greedy tour of those evaluations is kept (runs/quickstart/best.pt), so the result is never worse than
-the start: every seed lands where the start does or shorter (docs/getting-started.md, "The main job").
-From scratch (``--init-from None``) it trains the ``de_msfea`` network for 150k agent-steps with shaping that
-pays only for progress; that recipe left 4 of 10 seeds 6-43 % above the best known tour. It prints TD / ATT /
+The default recipe, ``scratch-search-start``, starts the ``de_msfea`` network from random weights on Berlin P4 at
+γ_T = -3 dB (the paper's hardest Berlin threshold), warm-starts it with 2 rounds of DAgger from replan's online
+search on P4 (:mod:`uamfleet.rl.warm_start`), then trains it with PPO for 100k agent-steps with a KL term toward the
+warm start. The warm start is evaluated first and after every iteration, and the shortest greedy tour of those
+evaluations is kept (runs/quickstart/best.pt); over 10 seeds every run kept best_known's tour
+(docs/getting-started.md, "The main job"). ``--recipe fine-tune`` fine-tunes a start (``--init-from``, the shipped
+generalist ``uamfleet.pretrained("berlin")`` by default) with PPO and a KL term toward it; ``--recipe scratch``
+trains from random weights with PPO alone for 150k agent-steps, with shaping that pays only for progress (that
+recipe left 3 of 10 seeds above 5 % of the best known tour). It prints TD / ATT /
 AWT / ELR / PR / connectivity next to the paper's MSHA-RL row and our raster planners (``raster_replan``, online;
 ``raster_opt``, clairvoyant: best stop orders over shortest feasible paths) flown under the same rules (the
 authors' endpoint-block rule by default). Then it flies the shipped generalist zero-shot on Berlin P4 at
 -7 ... -3 dB beside the paper's MSHA-RL, and on the held-out test instances beside the planners' recorded rows.
 The training's learning curve (greedy TD and PR of every evaluation against agent-steps, with best_known's tour
-and the band within 5 % of it) is drawn as curve.png in the run folder, beside its TensorBoard logs (tb/).
-``--recipe`` names the training (:data:`RECIPES`): ``fine-tune`` (the default, from ``--init-from``), ``scratch``
-(what ``--init-from None`` trains), and the candidates from scratch that are being measured against it. With
-``--curve-instances N`` every evaluation also flies the first N Berlin validation instances (the curve's second
-panel). It keeps no files outside ``--run-dir`` (the distance-table rows it needs are computed in memory; only a
-complete table, as training on random demand fills, is cached in ``~/.cache/uamfleet``).
+and the band within 5 % of it, and beside it the same on 10 validation instances) is drawn as curve.png in the run
+folder, beside its TensorBoard logs (tb/).
+``--recipe`` names the training (:data:`RECIPES`): ``scratch-search-start`` (the default), ``fine-tune`` (from
+``--init-from``; the default when ``--init-from`` is given), ``scratch``, and the other recipes from scratch measured
+against them (docs/results/quickstart_seeds.csv). Every evaluation also flies the first ``--curve-instances``
+validation instances (the curve's second panel). It keeps no files outside ``--run-dir`` (the distance-table rows
+it needs are computed in memory; only a complete table, as training on random demand fills, is cached in
+``~/.cache/uamfleet``).
 """
 
 from __future__ import annotations
@@ -54,6 +58,10 @@ from uamfleet.viz.curves import plot_learning_curve
 
 
 DEFAULT_RUN = "quickstart"
+DEFAULT_RECIPE = "scratch-search-start"
+"""The main job's training when neither --recipe nor --init-from is given."""
+FINE_TUNE_START = "berlin"
+"""The policy ``--recipe fine-tune`` starts from when --init-from is not given: the shipped generalist."""
 
 
 FINE_TUNE_STEPS = 49_152  # 24 iterations of 32 envs x 64 steps
@@ -79,14 +87,14 @@ FIXED_CSV = Path("docs/results/benchmark_fixed.csv")
 @dataclass
 class Args:
     recipe: str | None = None
-    """the training (one of RECIPES: fine-tune, scratch, scratch-first-delivery, scratch-workers); None: fine-tune
-    from --init-from, or scratch when --init-from is None. The scratch recipes train from scratch whatever
-    --init-from says"""
-    init_from: str | None = "berlin"
-    """the policy fine-tuning starts from: a shipped name (uamfleet.zoo.PRETRAINED) or a checkpoint file; None:
-    train the --variant network from scratch (the recipe of the 10-seed table before fine-tuning)"""
+    """the training (one of RECIPES: scratch-search-start, fine-tune, scratch, scratch-first-delivery,
+    scratch-workers); None: fine-tune when --init-from is given, else scratch-search-start"""
+    init_from: str | None = None
+    """the policy --recipe fine-tune starts from: a shipped name (uamfleet.zoo.PRETRAINED) or a checkpoint file;
+    None: the shipped generalist, berlin. Giving it selects fine-tune; the recipes from scratch refuse it"""
     total_timesteps: int | None = None
-    """agent-steps of training; None: 49,152 when fine-tuning, 150,000 from scratch"""
+    """agent-steps of training; None: 100,000 for scratch-search-start, 49,152 when fine-tuning, 150,000 for the
+    other recipes from scratch"""
     minutes: float = 10.0
     """wall-clock cap of the training (it stops after a final evaluation)"""
     sinr_min_db: float = -3.0
@@ -108,13 +116,15 @@ class Args:
     (reports/2026-12-03-results-history/README.md, "The main job over 10 seeds"). Fine-tuning uses the start's reward
     (no shaping)"""
     kl_to_init: float = 0.01
-    """fine-tuning: weight of the KL divergence from the start in the PPO loss (TrainArgs.net.kl_to_init)"""
+    """fine-tuning and scratch-search-start: weight of the KL divergence from the start (the warm start) in the PPO loss
+    (TrainArgs.net.kl_to_init)"""
     eval_every: int = 1
     """greedy evaluation every this many iterations; best.pt keeps the shortest tour of any of them (one episode,
     well under a second; with 5, tours flown between two evaluations were never kept)"""
-    curve_instances: int = 0
-    """after each evaluation also fly the first this many Berlin validation instances (TrainArgs.eval.curve_instances:
-    progress.csv's val_td_m / val_pr_pct, the curve's second panel); 0: none"""
+    curve_instances: int = 10
+    """after each evaluation also fly the first this many validation instances of the family (Berlin's, or --map's)
+    in one batch (TrainArgs.eval.curve_instances: progress.csv's val_td_m / val_pr_pct, the curve's second panel;
+    about 1 s per evaluation for 10); 0: none. The training itself is the same with or without them"""
     run_dir: Path = Path("runs")
     """folder of the run (relative to the current folder)"""
     run_name: str = DEFAULT_RUN
@@ -144,15 +154,15 @@ def fly(policy: object, threshold: float, **overrides: object) -> EpisodeMetrics
 
 
 def recipe_of(args: Args) -> str:
-    """The recipe the command line names: ``--recipe``, else fine-tune from ``--init-from`` (scratch when it is
-    None); ConfigError for an unknown name or fine-tune without a start."""
-    recipe = args.recipe if args.recipe is not None else ("scratch" if args.init_from is None else "fine-tune")
+    """The recipe the command line names: ``--recipe``, else fine-tune when ``--init-from`` is given, else
+    :data:`DEFAULT_RECIPE`; ConfigError for an unknown name, or for a start given to a recipe from scratch."""
+    recipe = args.recipe if args.recipe is not None else ("fine-tune" if args.init_from else DEFAULT_RECIPE)
     if recipe not in RECIPES:
         raise ConfigError(f"--recipe={recipe!r} is unknown; use one of {', '.join(RECIPES)}.")
-    if recipe == "fine-tune" and args.init_from is None:
+    if recipe != "fine-tune" and args.init_from is not None:
         raise ConfigError(
-            "--recipe fine-tune trains from --init-from, which is None; give --init-from berlin (or a checkpoint "
-            "file), or use --recipe scratch."
+            f"--recipe {recipe} trains from random weights, but --init-from={args.init_from!r} names a start; drop "
+            "--init-from, or use --recipe fine-tune to train from it."
         )
     return recipe
 
@@ -185,11 +195,11 @@ def training_args(args: Args) -> TrainArgs:
     # The start's own reward (read from its checkpoint: for the shipped generalist no shaping and a long horizon),
     # a smaller step than from scratch, an entropy bonus to try other flights and a KL term to stay near the start
     # where the return does not say otherwise.
-    assert args.init_from is not None
-    start = checkpoint_args(Checkpoint.load(checkpoint_source(args.init_from), map_location="cpu"))
+    init_from = args.init_from or FINE_TUNE_START
+    start = checkpoint_args(Checkpoint.load(checkpoint_source(init_from), map_location="cpu"))
     steps = FINE_TUNE_STEPS if args.total_timesteps is None else args.total_timesteps
     return TrainArgs.from_flat(dict(
-        common, total_timesteps=steps, init_from=args.init_from, kl_to_init=args.kl_to_init,
+        common, total_timesteps=steps, init_from=init_from, kl_to_init=args.kl_to_init,
         shaping=start.env.shaping, shaping_metric=start.env.shaping_metric, shaping_gamma=start.env.shaping_gamma,
         gamma=start.ppo.gamma, learning_rate=3e-4, ent_coef=0.01,
     ))  # fmt: skip
@@ -205,7 +215,7 @@ def main(args: Args) -> dict[str, EpisodeMetrics] | dict[str, list[dict[str, Any
               f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min; recipe "
               f"{recipe_of(args)}) ...")  # fmt: skip
     else:
-        print(f"fine-tuning {args.init_from!r} with PPO on Berlin P4 at {args.sinr_min_db:g} dB for "
+        print(f"fine-tuning {train_args.net.init_from!r} with PPO on Berlin P4 at {args.sinr_min_db:g} dB for "
               f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
     result = train(train_args)
     policy, trained = load_policy(result.run_dir / "best.pt")
@@ -231,7 +241,8 @@ def main(args: Args) -> dict[str, EpisodeMetrics] | dict[str, list[dict[str, Any
     print(f"\ncheckpoints and logs: {result.run_dir} (TensorBoard: tensorboard --logdir {result.run_dir / 'tb'})")
     title = f"Berlin P4 at {args.sinr_min_db:g} dB"
     curve = plot_learning_curve(result.run_dir, best_known_m=recorded_best_known(args), title=title)
-    print(f"learning curve (greedy TD and PR against agent-steps): {curve}")
+    where = f"on P4 and on {args.curve_instances} validation instances" if args.curve_instances else "on P4"
+    print(f"learning curve (greedy TD and PR against agent-steps, {where}): {curve}")
     if args.generalist:
         generalist_report(args.test_count, args.planner_csv)
     return rows
@@ -251,7 +262,7 @@ def map_job(args: Args) -> dict[str, list[dict[str, Any]]]:
     print(f"Map: {map_provenance(args.map)}.")
     train_args = training_args(args)
     threshold = map_family(args.map).thresholds_db[-1]
-    start = "from scratch" if train_args.net.init_from is None else f"from {args.init_from!r}"
+    start = "from scratch" if train_args.net.init_from is None else f"from {train_args.net.init_from!r}"
     print(f"training MSHA-PPO {start} on berlin_instances on {args.map} at {threshold:g} dB for "
           f"{train_args.ppo.total_timesteps:,} agent-steps (at most {args.minutes:g} min) ...")  # fmt: skip
     result = train(train_args)
@@ -291,8 +302,9 @@ def print_start(result: TrainResult, train_args: TrainArgs) -> None:
               f"TD {warm['eval/td_m']:.0f} m")  # fmt: skip
     if train_args.net.init_from is None and warm is None:
         return
+    start = "the warm start" if warm is not None else "the start itself"
     kept = (
-        "the start itself: no evaluation beat it"
+        f"{start}: no evaluation after PPO's updates beat it"
         if result.best_step == 0
         else f"the evaluation after {result.best_step:,} agent-steps"
     )

@@ -41,6 +41,7 @@ from uamfleet.instances import BERLIN_THRESHOLDS_DB, FAMILIES, family_of, map_fa
 from uamfleet.observe.legacy import observed_config
 from uamfleet.io import write_csv_atomic
 from uamfleet.paths import table_for
+from uamfleet.radio.packaged import RADIO_MAPS
 from uamfleet.rl.heads import PRIOR_FLOOR
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.checkpoint import (
@@ -51,6 +52,7 @@ from uamfleet.rl.checkpoint import (
     trained_spec,
     world_record,
 )
+from uamfleet.rl.options import TrainArgs
 from uamfleet.rl.option_groups import Flat, flat_options, grouped_from_flat, option_groups
 from uamfleet.rl.experts import NO_LABEL, AnticipatingExpert, ReplanExpert, released_count
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
@@ -69,6 +71,9 @@ class ImitationEnvOptions:
     map: str | None = None
     """roll out on this radio map (a packaged map's name or the path of a .npz / WinProp .txt map file) and validate
     on its instance family (uamfleet.instances.map_family); None: the start's own map and family"""
+    also_maps: tuple[str, ...] = ()
+    """with --map: more maps rolled out on at once (each at its family's thresholds, one group of envs per map and
+    threshold); the validation metric is the mean over every map's validation instances"""
     envs_per_threshold: int = 8
     rounds: int = 6
     steps_per_round: int = 120
@@ -207,11 +212,7 @@ class ImitationArgs:
         self._set("thresholds", thresholds)
         if not thresholds or len(set(thresholds)) != len(thresholds):
             raise ConfigError(f"--thresholds={list(thresholds)} must name one or more distinct dB values.")
-        if self.env.map is not None and self.env.map not in FAMILIES:  # FAMILIES: a packaged map or a map file too
-            raise ConfigError(
-                f"--map={self.env.map!r}: no packaged map of that name and no such map file; give one of berlin, "
-                "detroit_estimate, detroit_3gpp, munich or the path of a map file (.npz of uamfleet-radio-map)."
-            )
+        self._check_maps()
         self._set("run_dir", Path(self.run.run_dir))
         check_run_name(self.run.run_name, self.run.run_dir)  # the rule of every command that writes a run
         if net.train == "lookahead" and not observer.lookahead:
@@ -223,6 +224,26 @@ class ImitationArgs:
             raise ConfigError(
                 f"--lookahead-depth={observer.lookahead_depth} is the look-ahead's depth: pass --lookahead."
             )
+
+    def _check_maps(self) -> None:
+        """--map and --also-maps name packaged maps or map files, distinct, --also-maps only beside --map."""
+        also = tuple(self.env.also_maps)
+        self._set("also_maps", also)
+        if also and self.env.map is None:
+            raise ConfigError(f"--also-maps={list(also)} adds maps to --map's: pass --map too (e.g. --map berlin).")
+        maps = ([] if self.env.map is None else [self.env.map]) + list(also)
+        for flag, name in [("--map", self.env.map)] + [("--also-maps", m) for m in also]:
+            if name is not None and name not in FAMILIES:  # FAMILIES: a packaged map or a map file too
+                raise ConfigError(
+                    f"{flag}={name!r}: no packaged map of that name and no such map file; give one of "
+                    f"{', '.join(RADIO_MAPS)} or the path of a map file (.npz of uamfleet-radio-map)."
+                )
+        if len(set(maps)) != len(maps):
+            raise ConfigError(f"--map and --also-maps name {maps}: name each map once.")
+
+    def maps(self) -> tuple[str, ...]:
+        """The maps rolled out on (--map, then --also-maps); empty: the start's own map."""
+        return () if self.env.map is None else (self.env.map, *self.env.also_maps)
 
     def beta(self, round_index: int) -> float:
         """Probability that a step of round ``round_index`` flies the expert's heading."""
@@ -402,15 +423,12 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
         lookahead_depth=args.observer.lookahead_depth,
     )  # fmt: skip
     assert policy.spec is not None, "load_policy gives the spec the policy reads"
-    if args.env.map is not None:  # the start's world on the map, validated on the map's family (below)
-        source_args = source_args.with_options(map=args.env.map, eval_instances=0)
-    family = args.env.map or family_of(source_args.env.scenario)
-    # the source's worlds, observed as the policy reads them
-    eval_like = observed_config(run_config(source_args, training=False), policy.spec)[0]
-    groups = _groups(args, run_config(source_args, training=True), family, policy.spec)
+    worlds = _worlds(args, source_args, policy.spec)
+    eval_like = worlds[0].eval_like  # the checkpoint's world: the first map's
+    groups = [g for k, w in enumerate(worlds) for g in _groups(args, w.train_like, w.family, policy.spec, k)]
     optimizer = torch.optim.Adam(fitted_parameters(policy.net, args.net.train), lr=args.fit.learning_rate)
     claim.clear()  # every option checked: an earlier run replaced with --overwrite goes now
-    first = validation_metrics(policy, family, args.eval.eval_instances, eval_like)
+    first = _validate(policy, worlds, args.eval.eval_instances)
     rows: list[dict[str, float]] = [{"round": -1, "samples": 0, "wall_s": time.time() - start, **_val(first)}]
     best = dict(rows[-1])
     _save(folder / "best.pt", ckpt, policy, args, best, eval_like)
@@ -419,7 +437,7 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
         if args.eval.max_wall_s is not None and time.time() - start > args.eval.max_wall_s:
             break
         counts, stats = _round(r, groups, policy, data, args, optimizer, rng)
-        val = validation_metrics(policy, family, args.eval.eval_instances, eval_like)
+        val = _validate(policy, worlds, args.eval.eval_instances)
         row = {**counts, "wall_s": time.time() - start, **stats, **_val(val)}  # progress.csv's column order
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
@@ -432,18 +450,56 @@ def _imitate(args: ImitationArgs, claim: RunClaim) -> dict[str, float]:
     return best
 
 
-def _groups(args: ImitationArgs, base: EnvConfig, family: str, spec: ObserverSpec) -> list[Group]:
+@dataclass(frozen=True)
+class World:
+    """One map DAgger rolls out and validates on: its instance family and the start's worlds on it, observed as
+    the policy reads them."""
+
+    family: str
+    train_like: EnvConfig
+    eval_like: EnvConfig
+
+
+def _worlds(args: ImitationArgs, source_args: TrainArgs, spec: ObserverSpec) -> list[World]:
+    """The start's world on each of ``args.maps()`` (validated on the map's family), or its own world and family."""
+    if not args.maps():
+        family = family_of(source_args.env.scenario)
+        return [World(family, run_config(source_args, training=True), _eval_like(source_args, spec))]
+    worlds = []
+    for name in args.maps():
+        on_map = source_args.with_options(map=name, eval_instances=0)
+        worlds.append(World(name, run_config(on_map, training=True), _eval_like(on_map, spec)))
+    return worlds
+
+
+def _eval_like(source_args: TrainArgs, spec: ObserverSpec) -> EnvConfig:
+    return observed_config(run_config(source_args, training=False), spec)[0]
+
+
+def _validate(policy: GreedyPolicy, worlds: list[World], count: int) -> dict[str, float]:
+    """:func:`~uamfleet.instances.validation_metrics` on each world's first ``count`` validation instances, and
+    their mean over the worlds (with one world: its own)."""
+    per_map = [validation_metrics(policy, w.family, count, w.eval_like) for w in worlds]
+    mean = {k: float(np.mean([m[k] for m in per_map])) for k in ("pr_pct", "solved_pct", "td_m")}
+    if len(worlds) > 1:  # each map's figures too, in progress.csv
+        for w, m in zip(worlds, per_map, strict=True):
+            mean.update({f"{k}@{Path(w.family).stem}": m[k] for k in ("pr_pct", "td_m")})
+    return mean
+
+
+def _groups(args: ImitationArgs, base: EnvConfig, family: str, spec: ObserverSpec, map_index: int = 0) -> list[Group]:
     """One group of ``envs_per_threshold`` envs (tables filled), observed by ``spec``, and its expert per training
-    threshold."""
+    threshold of ``family``'s map (the ``map_index``-th of ``args.maps()``)."""
     groups = []
     thresholds = args.env.thresholds
     if args.env.map is not None and thresholds == BERLIN_THRESHOLDS_DB:
-        thresholds = map_family(args.env.map).thresholds_db
+        thresholds = map_family(family).thresholds_db
     for i, threshold in enumerate(thresholds):
         cfg = observed_config(base.replace(sinr_min_db=threshold), spec)[0]
         venv = VectorEnv(cfg, num_envs=args.env.envs_per_threshold, observer=spec)
         table_for(venv.world).fill()
-        obs, _ = venv.reset(seed=args.fit.seed + 1000 * i)
+        seed = args.fit.seed + 1000 * i + 100_000 * map_index  # map 0: the seeds of a one-map run
+        obs, _ = venv.reset(seed=seed)
         expert: ReplanExpert | AnticipatingExpert
         teacher = args.expert
         if teacher.expert == "futures":  # the family's demand model on this threshold's flyable sites
@@ -451,7 +507,7 @@ def _groups(args: ImitationArgs, base: EnvConfig, family: str, spec: ObserverSpe
                 DemandPrior.of_family(family, cfg), teacher.futures, teacher.scored_futures,
                 SearchSettings(teacher.expert_beam, rank_slack=0.5), teacher.future_beam, teacher.score_beam,
             )  # fmt: skip
-            expert = AnticipatingExpert(cfg, venv.num_envs, planner, seed=args.fit.seed + 1000 * i)
+            expert = AnticipatingExpert(cfg, venv.num_envs, planner, seed=seed)
         else:
             expert = ReplanExpert(cfg, venv.num_envs, args.expert.expert_beam)
         groups.append(Group(venv, expert, obs, released_count(venv)))
@@ -481,7 +537,8 @@ def _round(
 
 
 def _val(m: dict[str, float]) -> dict[str, float]:
-    return {"val_pr_pct": m["pr_pct"], "val_solved_pct": m["solved_pct"], "val_td_m": m["td_m"]}
+    per_map = {f"val_{k}": v for k, v in m.items() if "@" in k}
+    return {"val_pr_pct": m["pr_pct"], "val_solved_pct": m["solved_pct"], "val_td_m": m["td_m"], **per_map}
 
 
 def _save(
