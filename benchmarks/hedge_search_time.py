@@ -79,7 +79,7 @@ def fly_setting(args: Args, family: str, rule: str) -> list[dict[str, Any]]:
         traj = fly(cfg, policy)
         td = float(np.asarray(traj.episode["distance_m"]).sum())
         for row in searches:
-            rows.append({"setting": f"{family}:{rule}", "seed": seed, "td_m": td, "warmup": not rows, **row})
+            rows.append({"setting": f"{family}:{rule}", "seed": seed, "td_m": td, "warmup": int(not rows), **row})
     return rows
 
 
