@@ -21,15 +21,13 @@ from typing import Any
 import numpy as np
 import torch
 import tyro
+from fleet_search_time import fly_fleet
 
-from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.cli.fleet_benchmark import dispatcher
 from uamfleet.config import EnvConfig, Request, fleet_window_steps
-from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.metrics import episode_metrics
-from uamfleet.rollout import run_episode
 
 CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
 
@@ -58,10 +56,7 @@ def peaked(cfg: EnvConfig, seed: int, sd_share: float) -> EnvConfig:
 
 def episode_row(cfg: EnvConfig, name: str, seed: int, setting: str) -> dict[str, Any]:
     """The fleet benchmark's metrics of ``name`` flown once on ``cfg``."""
-    env = VectorEnv(cfg, num_envs=1, autoreset=False)
-    env.reset(seed=0)
-    shared_fields(env.sim, warm=True)  # as the fleet benchmark: the stop fields made before it flies, untimed
-    traj = run_episode(env, dispatcher(name, cfg.num_taxis, None, None), seed=0)
+    traj = fly_fleet(cfg, dispatcher(name, cfg.num_taxis, None, None))
     m = episode_metrics(traj, cfg.radio)
     return {
         "family": "berlin_peak", "setting": setting, "seed": seed, "dispatcher": name, "num_requests": m.num_requests,

@@ -23,11 +23,12 @@ import torch
 import tyro
 
 from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.policies import make_named
-from uamfleet.rollout import run_episode
+from uamfleet.rollout import Trajectory, run_episode
 
 CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
 
@@ -46,16 +47,22 @@ class Args:
     out_csv: Path | None = None
 
 
+def fly_fleet(cfg: EnvConfig, policy: Any) -> Trajectory:
+    """One episode of ``policy`` on the fleet instance ``cfg`` as the fleet benchmark flies it: the instance's stop
+    fields made first (untimed), shared by every dispatcher."""
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    env.reset(seed=0)
+    shared_fields(env.sim, warm=True)
+    return run_episode(env, policy, seed=0)
+
+
 def searches_of(args: Args, name: str) -> list[dict[str, Any]]:
     """Every search of ``name`` on ``args.count`` validation episodes (one row per search)."""
     rows = []
     for seed in split_seeds("validation", args.count, args.first):
         cfg = make_fleet_instance(args.family, seed, args.taxis, args.requests, separation="shield", hover_action=True)
-        env = VectorEnv(cfg, num_envs=1, autoreset=False)
-        env.reset(seed=0)
-        shared_fields(env.sim, warm=True)  # as the fleet benchmark: the instance's stop fields before it flies
         policy = make_named(name)
-        run_episode(env, policy, seed=0)
+        fly_fleet(cfg, policy)
         for d in policy.decisions:
             rows.append({"name": name, "family": args.family, "taxis": args.taxis, "requests": args.requests,
                          "seed": seed, "t": d.t, "chosen": d.chosen, "wall_s": d.wall_s, "cpu_s": d.cpu_s})  # fmt: skip
