@@ -94,6 +94,12 @@ RECORDED: dict[str, tuple[str, dict]] = {
     # the fleet search at decision time over the chosen dispatcher (docs/results/fleet_search_val_*.csv)
     f"fleet_search({V}:100+wait=1+release+price=1000+guard=600)": ("fleet_search", {"base": (
         V, {**W1R, "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0, "value_price_s": 100.0})}),
+    # the fleet search with the estimated (and, on the peak-release episodes, the true) demand model, 2 futures, the
+    # candidates β = 1 and 3, the waits still owed at the horizon (docs/results/fleet_search_est_val_*.csv, _peak_)
+    **{f"fleet_search:demand={model},futures=2,waits=3,end_wait=1({V}:100+wait=1+release+price=1000+guard=600)": (
+        "fleet_search", {"demand": model, "futures": 2, "waits": (3.0,), "end_wait": 1.0, "base": (
+            V, {**W1R, "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0, "value_price_s": 100.0})})
+       for model in ("estimated", "true")},
     # a recorded learned fleet is the FILE it flew (berlin_fleet.pt, not PRETRAINED["berlin_fleet"]), or a run
     "learned:berlin_fleet": ("learned", {"source": str(SHIPPED / "berlin_fleet.pt"), "passenger_slots": "world"}),
     "learned:berlin_fleet4": ("learned", {"source": str(SHIPPED / "berlin_fleet4.pt"), "passenger_slots": "world"}),
@@ -119,7 +125,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 73
+    assert len(recorded) == 75
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

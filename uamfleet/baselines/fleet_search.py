@@ -53,6 +53,9 @@ MAX_SITES = 4096
 """Upper bound of ``sites``: each is one distance field made at reset."""
 MAX_CANDIDATES = 8
 """Upper bound of the candidates (the base and its ``waits``)."""
+DEMANDS = ("true", "estimated")
+"""The demand models a fleet search samples from: the instances' law (:class:`FleetDemand`) or the one estimated
+from the requests released so far (:class:`EstimatedFleetDemand`)."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,63 @@ class FleetDemand:
             future.pax_origin_m[0, row] = self.sites[origin]
             future.pax_dest_m[0, row] = self.sites[dest]
         return future
+
+
+@dataclass(frozen=True)
+class EstimatedFleetDemand:
+    """A fleet demand model estimated from the requests released so far in the episode, knowing only the service's
+    arrival window (its hours: releases at steps 0 … ``window_steps`` − 1) and the futures' ``sites``.
+
+    - The release rate: the requests released at steps 0 … t over those t + 1 steps, a homogeneous rate (a Poisson
+      process: the count still to come is drawn Poisson with the rate times the window's steps left, at most the
+      free passenger rows; their release steps uniform over them).
+    - The trips: with weight n (requests seen) against ``floor``, a seen request's origin and destination, each
+      moved by a Gaussian of ``bandwidth_m`` and put on the nearest site (a kernel density on the sites); else a
+      uniform site and a destination at least the shortest seen trip away (uniform among them).
+
+    It reads ``known`` (:func:`known_state`) alone: the released rows, the clock."""
+
+    window_steps: int
+    sites: np.ndarray
+    bandwidth_m: float = 300.0
+    floor: float = 1.0
+
+    def rate_per_step(self, known: FleetState) -> float:
+        """Requests per step estimated at the clock of ``known``: those released by now over the steps seen."""
+        seen = min(int(known.t[0]), self.window_steps - 1) + 1
+        return float(np.count_nonzero(known.pax_exists[0])) / seen
+
+    def sample(self, known: FleetState, rng: np.random.Generator) -> FleetState:
+        """A future of env 0 of ``known``: the requests the estimated rate brings over the window's steps left, as
+        hidden rows released after now, with trips from the kernel density of the seen ones."""
+        t = int(known.t[0])
+        exists = known.pax_exists[0]
+        future = known.copy()
+        left = self.window_steps - 1 - t
+        if left <= 0:
+            return future
+        free = np.flatnonzero(~exists)
+        more = min(int(rng.poisson(self.rate_per_step(known) * left)), len(free))
+        origins, dests = known.pax_origin_m[0, exists], known.pax_dest_m[0, exists]
+        shortest = float(np.min(np.linalg.norm(dests - origins, axis=-1))) if len(origins) else 0.0
+        for row in free[:more]:
+            future.pax_exists[0, row] = True
+            future.pax_release[0, row] = int(rng.integers(t + 1, self.window_steps))
+            if rng.random() * (len(origins) + self.floor) < len(origins):  # near a seen trip
+                j = int(rng.integers(len(origins)))
+                origin = self._nearest(origins[j] + rng.normal(0.0, self.bandwidth_m, 2))
+                dest = self._nearest(dests[j] + rng.normal(0.0, self.bandwidth_m, 2))
+                if dest == origin:
+                    dest = (origin + 1) % len(self.sites)
+            else:
+                origin, far = draw_trip(rng, self.sites, max(shortest, 1.0))
+                dest = far if far is not None else (origin + 1) % len(self.sites)
+            future.pax_origin_m[0, row] = self.sites[origin]
+            future.pax_dest_m[0, row] = self.sites[dest]
+        return future
+
+    def _nearest(self, point: np.ndarray) -> int:
+        return int(np.argmin(np.linalg.norm(self.sites - point, axis=-1)))
 
 
 def known_state(state: FleetState) -> FleetState:
@@ -175,7 +235,8 @@ class FleetSearch(PolicyBase):
     def __init__(
         self, base: ScheduleFleetPolicy, waits: Sequence[float] = (0.0, 3.0), futures: int = 3,
         horizon: int | None = 10, every: int = 5, wait_cost: float = 1.0,
-        arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S, seed: int = 0, sites: int = 48,
+        arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S, seed: int = 0, sites: int = 48, demand: str = "true",
+        end_wait: float = 0.0, cpu_budget_s: float | None = None,
     ) -> None:  # fmt: skip
         if not isinstance(base, ScheduleFleetPolicy):
             raise ConfigError(f"fleet_search rolls a schedule dispatcher forward; base={base!r} is none (give e.g. "
@@ -194,6 +255,13 @@ class FleetSearch(PolicyBase):
         self.arrival_window_s = check_number("arrival_window_s", arrival_window_s, positive=True)
         self.seed = check_integer("seed", seed, 0, MAX_SEED)
         self.sites = check_integer("sites", sites, 2, MAX_SITES, fix=" (sites the futures' trips are drawn among)")
+        if demand not in DEMANDS:
+            raise ConfigError(f"demand={demand!r} is unknown; choose one of {DEMANDS}.")
+        self.demand_model = demand
+        self.end_wait = check_number("end_wait", end_wait, minimum=0.0)
+        if cpu_budget_s is not None:
+            cpu_budget_s = check_number("cpu_budget_s", cpu_budget_s, positive=True)
+        self.cpu_budget_s = cpu_budget_s
         self.base = base
         self.sim: Simulator | None = None
         # one unflown copy of the base per candidate, each reset on the scratch core for every rollout
@@ -205,7 +273,11 @@ class FleetSearch(PolicyBase):
     def reset(self, sim: Simulator) -> None:
         if sim.num_envs != 1:
             raise ValueError(f"FleetSearch drives a one-env core, got num_envs={sim.num_envs}")
-        self.demand = FleetDemand.of_fleet(sim.cfg, self.site_sample(sim), self.arrival_window_s)
+        sites = self.site_sample(sim)
+        self.demand: FleetDemand | EstimatedFleetDemand = (
+            FleetDemand.of_fleet(sim.cfg, sites, self.arrival_window_s) if self.demand_model == "true"
+            else EstimatedFleetDemand(fleet_window_steps(sim.cfg.slot_s, self.arrival_window_s), sites)
+        )  # fmt: skip
         self.sim = sim
         self.base.wait_weight = self.wait_weights[0]
         self.base.reset(sim)
@@ -243,8 +315,13 @@ class FleetSearch(PolicyBase):
         rng = np.random.default_rng([self.seed, t])
         known = known_state(self.sim.state)
         futures = [self.demand.sample(known, rng) for _ in range(self.futures)]
-        costs = np.array([[self.rollout(c, future) for future in futures] for c in range(len(self.rollers))])
-        means = costs.mean(axis=1)
+        costs = []  # [futures flown, candidates]: every candidate in the same futures (common random numbers)
+        for future in futures:
+            costs.append([self.rollout(c, future) for c in range(len(self.rollers))])
+            spent = time.thread_time() - cpu
+            if self.cpu_budget_s is not None and spent * (len(costs) + 1) / len(costs) > self.cpu_budget_s:
+                break  # one more future would likely overrun the budget: decide on those flown
+        means = np.array(costs).mean(axis=0)
         chosen = int(np.argmin(means))
         self.base.wait_weight = self.wait_weights[chosen]
         decision = Decision(t, tuple(float(m) for m in means), chosen, time.perf_counter() - start,
@@ -269,7 +346,12 @@ class FleetSearch(PolicyBase):
             if terminated[0] or truncated[0]:
                 break
         flown_s = (float(scratch.state.distance_m[0].sum()) - flown_before) / self.speed_mps
-        return flown_s + self.wait_cost * waited_steps * scratch.cfg.slot_s
+        cost = flown_s + self.wait_cost * waited_steps * scratch.cfg.slot_s
+        if self.end_wait:  # the passengers still waiting at the horizon: their wait so far, as a debt the tail pays
+            waiting = scratch.state.pax_status[0] == WAITING
+            ages = int(scratch.state.t[0]) - scratch.state.pax_release[0, waiting]
+            cost += self.end_wait * float(ages.sum()) * scratch.cfg.slot_s
+        return cost
 
     def start_roller(self, roller: ScheduleFleetPolicy) -> None:
         """Reset ``roller`` on the scratch core, steering by the episode's fields and holding the base's schedules
@@ -289,4 +371,4 @@ class FleetSearch(PolicyBase):
         roller._idle_at = [None if p is None else p.copy() for p in self.base._idle_at]
 
 
-__all__ = ["Decision", "FleetDemand", "FleetSearch", "known_state", "shield_passed"]
+__all__ = ["DEMANDS", "Decision", "EstimatedFleetDemand", "FleetDemand", "FleetSearch", "known_state", "shield_passed"]

@@ -15,7 +15,7 @@ from typing import Any
 
 from uamfleet.baselines.finish import FinishWithSearch
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, check_wait_weight
-from uamfleet.baselines.fleet_search import MAX_CANDIDATES, MAX_SITES, FleetSearch
+from uamfleet.baselines.fleet_search import DEMANDS, MAX_CANDIDATES, MAX_SITES, FleetSearch
 from uamfleet.baselines.fleet_search import MAX_FUTURES as MAX_FLEET_FUTURES
 from uamfleet.checks import MAX_SEED, check_integer, check_number
 from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
@@ -118,7 +118,10 @@ class FleetSearchOptions:
     of ``waits`` rolled ``horizon`` steps (0: to the end) in ``futures`` futures sampled from the fleet demand of a
     service of ``arrival_window_s`` (draws from ``seed``; trips among ``sites`` of the map's flyable sites); the
     least mean of distance flown plus ``wait_cost`` times the passengers' waiting, both in seconds, is flown
-    (:mod:`uamfleet.baselines.fleet_search`)."""
+    (:mod:`uamfleet.baselines.fleet_search`). ``demand``: the futures' model, ``true`` (the instances' law) or
+    ``estimated`` (from the requests released so far); ``end_wait`` > 0 adds that weight times the waits so far of
+    the passengers still waiting at the horizon; ``cpu_budget_s`` > 0 stops adding futures once one more would likely
+    overrun that many CPU seconds (decisions then depend on the machine's speed)."""
 
     waits: tuple[float, ...] = (0.0, 3.0)
     futures: int = 3
@@ -128,8 +131,15 @@ class FleetSearchOptions:
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     seed: int = 0
     sites: int = 48
+    demand: str = "true"
+    end_wait: float = 0.0
+    cpu_budget_s: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.demand not in DEMANDS:
+            raise PolicyNameError(f"demand={self.demand!r} is unknown; choose one of {DEMANDS}.")
+        check_number("end_wait", self.end_wait, minimum=0.0)
+        check_number("cpu_budget_s", self.cpu_budget_s, minimum=0.0)
         check_integer("sites", self.sites, 2, MAX_SITES, fix=" (sites the futures' trips are drawn among, e.g. 48)")
         for weight in self.waits:
             check_wait_weight("waits", weight)
@@ -151,7 +161,8 @@ def _fleet_search(o: FleetSearchOptions, base: Any) -> FleetSearch:
         )
     return FleetSearch(
         base, o.waits, futures=o.futures, horizon=o.horizon or None, every=o.every, wait_cost=o.wait_cost,
-        arrival_window_s=o.arrival_window_s, seed=o.seed, sites=o.sites,
+        arrival_window_s=o.arrival_window_s, seed=o.seed, sites=o.sites, demand=o.demand, end_wait=o.end_wait,
+        cpu_budget_s=o.cpu_budget_s or None,
     )  # fmt: skip
 
 
