@@ -241,6 +241,8 @@ def test_bash_blocks_run(page_blocks: list[Block], tmp_path: Path) -> None:
     needs(page_blocks)
     (tmp_path / "uamfleet").mkdir()  # no __init__.py: ``import uamfleet`` still finds the project's package
     (tmp_path / "uamfleet" / "data").symlink_to(ROOT / "uamfleet" / "data", target_is_directory=True)
+    # Commands run from the repository's root and some read a committed file of a report (a map, a checkpoint).
+    (tmp_path / "reports").symlink_to(ROOT / "reports", target_is_directory=True)
     for block in page_blocks:
         assert block.directive is not None, (
             f"{block.where}: a shell block with a command to run needs a `<!-- test: ... -->` comment above it "
