@@ -33,7 +33,7 @@ def test_markdown_by_hand():
 
 def test_unknown_setting_is_named():
     for bad in ("3by7", "0x6", "x6", "4x"):
-        with pytest.raises(ValueError, match=rf"unknown --settings '{bad}'; give <taxis>x<requests>"):
+        with pytest.raises(ValueError, match=rf"--settings setting '{bad}' is not <taxis>x<requests> with both >= 1"):
             main(Args(settings=(bad,)))
 
 

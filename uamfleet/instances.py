@@ -104,6 +104,15 @@ FLEET_SETTINGS: dict[str, tuple[int, int]] = {
 """Fleet table settings: name -> (taxis, requests per episode)."""
 
 
+def fleet_setting(setting: str, flag: str = "--settings") -> tuple[int, int]:
+    """(taxis, requests) of a fleet setting ``<taxis>x<requests>`` (e.g. ``8x96``; :data:`FLEET_SETTINGS` names such
+    settings), both >= 1; a ConfigError naming ``flag`` and the setting otherwise."""
+    taxis, sep, requests = setting.partition("x")
+    if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
+        raise ConfigError(f"{flag} setting {setting!r} is not <taxis>x<requests> with both >= 1 (e.g. 4x48).")
+    return int(taxis), int(requests)
+
+
 @dataclass(frozen=True)
 class InstanceFamily:
     """How the instances of one map are drawn (see the module docstring)."""
@@ -563,6 +572,7 @@ __all__ = [
     "InstanceFamily",
     "draw_trip",
     "family_of",
+    "fleet_setting",
     "fly_instances",
     "instance_for_policy",
     "law_family",

@@ -283,7 +283,7 @@ def test_the_recorder_options_and_settings_are_read_in_one_place():
     assert family_setting("detroit3gpp:4x24", "berlin") == ("detroit3gpp", "4x24")
     with pytest.raises(UsageError, match="unknown family"):
         family_setting("detroit:4x24", "berlin")
-    with pytest.raises(ValueError, match="unknown --settings"):
+    with pytest.raises(ValueError, match="--settings setting '4by24' is not <taxis>x<requests>"):
         family_setting("detroit3gpp:4by24", "berlin")
 
 

@@ -94,7 +94,7 @@ def test_the_imitation_options_share_the_trainers_group_names_and_read_flat(caps
     assert (args.env.thresholds, args.observer.lookahead_depth, args.expert.expert_beam, args.fit.seed) == (
         (-5.0, -3.0), 2, 8, 4,
     )  # fmt: skip
-    assert ImitationArgs.from_flat(args.flat()) == args and len(args.flat()) == 31
+    assert ImitationArgs.from_flat(args.flat()) == args and len(args.flat()) == 32  # with --also-maps
     with pytest.raises(ConfigError, match="--lookahead-depth=2 is the look-ahead's depth"):
         ImitationArgs.from_flat({"lookahead_depth": 2})
     with pytest.raises(ConfigError, match=r"\['beam'\] are no options of ImitationArgs"):

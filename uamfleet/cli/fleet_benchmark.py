@@ -58,7 +58,7 @@ from uamfleet.cli.benchmark_tables import ci, command_header
 from uamfleet.cli.docs_tables import REFRESH_HINT
 from uamfleet.config import WorldConfig
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, make_fleet_instance, split_seeds
+from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, fleet_setting, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
 from uamfleet.policies import PolicyNameError, available, make, make_flown, parse
@@ -133,16 +133,9 @@ Job = tuple[str, str, int, tuple[str, ...], tuple[Path, ...], str, bool, int | N
 
 
 def setting_size(setting: str) -> tuple[int, int]:
-    """(taxis, requests) of a setting: a name of FLEET_SETTINGS or ``<taxis>x<requests>`` (e.g. ``8x96``)."""
-    if setting in FLEET_SETTINGS:
-        return FLEET_SETTINGS[setting]
-    taxis, sep, requests = setting.partition("x")
-    if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
-        raise ValueError(
-            f"unknown --settings {setting!r}; give <taxis>x<requests> with both >= 1 (e.g. 8x96) or one of "
-            f"{tuple(FLEET_SETTINGS)}."
-        )
-    return int(taxis), int(requests)
+    """(taxis, requests) of a --settings value ``<taxis>x<requests>`` (e.g. ``8x96``; a name of FLEET_SETTINGS is
+    one): :func:`uamfleet.instances.fleet_setting`."""
+    return fleet_setting(setting, "--settings")
 
 
 def dispatcher_row_name(name: str, assignment_value: Path | None) -> str:

@@ -36,7 +36,7 @@ from uamfleet.config import FLEET_ARRIVAL_WINDOW_S, EnvConfig
 from uamfleet.env.mixture import OTHER_TAXI_FIELDS
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
-from uamfleet.instances import make_fleet_instance, split_seeds
+from uamfleet.instances import fleet_setting, make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.policies import PolicyNameError, available, make_flown, parse
 from uamfleet.policies.learned import LearnedOptions, spec_of
@@ -114,11 +114,8 @@ class FleetImitationArgs:
 
 
 def setting_size(setting: str) -> tuple[int, int]:
-    """(taxis, requests) of a fleet setting ``<taxis>x<requests>`` (e.g. ``8x96``); ConfigError naming it else."""
-    taxis, sep, requests = setting.partition("x")
-    if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
-        raise ConfigError(f"--mixture setting {setting!r} is not <taxis>x<requests> with both >= 1 (e.g. 4x48).")
-    return int(taxis), int(requests)
+    """(taxis, requests) of a --mixture setting ``<taxis>x<requests>`` (e.g. ``8x96``): :func:`fleet_setting`."""
+    return fleet_setting(setting, "--mixture")
 
 
 def fleet_policy(init: str, passenger_window: int) -> GreedyPolicy:

@@ -12,7 +12,7 @@ import os
 from typing import TYPE_CHECKING, Any
 
 from uamfleet.config import MAX_TAXIS, ConfigError, check_integer, check_number
-from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of, is_map_name, map_family
+from uamfleet.instances import FAMILIES, VALIDATION_SEEDS, family_of, fleet_setting, is_map_name, map_family
 from uamfleet.radio.packaged import RADIO_MAPS
 from uamfleet.rl.option_sets import EnvOptions, EvalOptions, NetOptions, PPOOptions, RunOptions
 
@@ -218,12 +218,8 @@ class TrainArgsChecks:
         """(taxis, requests) of each --fleet-mixture setting, in the order given (ConfigError for a malformed one)."""
         out = []
         for setting in self.env.fleet_mixture:
-            taxis, sep, requests = setting.partition("x")
-            if not (sep and taxis.isdigit() and requests.isdigit() and int(taxis) >= 1 and int(requests) >= 1):
-                raise ConfigError(
-                    f"--fleet-mixture setting {setting!r} is not <taxis>x<requests> with both >= 1 (e.g. 4x48)."
-                )
-            out.append((check_integer("--fleet-mixture taxis", int(taxis), 1, MAX_TAXIS), int(requests)))
+            taxis, requests = fleet_setting(setting, "--fleet-mixture")
+            out.append((check_integer("--fleet-mixture taxis", taxis, 1, MAX_TAXIS), requests))
         return out
 
 
