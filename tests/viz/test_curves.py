@@ -140,12 +140,13 @@ def test_the_quickstart_draws_its_curve_beside_the_run_and_names_it(tmp_path, mo
         5000.0, 100.0, 59.0, 28.0, 100.0, 91.6, -2.0, 200.0, 4, 4, 50.0, 60.0, 1.2, 1.0, 0, 0.1, 50
     )
     monkeypatch.setattr(quickstart, "train", trained)
-    monkeypatch.setattr(quickstart, "load_policy", lambda path: (None, None))
+    monkeypatch.setattr(quickstart, "load_policy", lambda path: (None, TrainArgs()))  # a run's options: de_msfea
     monkeypatch.setattr(quickstart, "fly", lambda *a, **k: metrics)
     monkeypatch.chdir(ROOT)  # the recorded rows are read from docs/results/, as when the README's command runs
     assert quickstart.cli(["--run-dir", str(tmp_path), "--no-generalist"]) == 0
     out = capsys.readouterr().out
-    assert f"\nlearning curve (greedy TD and PR against agent-steps): {folder / 'curve.png'}\n" in out
+    where = "on P4 and on 10 validation instances"  # the default --curve-instances
+    assert f"\nlearning curve (greedy TD and PR against agent-steps, {where}): {folder / 'curve.png'}\n" in out
     fig = draw_learning_curve([read_curve(folder)], best_known_m=4900.0, title="Berlin P4 at -3 dB")
     assert (folder / "curve.png").read_bytes() == png_bytes(fig, tmp_path)
 
