@@ -126,10 +126,10 @@ def fleet_policy(init: str, passenger_window: int) -> GreedyPolicy:
     return policy.reading(spec_of(policy, LearnedOptions(passenger_window=passenger_window)))
 
 
-def padded_rows(policy: GreedyPolicy, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Each taxi's normalised observation row as the network reads it (``[A, ...]``), its other-taxi rows padded
-    with masked rows to the largest fleet the network reads (its ``shapes``), so rows of any fleet size stack."""
-    rows = policy.network_input(obs)
+def padded_rows(policy: GreedyPolicy, rows: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each taxi's normalised observation row as the network reads it (``rows``: :meth:`GreedyPolicy.network_input`,
+    ``[A, ...]``), its other-taxi rows padded with masked rows to the largest fleet the network reads (its
+    ``shapes``), so rows of any fleet size stack."""
     out = {}
     for key, value in rows.items():
         if key in OTHER_TAXI_FIELDS:
@@ -175,9 +175,10 @@ def label_episode(
     steps = teacher_steps = 0
     while True:
         label = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
-        rows = padded_rows(policy, obs)
-        own = policy.act(obs)  # [1, A] greedy, with the loop guard (as it flies)
-        logits = policy.logits_of(policy.network_input(obs))  # [A, 16 or 17]
+        inputs = policy.network_input(obs)
+        logits = policy.logits_of(inputs)  # [A, 16 or 17]
+        own = policy.choose(obs, logits)  # [1, A] greedy, with the loop guard (as it flies)
+        rows = padded_rows(policy, inputs)
         log_probs = torch.log_softmax(logits, -1).numpy()
         fitted = log_probs[np.arange(label.shape[1]), label[0]] > PRIOR_FLOOR
         parts.append({k: v[fitted] for k, v in rows.items()})
@@ -226,7 +227,7 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     start = time.time()
-    source = checkpoint_source(args.init)
+    initial = Checkpoint.load(checkpoint_source(args.init))  # what every saved round keeps but its weights
     policy = fleet_policy(args.init, args.passenger_window)  # one set of weights, flown by every fleet size
     net = policy.net
     optimizer = torch.optim.Adam(net.parameters(), lr=args.learning_rate)
@@ -242,8 +243,8 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
         rows.append({"round": r, "beta": args.beta(r), **counts, "samples": len(data), **stats,
                      "wall_s": time.time() - start})  # fmt: skip
         print(", ".join(f"{k}={v:.4g}" for k, v in rows[-1].items()), flush=True)
-        save_fleet_checkpoint(claim.folder / f"round{r}.pt", source, net, args, rows[-1])
-        save_fleet_checkpoint(claim.folder / "last.pt", source, net, args, rows[-1])
+        save_fleet_checkpoint(claim.folder / f"round{r}.pt", initial, net, args, rows[-1])
+        save_fleet_checkpoint(claim.folder / "last.pt", initial, net, args, rows[-1])
         write_csv_atomic(claim.folder / "progress.csv", rows, list(rows[0]))
     return rows
 
@@ -281,11 +282,11 @@ def make_teacher(name: str, taxis: int) -> PolicyBase:
 
 
 def save_fleet_checkpoint(
-    path: Path, source: Path, net: torch.nn.Module, args: FleetImitationArgs, row: dict[str, Any]
+    path: Path, ckpt: Checkpoint, net: torch.nn.Module, args: FleetImitationArgs, row: dict[str, Any]
 ) -> None:
-    """The source checkpoint with the fitted weights (the same network, normaliser and spec: it loads and flies
-    like the source, any fleet size), its DAgger options and this round's row recorded, without optimiser state."""
-    ckpt = Checkpoint.load(source)
+    """The start's checkpoint ``ckpt`` with the fitted weights (the same network, normaliser and spec: it loads and
+    flies like the start, any fleet size), its DAgger options and this round's row recorded, without optimiser
+    state."""
     options = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
                for k, v in dataclasses.asdict(args).items()}  # fmt: skip
     out = dataclasses.replace(

@@ -269,8 +269,12 @@ class GreedyPolicy(PolicyBase):
         return trace(*(x[k] for k in keys))
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return self.choose(obs, self.logits_of(self.network_input(obs)))
+
+    def choose(self, obs: dict[str, np.ndarray], logits: torch.Tensor) -> np.ndarray:
+        """The greedy actions ``[E, A]`` for ``obs`` given its :meth:`logits_of` (through the loop guard, which
+        records the step: call it once per step, as :meth:`act` does)."""
         E, A = obs["action_mask"].shape[:2]
-        logits = self.logits_of(self.network_input(obs))
         if self.loop_guard is None:
             return logits.argmax(-1).cpu().numpy().reshape(E, A)
         return self.loop_guard.choose(obs, logits.cpu().numpy()).reshape(E, A)
