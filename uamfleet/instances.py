@@ -506,6 +506,9 @@ def instance_for_policy(family: str, seed: int, like: EnvConfig) -> EnvConfig:
 
 
 _BATCHES: dict[tuple[str, tuple[int, ...], EnvConfig, ObserverSpec | None], MixtureVectorEnv] = {}
+MAX_BATCHES = 4
+"""Batches :func:`fly_instances` keeps (the oldest goes first): one per family a run validates on each round, e.g.
+imitation's mixture of maps (``--also-maps``), so none is rebuilt every round."""
 
 
 def fly_instances(
@@ -514,12 +517,13 @@ def fly_instances(
     """Fly ``policy`` (``obs [E, A, ...] -> actions [E, A]``) once on each instance ``seeds`` of ``family`` under
     ``like``'s rules (:func:`instance_for_policy`), observed by the policy's spec when it has one, all in one batch
     (one policy call per step for all). Returns (share of passengers delivered [n], distance flown [n] metres).
-    The batch of the last call is kept: a trainer evaluating on the same seeds every few iterations builds the
-    instances and worlds once."""
+    The batches of the last :data:`MAX_BATCHES` calls are kept: a trainer evaluating on the same seeds every few
+    iterations (on one family or several) builds the instances and worlds once."""
     observer = observer_of(policy)  # observed as the policy reads, else as ``like`` observes
     key = (family, tuple(int(s) for s in seeds), like, observer)  # the config itself (hashed by identity, kept alive)
     if key not in _BATCHES:
-        _BATCHES.clear()
+        while len(_BATCHES) >= MAX_BATCHES:
+            del _BATCHES[next(iter(_BATCHES))]
         cfgs = [instance_for_policy(family, seed, like) for seed in key[1]]
         _BATCHES[key] = MixtureVectorEnv(cfgs, num_envs=len(cfgs), observer=observer)
     venv = _BATCHES[key]
