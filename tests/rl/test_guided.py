@@ -407,3 +407,36 @@ def test_the_search_caps_are_the_command_line_s() -> None:
 
     assert benchmark.MAX_FUTURES is guided.MAX_FUTURES and benchmark.MAX_SAMPLES is guided.MAX_SAMPLES
     assert benchmark.MAX_EXPERT_BEAM is guided.MAX_EXPERT_BEAM and benchmark.MAX_STEPS is guided.MAX_STEPS
+
+
+@pytest.mark.parametrize("wait_action", ["forbidden", "hover"])
+def test_a_traced_base_is_traced_at_reset_and_flies_as_the_eager_one(wait_action: str) -> None:
+    """Every batch shape a search feeds the traced actor is traced at reset (so no search pays for a trace), and
+    the hedge over the traced base flies the eager one's flight, search for search."""
+    import copy
+
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    first = Request(0, (550.0, 150.0), (550.0, 550.0))
+    cfg = _hedge_config((first, Request(8, (150.0, 650.0), (650.0, 650.0)))).replace(hover_action=True)
+    eager = _policy(cfg, 0)
+    traced = copy.copy(eager).trace_actor()  # a shallow copy: the same weights, its own traces
+    made_at_reset: list[int] = []
+    flights = []
+    for base in (eager, traced):
+        hedge = AnticipatingGuidedSearch(base, _prior(cfg), first_headings=3, futures=3, commit=3,
+                                         wait_action=wait_action)  # fmt: skip
+        env = VectorEnv(cfg, 1, autoreset=False)
+        obs, _ = env.reset(seed=0)
+        hedge.reset(env.sim)
+        made_at_reset.append(len(base._traces))
+        actions, done = [], False
+        while not done:
+            action = hedge.act(obs)
+            actions.append(action.tolist())
+            obs, _, terminated, truncated, _ = env.step(action)
+            done = bool(terminated[0] or truncated[0])
+        flights.append((actions, [(p[0], p[1], p[2]) for p in hedge.plans]))
+    assert flights[0] == flights[1] and len(flights[0][1]) >= 3  # several searches, the same ones
+    expected = 3 if wait_action == "hover" else 4  # scratch, root, futures: (3 + 1) x 3 (and 3 x 3 for forbidden)
+    assert made_at_reset == [0, expected] and len(traced._traces) == expected  # none made during the flight

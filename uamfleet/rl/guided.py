@@ -156,9 +156,17 @@ class GuidedSearchPolicy(PolicyBase):
             self.scratch = VectorEnv(sim.cfg, num_envs=self.top_k + self.samples, autoreset=True, observer=self.spec)
             self.scratch.reset(seed=0)
             self.search = StepSearch(sim.cfg) if self.expert_beam else None
+        self._trace_search_shapes()
         self.queue, self.plans, self.search_won = [], [], []
         self._released = self._released_rows()
         self.queue = self._search()
+
+    def _trace_search_shapes(self) -> None:
+        """With a traced actor, call it once at each batch shape a search feeds it, here at reset rather than in the
+        first search: a trace is made at its shape's first call (about 1 s on one core), setup that would otherwise
+        count as that search's time. Observes its scratch states and flies nothing, so no search changes."""
+        if self.policy.traced and self.scratch is not None:
+            self.policy.logits_of(self.policy.network_input(self.scratch.observer.observe(self.scratch.state)))
 
     def _released_rows(self) -> np.ndarray:
         assert self.sim is not None
@@ -362,6 +370,21 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         self._next_search_t = 0  # the step of the next search over futures, between releases
         self._known_search_done = False
         super().reset(sim)  # its search at the start runs through _search below
+
+    def _trace_search_shapes(self) -> None:
+        """As the base class's, and also at the root's one row and at the futures' batches (:meth:`scores_at`:
+        ``first_headings`` candidates, one more with the wait, times ``futures``), building their scratch envs."""
+        super()._trace_search_shapes()
+        if not self.policy.traced:
+            return
+        assert self.sim is not None and self.scratch is not None
+        self.policy.logits_of(self.policy.network_input(self.scratch.observer.observe(self.sim.state)))
+        candidates = [self.first_headings + 1] if self.wait else []
+        if not (self.wait and self.wait_action == "hover"):  # no wait, or a forbidden heading only some steps have
+            candidates.append(self.first_headings)
+        for count in candidates:
+            env = self._futures_env(count * self.futures)
+            self.policy.logits_of(self.policy.network_input(env.observer.observe(env.state)))
 
     def _future_rows(self, world_rows: int) -> int:
         """The passenger rows of its sampled futures: the world's, or the demand model's most requests if more."""
