@@ -17,17 +17,17 @@ search to ``--out-csv`` when given.
 
 from __future__ import annotations
 
-import csv
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
 import tyro
 
 from uamfleet.instances import make_instance, split_seeds
+from uamfleet.io import write_csv_atomic
 from uamfleet.policies import make
 from uamfleet.rollout import fly
 
@@ -41,9 +41,11 @@ class Args:
     settings: tuple[str, ...] = ("berlin:endpoint_block", "berlin:segment_raster", "detroit3gpp:endpoint_block")
     """family:feasibility rule of each set of instances"""
     count: int = 20
-    """validation instances per setting"""
+    """instances per setting"""
     first: int = 0
-    """the first validation seed's index"""
+    """the first seed's index in the split"""
+    split: Literal["validation", "test"] = "validation"
+    """the instances' split (timing the test set's searches chooses nothing)"""
     budget_s: float = 1.0
     """the target: CPU seconds a search may take"""
     out_csv: Path | None = None
@@ -81,7 +83,7 @@ def fly_setting(args: Args, family: str, rule: str) -> list[dict[str, Any]]:
     policy = make("hedge", base=("learned", {"source": str(args.checkpoint), "traced": True}), wait_action="hover")
     searches: list[dict[str, Any]] = []
     timed_searches(policy, searches)
-    seeds = split_seeds("validation", args.count, args.first)
+    seeds = split_seeds(args.split, args.count, args.first)
     for seed in seeds:
         cfg = make_instance(family, seed, feasibility=rule).replace(hover_action=True)  # type: ignore[arg-type]
         searches.clear()
@@ -105,7 +107,7 @@ def summary(rows: list[dict[str, Any]], budget_s: float) -> str:
 def main(args: Args) -> list[dict[str, Any]]:
     torch.set_num_threads(1)
     print(f"hedge(learned) over {args.checkpoint}, hover wait, torch {torch.__version__}, 1 thread; "
-          f"validation seeds from {split_seeds('validation', 1, args.first)[0]}, {args.count} per setting")  # fmt: skip
+          f"{args.split} seeds from {split_seeds(args.split, 1, args.first)[0]}, {args.count} per setting")  # fmt: skip
     print(f"{'setting':<28} {'kind':<8} {'searches':>8} {'p50 CPU':>8} {'p95 CPU':>8} {'max CPU':>8} "
           f"{'> ' + format(args.budget_s, 'g') + ' s':>6} {'p50 wall':>9} {'max wall':>9}")  # fmt: skip
     rows: list[dict[str, Any]] = []
@@ -119,11 +121,8 @@ def main(args: Args) -> list[dict[str, Any]]:
             part = [r for r in flown if kind == r["kind"] or (kind == "all" and r["kind"] != "reset")]
             if part:
                 print(f"{setting:<28} {kind:<8} {summary(part, args.budget_s)}", flush=True)
-    if args.out_csv is not None:
-        with args.out_csv.open("w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        if args.out_csv is not None:  # after each setting: a long run stopped keeps the settings it finished
+            write_csv_atomic(args.out_csv, rows, list(rows[0]))
     return rows
 
 
