@@ -252,3 +252,24 @@ def test_a_small_field_pool_evicts_and_recomputes_the_same_numbers() -> None:
     np.testing.assert_array_equal(small.remaining_many(goals, points), roomy.remaining_many(goals, points))
     np.testing.assert_array_equal(small.remaining_many(goals[:2], points), roomy.remaining_many(goals[:2], points))
     np.testing.assert_array_equal(small.stop_distances(goals), roomy.graph.stop_distances(goals))
+
+
+def test_a_partial_edge_block_gets_a_node_and_a_stop_there_is_reachable() -> None:
+    """A 220 m square of 20 m cells (centres 10 ... 210 m) in 100 m blocks: the third row and column of block centres
+    (250 m) lie 30 m off the map. With block (1, 0) closed, a stop at (215, 50) is read through the corners (1, 0)
+    and (2, 0) only: reachable only if the off-map centre (250, 50) has a node. It takes the cell nearest to the
+    centre moved onto the map, (220, 50): the cell (210, 50), 40 m from the centre (snap_m 30 m + the 30 m move)."""
+    centres = 10.0 + np.arange(11) * 20.0
+    x, y = np.meshgrid(centres, centres, indexing="ij")
+    feasible = ~((x >= 100) & (x < 200) & (y < 100))  # block (1, 0) closed
+    graph = GridGraph(feasible, 20.0, origin_m=(10.0, 10.0), label="partial")
+    table = DistanceTable(graph, BLOCK, (3, 3)).fill()
+    edge = 2 * 3 + 0  # block (2, 0), centre (250, 50)
+    assert table.nodes[edge] >= 0 and tuple(graph.node_xy(table.nodes[edge])) == (210.0, 50.0)
+    assert table.gap_m[edge] == pytest.approx(40.0)
+    assert table.nodes[1 * 3 + 0] < 0  # the closed block has none
+    assert table.gap_m[0] == 0.0 and tuple(graph.node_xy(table.nodes[0])) == (50.0, 50.0)  # on the map: as before
+    a, stop = np.array([50.0, 50.0]), np.array([215.0, 50.0])
+    d = float(table.distance(a, stop))
+    # the straight line crosses the closed block: the path goes round it, above y = 100
+    assert math.isfinite(d) and d > math.hypot(*(stop - a)) + 20

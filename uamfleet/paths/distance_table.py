@@ -7,8 +7,10 @@ the step and the lookup into numba:
 
 - **Nodes**: one per block of the world's block grid (``block_m``, the step by default), at the block centre
   ``((bx + 0.5) * block_m, (by + 0.5) * block_m)``, flat index ``bx * nby + by``. Its graph node is the raster
-  cell nearest the centre or, when that cell is not flyable, the nearest flyable cell within ``block_m`` (the
-  gap counts as a straight piece); a block with none has no paths.
+  cell nearest the centre or, when that cell is not flyable, the nearest flyable cell within the graph's
+  ``snap_m`` (the gap counts as a straight piece); a block with none has no paths. Where the map's side is no
+  whole number of blocks, the outer centres lie off the map: theirs is looked up from the centre moved onto the
+  map's edge.
 - **Entries**: ``distance_m[i, j]`` = gap_i + lattice distance on the raster graph of
   :func:`~uamfleet.paths.graph_for` (16-connected, 10 m cells on the packaged maps; on a raster much finer than
   the blocks, a coarser one: :func:`table_graph`) + gap_j, float32; ``inf`` where no feasible path joins them.
@@ -64,7 +66,7 @@ from uamfleet.paths.grid_graph import GridGraph, feasible_raster
 from uamfleet.radio import RadioMap
 
 _CHUNK = 256  # Dijkstra sources per compiled call: [chunk, blocks] float64 rows (~2 MB on Berlin)
-CACHE_FORMAT = 2  # raise when the entries' definition or the file changes: older files then no longer match
+CACHE_FORMAT = 3  # raise when the entries' definition or the file changes: older files then no longer match
 # 2: an .npz holding the key and a SHA-256 of the entries beside them (1: a bare .npy, trusted as it was)
 
 
@@ -105,10 +107,16 @@ class DistanceTable:
         centres = np.stack([(bx.ravel() + 0.5) * block_m, (by.ravel() + 0.5) * block_m], axis=-1)  # [N, 2]
         self.nodes = np.full(len(centres), -1, dtype=np.intp)  # graph node of each block centre, -1: none
         self.gap_m = np.zeros(len(centres))  # straight piece from the centre to its node
+        # The map's extent: a side that is no whole number of blocks (San Francisco's 920 m) leaves the last row and
+        # column of centres off the map. Such a centre takes the node nearest to it moved onto the map, allowed
+        # ``snap_m`` beyond that move: else a stop in the partial strip reads as unreachable where it is not.
+        low = np.asarray(graph.origin_m) - graph.resolution_m / 2
+        high = low + np.asarray(graph.shape) * graph.resolution_m
         for i, c in enumerate(centres):
-            node = graph.nearest_node(c)
+            on_map = np.clip(c, low, high)
+            node = graph.nearest_node(on_map)
             gap = float(np.hypot(*(graph.node_xy(node) - c)))
-            if gap <= graph.snap_m:
+            if gap <= graph.snap_m + float(np.hypot(*(c - on_map))):
                 self.nodes[i], self.gap_m[i] = node, gap
         # NaN marks rows not computed yet; the lookup refuses to read one.
         self.distance_m = np.full((len(centres), len(centres)), np.nan, dtype=np.float32)
