@@ -38,6 +38,7 @@ RECORDED: dict[str, tuple[str, dict]] = {
     "learned_guided_h80": ("guided", {"horizon": 80, "base": L}),
     "learned_guided_h120": ("guided", {"horizon": 120, "base": L}),
     "learned_hedge": ("hedge", {"base": ("learned", {"traced": True})}),
+    "learned:idle_wait=true": ("learned", {"idle_wait": True}),
     **{
         f"hedge:demand=reports/2026-12-04-demand-models/{family}.json(learned:traced=true)": (
             "hedge",
@@ -125,7 +126,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 75
+    assert len(recorded) == 76
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

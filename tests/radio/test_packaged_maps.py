@@ -24,11 +24,11 @@ BERLIN_TXT = SHARED / "berlin" / "berlin_UAM_SNIR_100.txt"
 
 
 def test_names() -> None:
-    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp", "munich", "munich_3km")
+    assert RADIO_MAPS == ("berlin", "detroit_estimate", "detroit_3gpp", "munich", "munich_3km", "san_francisco")
 
 
 def test_unknown_name() -> None:
-    names = r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*'munich'.*'munich_3km'.*WinProp"
+    names = r"'paris'.*'berlin'.*'detroit_estimate'.*'detroit_3gpp'.*'munich'.*'munich_3km'.*'san_francisco'.*WinProp"
     with pytest.raises(ValueError, match=names):
         load_radio_map("paris")
 

@@ -224,6 +224,11 @@ def method_call(name: str, options: dict[str, Any], job: Job) -> tuple[str, dict
     return name, out
 
 
+def is_learned_call(method: str, checkpoint: Path | None) -> bool:
+    """``method`` is ``learned:<options>`` and a checkpoint is given for it (its options are checked by parsing)."""
+    return checkpoint is not None and method.startswith("learned:") and parse(method)[0] == "learned"
+
+
 def check_checkpoint(path: Path) -> None:
     """The benchmark's instances have one taxi: refuse a fleet policy (or an unreadable file) before flying."""
     policy = learned_policy(path)
@@ -384,9 +389,13 @@ def check_args(args: Args) -> list[Task]:
     check_jobs(args.jobs)
     if args.map is not None:
         check_map(args.map)
-    unknown = [m for m in args.methods if m not in METHODS + SLOW_METHODS]
+    # "learned:<options>" flies the --checkpoint's policy with those options (e.g. learned:idle_wait=true)
+    unknown = [m for m in args.methods if m not in METHODS + SLOW_METHODS and not is_learned_call(m, args.checkpoint)]
     if unknown:
-        raise ValueError(f"unknown --methods {unknown}; choose from {METHODS + SLOW_METHODS}.")
+        raise ValueError(
+            f"unknown --methods {unknown}; choose from {METHODS + SLOW_METHODS}, or with --checkpoint "
+            "learned:<options> (e.g. learned:idle_wait=true)."
+        )
     if not args.methods and args.checkpoint is None:
         raise UsageError("--methods is empty and no --checkpoint is given: nothing to fly; name at least one method.")
     check_guided(args)

@@ -25,6 +25,7 @@ from uamfleet.checks import MAX_PASSENGERS, MAX_TAXIS, check_integer
 from uamfleet.observe.spec import ObserverSpec
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
+from uamfleet.rl.idle_wait import IdleWait
 from uamfleet.rl.legacy import with_stored_spec
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 
@@ -86,7 +87,8 @@ class LearnedOptions:
     resolved by :func:`for_world`) and ``passenger_window`` (K rows per taxi, any number of requests; exclusive
     with ``passenger_slots``) change the rows it reads (:func:`spec_of`); any fleet size its spec reads flies
     zero-shot, fitted at ``reset``; ``loop_guard``
-    false: the argmax alone; ``traced``: its actor traced (a copy, for searches)."""
+    false: the argmax alone; ``idle_wait``: a taxi with nothing to do stays in place (:mod:`uamfleet.rl.idle_wait`);
+    ``traced``: its actor traced (a copy, for searches)."""
 
     source: str = "berlin"
     device: str = "cpu"
@@ -94,6 +96,7 @@ class LearnedOptions:
     passenger_slots: int | Literal["world"] | None = None
     taxis: int | None = None
     loop_guard: bool = True
+    idle_wait: bool = False
     traced: bool = False
 
     def __post_init__(self) -> None:
@@ -154,9 +157,9 @@ def load(options: LearnedOptions) -> GreedyPolicy:
             "uamfleet.policies.learned.for_world(options, taxis, requests) or give a number."
         )
     policy = policy.reading(spec_of(policy, options))
-    if not options.loop_guard:
+    if not options.loop_guard or options.idle_wait:
         policy = copy.copy(policy)
-        policy.loop_guard = None
+        policy.loop_guard = IdleWait(options.loop_guard) if options.idle_wait else None
     return policy
 
 

@@ -16,6 +16,12 @@
   --cell-m 10 --threads 1 --extent-m -1568 -1586 1432 1414`` wrote, stored as is
   (``uamfleet/data/munich_3km_sionna_rt_100m.npz``). A city as large as Berlin's square where the radio binds:
   the cells of neighbouring GBS interfere, so coverage holes lie where three or four cells meet.
+- ``"san_francisco"``: ray-traced by Sionna RT on its built-in San Francisco scene (its bounding box, 1,222 m x
+  928 m, towers above the 100 m flight altitude), 2 GBS on the 750 m grid, 100 m altitude, 10 m cells: the ``.npz``
+  that ``uamfleet-radio-map --scene san_francisco --altitude-m 100 --cell-m 10 --threads 1`` wrote, stored as is
+  (``uamfleet/data/san_francisco_sionna_rt_100m.npz``, reports/2026-12-04-big-city/). A small city (920 m
+  operating square) where the radio hardly binds; the held-out city of the map-mixture policy
+  (reports/2026-12-04-map-mixture/).
 """
 
 from __future__ import annotations
@@ -36,13 +42,14 @@ from uamfleet.radio.radio_map import BaseStation, RadioMap
 from uamfleet.radio.raytrace import read_radio_map_npz
 from uamfleet.radio.winprop import read_winprop
 
-RADIO_MAPS: tuple[str, ...] = ("berlin", "detroit_estimate", "detroit_3gpp", "munich", "munich_3km")
+RADIO_MAPS: tuple[str, ...] = ("berlin", "detroit_estimate", "detroit_3gpp", "munich", "munich_3km", "san_francisco")
 
 BERLIN_NPZ = "berlin_sinr_100m.npz"
 BERLIN_LICENSE = "LICENSE.berlin"
 DETROIT_CSV = "detroit_block_sinr_estimate.csv"
 MUNICH_NPZ = "munich_sionna_rt_100m.npz"
 MUNICH_3KM_NPZ = "munich_3km_sionna_rt_100m.npz"
+SAN_FRANCISCO_NPZ = "san_francisco_sionna_rt_100m.npz"
 # The npz stores SINR as int32 in units of 1e-4 dB (the WinProp file's 4 decimals): int / 1e4 is bit-identical
 # to parsing the text, and compresses better than float32.
 BERLIN_NC = np.iinfo(np.int32).min
@@ -212,6 +219,10 @@ def _munich_3km() -> RadioMap:
     return dataclasses.replace(read_radio_map_npz(DATA_DIR / MUNICH_3KM_NPZ), name="munich_3km")
 
 
+def _san_francisco() -> RadioMap:
+    return read_radio_map_npz(DATA_DIR / SAN_FRANCISCO_NPZ)  # named after its scene, "san_francisco", by the command
+
+
 @functools.cache
 def _packaged(name: str) -> RadioMap:
     builders = {
@@ -220,6 +231,7 @@ def _packaged(name: str) -> RadioMap:
         "detroit_3gpp": _detroit_3gpp,
         "munich": _munich,
         "munich_3km": _munich_3km,
+        "san_francisco": _san_francisco,
     }
     return builders[name]()
 
