@@ -211,3 +211,25 @@ def test_quickstart_trains_and_flies_the_test_instances_of_a_map(city: Path, tmp
         assert f"\n{name} " in table
     saved = _rows(tmp_path / "quickstart" / "progress.csv")
     assert len(saved) == 2  # the start's evaluation and one iteration
+
+
+RAY_TRACED_CITIES = ("munich", "munich_3km", "san_francisco")
+
+
+@pytest.mark.parametrize("name", RAY_TRACED_CITIES)
+def test_every_packaged_city_flies_through_rollout_fleet_bench_and_render(name: str, tmp_path: Path, capsys) -> None:
+    """The cheap commands on each packaged ray-traced city by name (training, imitation and the quickstart fly the
+    map file above: the same code path, a map by path or by name)."""
+    assert name in RADIO_MAPS
+    [row] = rollout.main(rollout.Args(map=name, policy="replan", episodes=1))
+    assert row["pr_pct"] == 100.0
+    out = tmp_path / "f.csv"
+    argv = ["--map", name, "--count", "1", "--settings", "2x6", "--jobs", "1", "--dispatchers", "greedy",
+            "--out-csv", str(out)]  # fmt: skip
+    assert fleet_benchmark.cli(argv) == 0
+    [fleet] = _rows(out)
+    assert (fleet["family"], fleet["setting"]) == (name, "2x6") and float(fleet["service_pct"]) == 100.0
+    written = render.main(render.Args(map=name, policy="straight", out=tmp_path / f"{name}.html"))
+    assert written["html"].is_file()
+    printed = capsys.readouterr().out
+    assert printed.count("Map: ") == 3 and f"on {name}:" in printed
