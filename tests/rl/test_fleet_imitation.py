@@ -16,6 +16,7 @@ from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
 from uamfleet.rl.fleet_imitation import (
     MASKED_LOG_PROB,
     TEACHER,
+    anchored_fit,
     FleetImitationArgs,
     fleet_imitate,
     fleet_policy,
@@ -212,3 +213,34 @@ def test_a_run_with_stop_labels_and_the_hover_anytime_writes_a_checkpoint_that_l
     assert set(policy.net.state_dict()) - set(shipped) == {NEW_PARAMETERS + "weight", NEW_PARAMETERS + "bias"}
     with pytest.raises(ConfigError, match="--labels='stops' is unknown"):
         FleetImitationArgs(labels="stops")  # type: ignore[arg-type]
+
+
+def test_the_kl_anchor_holds_the_network_nearer_its_start_than_the_plain_fit() -> None:
+    episode = label_episode(small_scene(), fleet_policy("berlin_fleet", 24), make_teacher(TEACHER, 2), 1.0,
+                            np.random.default_rng(0), labels="stop")  # fmt: skip
+    data = Dataset()
+    data.add(episode.obs, episode.labels, episode.corrected)
+    batch = obs_to_torch(episode.obs, "cpu")
+    start = fleet_policy("berlin_fleet", 24)
+
+    def headings(net) -> torch.Tensor:  # log-probabilities over the 16 headings, given no hover
+        with torch.no_grad():
+            return torch.log_softmax(net.masked_logits(batch)[:, :HOVER_ACTION], -1).clamp(min=-1e4)
+
+    def kl_from_start(net) -> float:
+        p = headings(start.net)
+        return float((p.exp() * (p - headings(net))).sum(-1).mean())
+
+    drift = {}
+    for anchor in (0.0, 10.0):
+        torch.manual_seed(0)
+        policy = fleet_policy("berlin_fleet", 24)
+        args = FleetImitationArgs(epochs=6, minibatch=64, learning_rate=1e-3, kl_anchor=anchor)
+        if anchor:
+            stats = anchored_fit(policy, data, args, np.random.default_rng(0))
+            assert stats.keys() == {"bc_loss", "bc_agreement", "fit_kl"}
+        else:
+            optimizer = torch.optim.Adam(parameter_groups(policy.net, args))
+            fit(policy.net, data, args.fit_args(), optimizer, np.random.default_rng(0))
+        drift[anchor] = kl_from_start(policy.net)
+    assert 0 < drift[10.0] < 0.5 * drift[0.0], drift

@@ -14,14 +14,20 @@ One network for every taxi and every fleet size: each taxi's observation row is 
 reads it at that fleet size (its window of passenger rows, its normaliser fitted to the world), and the other-taxi
 rows are padded to the largest fleet the network reads with masked rows (a masked mean ignores them, as in
 :mod:`uamfleet.env.mixture`). The fit is :func:`uamfleet.rl.imitation.fit` (cross-entropy on the masked logits,
-data aggregated over rounds in :class:`~uamfleet.rl.imitation.Dataset`). A label the policy's stop head rules out
-(log-probability at or below :data:`~uamfleet.rl.heads.PRIOR_FLOOR`: a heading toward no stop it reads, such as a
-step aside under the shield, or a hover while it has a stop to fly to) is flown but never fitted: the network can
-learn which stop each taxi flies for and when it waits, not headings off its stops' paths.
+data aggregated over rounds in :class:`~uamfleet.rl.imitation.Dataset`). A label the policy gives a
+log-probability at or below :data:`~uamfleet.rl.heads.PRIOR_FLOOR` is flown but never fitted (with
+``fit_improbable``, only a masked one, :data:`MASKED_LOG_PROB`).
+
+The network decides which stop each taxi flies for, and flies the stop's progress heading of its observation; the
+dispatcher steers by its own path fields, which rank the moves differently: most labels the shipped network
+rules out are such headings (``reports/2026-12-04-fleet-labels/``). ``labels="stop"`` labels each taxi with the
+network's heading for the dispatcher's stop instead (:func:`stop_labels`), and ``hover_anytime`` opens the hover at
+every step, so that the dispatcher's hover while the taxi reads a stop can be fitted too.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from dataclasses import dataclass
@@ -43,6 +49,8 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.policies import PolicyNameError, available, make_flown, parse
 from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
+from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
+from uamfleet.rl.expert_iteration import fit as exit_fit
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
 from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit
@@ -92,6 +100,9 @@ class FleetImitationArgs:
     fit_improbable: bool = False
     """also fit labels the policy gives at most e^-12 but does not mask (a stop its nearness prior weighs out; with
     --hover-anytime, the hover where a stop is open); else only labels above e^-12 are fitted"""
+    kl_anchor: float = 0.0
+    """weight of the KL divergence from the round's start network over the headings in each round's fit (the fit of
+    :func:`uamfleet.rl.expert_iteration.fit`); 0: the plain cross-entropy of :func:`uamfleet.rl.imitation.fit`"""
     beta0: float = 1.0
     """share of steps flown by the teacher in round 0 (1: the teacher's own episodes)"""
     beta_decay: float = 0.5
@@ -113,6 +124,7 @@ class FleetImitationArgs:
         check_integer("--max-samples", self.max_samples, self.minibatch)
         check_number("--learning-rate", self.learning_rate, positive=True)
         check_number("--hover-learning-rate", self.hover_learning_rate, positive=True)
+        check_number("--kl-anchor", self.kl_anchor, minimum=0.0)
         if self.labels not in ("heading", "stop"):
             raise ConfigError(f"--labels={self.labels!r} is unknown; use 'heading' or 'stop'.")
         for name in ("beta0", "beta_decay"):
@@ -309,7 +321,9 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
             break
         counts = _collect_round(args, r, policy, data, rng)
         data.trim(args.max_samples)
-        stats = fit(net, data, fit_args, optimizer, rng)
+        stats = (
+            anchored_fit(policy, data, args, rng) if args.kl_anchor > 0 else fit(net, data, fit_args, optimizer, rng)
+        )
         rows.append({"round": r, "beta": args.beta(r), **counts, "samples": len(data), **stats,
                      "wall_s": time.time() - start})  # fmt: skip
         print(", ".join(f"{k}={v:.4g}" for k, v in rows[-1].items()), flush=True)
@@ -336,6 +350,23 @@ def _collect_round(
         counts["steps"] += episode.steps
         counts["teacher_steps"] += episode.teacher_steps
     return counts
+
+
+def anchored_fit(
+    policy: GreedyPolicy, data: Dataset, args: FleetImitationArgs, rng: np.random.Generator
+) -> dict[str, float]:
+    """Fit ``policy`` to the aggregated labels with ``args.kl_anchor`` times the KL divergence from its network as
+    the round starts (:func:`uamfleet.rl.expert_iteration.fit`, one-hot targets, a fresh optimiser per round); the
+    fit's statistics under :func:`~uamfleet.rl.imitation.fit`'s names, and the mean KL."""
+    obs, labels, _ = data.arrays()
+    target = np.zeros((len(labels), policy.net.num_actions), np.float32)
+    target[np.arange(len(labels)), labels] = 1.0
+    options = ExItOptions(
+        init=args.init, epochs=args.epochs, learning_rate=args.learning_rate, minibatch=args.minibatch,
+        kl_anchor=args.kl_anchor, hover_lr_scale=args.hover_learning_rate / args.learning_rate,
+    )  # fmt: skip
+    stats = exit_fit(policy, copy.deepcopy(policy), LabelSet(obs, target, np.ones(len(labels))), options, rng)
+    return {"bc_loss": stats["fit_loss"], "bc_agreement": stats["fit_agreement"], "fit_kl": stats["fit_kl"]}
 
 
 def parameter_groups(net: torch.nn.Module, args: FleetImitationArgs) -> list[dict[str, Any]]:
@@ -389,6 +420,7 @@ __all__ = [
     "EpisodeLabels",
     "FleetImitationArgs",
     "StepWatch",
+    "anchored_fit",
     "fleet_imitate",
     "label_episode",
     "make_teacher",
