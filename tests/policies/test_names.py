@@ -112,6 +112,9 @@ RECORDED: dict[str, tuple[str, dict]] = {
     "learned:dagger_slow_r2+window24": ("learned", {"source": "runs/dagger_slow_r2/best.pt", "passenger_window": 24}),
     "learned:dagger_slow_s2_r3+window24": (
         "learned", {"source": "runs/dagger_slow_s2_r3/best.pt", "passenger_window": 24}),
+    **{f"learned:{name}+window24": ("learned", {"source": f"runs/{name}/best.pt", "passenger_window": 24})
+       for name in ("labels_r0", "labels_r1", "labels_r2", "stoplabels_r1", "stoplabels_r2", "anchored_r2",
+                    "anchored_r3")},
     "learned:hover_ft+window24": ("learned", {"source": "runs/hover_ft/best.pt", "passenger_window": 24}),
     "learned:mix_ft+window24": ("learned", {"source": "runs/mix_ft/best.pt", "passenger_window": 24}),
     "learned:switched+window24": ("learned", {"source": "runs/switched/best.pt", "passenger_window": 24}),
@@ -126,7 +129,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 76
+    assert len(recorded) == 83
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

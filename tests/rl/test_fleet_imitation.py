@@ -14,17 +14,24 @@ from uamfleet.checks import ConfigError
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
 from uamfleet.rl.fleet_imitation import (
+    MASKED_LOG_PROB,
     TEACHER,
+    anchored_fit,
     FleetImitationArgs,
     fleet_imitate,
     fleet_policy,
     label_episode,
     make_teacher,
+    parameter_groups,
+    stop_labels,
 )
+from uamfleet.rl.heads import HOVER_START, PRIOR_FLOOR
+from uamfleet.rl.hover import NEW_PARAMETERS
 from uamfleet.rl.imitation import Dataset, fit
 from uamfleet.rl.networks import obs_to_torch
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import fly
+from uamfleet.types import HOVER_ACTION, STOP_CLAIMED_BY_OTHER
 
 
 def small_scene(taxis: int = 2, requests: int = 4, seed_index: int = 0):
@@ -132,3 +139,108 @@ def test_bad_options_are_refused_naming_them() -> None:
     for name in ("replan", "learned:source=berlin_fleet", "no_such_dispatcher"):
         with pytest.raises(ConfigError, match=f"--teacher='{name}' is not a fleet dispatcher"):
             make_teacher(name, 2)
+
+
+def test_stop_labels_fly_for_the_dispatchers_stop_and_fit_the_headings_it_ruled_out() -> None:
+    # beta 1: both labellings watch the same flight; where a stop label replaces the dispatcher's heading, it must
+    # head for the dispatcher's own stop (progress by the dispatcher's path fields, an independent measure), and each
+    # ruled-out heading whose stop label the network gives more than e^-12 is one ruled-out label fewer
+    cfg = small_scene(4, 12, seed_index=3)
+    policy = fleet_policy("berlin_fleet", 24)
+    changed: list[tuple[float, float, float]] = []  # (log-prob of the heading, of its stop label, progress m)
+
+    def watch(env, obs, teacher, actions, log_probs) -> None:
+        labels = stop_labels(env, obs, teacher, actions)
+        pos = env.state.pos_m[0]
+        for a in np.flatnonzero(labels != actions):
+            ends = np.stack([pos[a], pos[a] + env.world.moves_m[labels[a]]])
+            here, after = teacher.fields.remaining_m(teacher.target(a), ends)
+            changed.append((log_probs[a, actions[a]], log_probs[a, labels[a]], here - after))
+
+    heading = label_episode(cfg, policy, make_teacher(TEACHER, 4), 1.0, np.random.default_rng(0), watch=watch)
+    stop = label_episode(cfg, policy, make_teacher(TEACHER, 4), 1.0, np.random.default_rng(0), labels="stop")
+    assert np.array_equal(heading.teacher_actions, stop.teacher_actions)
+    before, after, progress = (np.array(x) for x in zip(*changed, strict=True))
+    assert len(progress) > 20 and (progress > 0).all(), progress.min()
+    newly_fitted = int(((before <= PRIOR_FLOOR) & (after > PRIOR_FLOOR)).sum())
+    lost = int(((before > PRIOR_FLOOR) & (after <= PRIOR_FLOOR)).sum())
+    assert newly_fitted > 20
+    assert stop.ruled_out == heading.ruled_out - newly_fitted + lost
+
+
+def test_the_hover_at_an_open_stop_is_fitted_once_the_hover_is_open_at_every_step() -> None:
+    # the shipped fleet network masks the hover wherever a stop is open: such a label can never be fitted; with the
+    # hover open at every step (--hover-anytime) a fit on a tiny set of them makes it the likeliest action there
+    torch.manual_seed(0)
+    shipped = fleet_policy("berlin_fleet", 24)
+    episode = label_episode(small_scene(), shipped, make_teacher(TEACHER, 2), 1.0, np.random.default_rng(0))
+    open_stop = (
+        (episode.obs["stop_heading_mask"] > 0.5).any(-1)
+        & (episode.obs["stop_claims"][..., STOP_CLAIMED_BY_OTHER] < 0.5)
+    ).any(-1)
+    rows = {k: v[open_stop][:48] for k, v in episode.obs.items()}
+    hovers = np.full(len(rows["self"]), HOVER_ACTION)
+    assert len(hovers) >= 24
+
+    def hover_log_prob(net) -> np.ndarray:
+        with torch.no_grad():
+            return torch.log_softmax(net.masked_logits(obs_to_torch(rows, "cpu")), -1)[:, HOVER_ACTION].numpy()
+
+    assert (hover_log_prob(shipped.net) <= MASKED_LOG_PROB).all()
+    args = FleetImitationArgs(hover_anytime=True, epochs=30, minibatch=16, fit_improbable=True)
+    policy = fleet_policy("berlin_fleet", 24, hover_anytime=True)
+    assert np.allclose(hover_log_prob(policy.net), HOVER_START, atol=1e-3)  # log sigmoid(-12): at the floor
+    data = Dataset()
+    data.add(rows, hovers, np.ones(len(hovers), bool))
+    fit(
+        policy.net,
+        data,
+        args.fit_args(),
+        torch.optim.Adam(parameter_groups(policy.net, args)),
+        np.random.default_rng(0),
+    )
+    assert (hover_log_prob(policy.net) > np.log(0.5)).mean() > 0.9
+
+
+def test_a_run_with_stop_labels_and_the_hover_anytime_writes_a_checkpoint_that_loads_with_it(tmp_path: Path) -> None:
+    args = FleetImitationArgs(mixture=("2x4",), rounds=1, epochs=1, labels="stop", hover_anytime=True,
+                              fit_improbable=True, run_dir=tmp_path, run_name="hover")  # fmt: skip
+    rows = fleet_imitate(args)
+    assert rows[0]["samples"] + rows[0]["ruled_out"] == rows[0]["steps"] * 2
+    policy, _ = load_policy(tmp_path / "hover" / "round0.pt")
+    assert policy.net.cfg.hover_anytime and policy.net.cfg.hover_logit and policy.net.num_actions == HOVER_ACTION + 1
+    shipped = Checkpoint.load(pretrained_path("berlin_fleet")).model
+    assert set(policy.net.state_dict()) - set(shipped) == {NEW_PARAMETERS + "weight", NEW_PARAMETERS + "bias"}
+    with pytest.raises(ConfigError, match="--labels='stops' is unknown"):
+        FleetImitationArgs(labels="stops")  # type: ignore[arg-type]
+
+
+def test_the_kl_anchor_holds_the_network_nearer_its_start_than_the_plain_fit() -> None:
+    episode = label_episode(small_scene(), fleet_policy("berlin_fleet", 24), make_teacher(TEACHER, 2), 1.0,
+                            np.random.default_rng(0), labels="stop")  # fmt: skip
+    data = Dataset()
+    data.add(episode.obs, episode.labels, episode.corrected)
+    batch = obs_to_torch(episode.obs, "cpu")
+    start = fleet_policy("berlin_fleet", 24)
+
+    def headings(net) -> torch.Tensor:  # log-probabilities over the 16 headings, given no hover
+        with torch.no_grad():
+            return torch.log_softmax(net.masked_logits(batch)[:, :HOVER_ACTION], -1).clamp(min=-1e4)
+
+    def kl_from_start(net) -> float:
+        p = headings(start.net)
+        return float((p.exp() * (p - headings(net))).sum(-1).mean())
+
+    drift = {}
+    for anchor in (0.0, 10.0):
+        torch.manual_seed(0)
+        policy = fleet_policy("berlin_fleet", 24)
+        args = FleetImitationArgs(epochs=6, minibatch=64, learning_rate=1e-3, kl_anchor=anchor)
+        if anchor:
+            stats = anchored_fit(policy, data, args, np.random.default_rng(0))
+            assert stats.keys() == {"bc_loss", "bc_agreement", "fit_kl"}
+        else:
+            optimizer = torch.optim.Adam(parameter_groups(policy.net, args))
+            fit(policy.net, data, args.fit_args(), optimizer, np.random.default_rng(0))
+        drift[anchor] = kl_from_start(policy.net)
+    assert 0 < drift[10.0] < 0.5 * drift[0.0], drift

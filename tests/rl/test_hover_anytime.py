@@ -66,9 +66,28 @@ def test_the_option_is_off_by_default_and_refuses_what_it_cannot_be() -> None:
     assert uamfleet.pretrained("berlin").net.num_actions == NUM_HEADINGS
     with pytest.raises(ValueError, match=r"hover_anytime=True .* needs action_head='stops'"):
         NetConfig(hover_anytime=True)
-    with pytest.raises(ValueError, match=r"hover_anytime=True and hover_logit=True .* keep one"):
-        NetConfig(action_head="stops", stop_inputs=True, rival_inputs=True, claim_inputs=True, stop_hover=True,
-                  hover_logit=True, hover_anytime=True)  # fmt: skip
+
+
+def test_with_the_fleets_hover_logit_the_two_hovers_add_up_and_it_flies_as_shipped() -> None:
+    """The shipped fleet policy (``hover_logit``: action 16 open only where no stop is) converted: every action keeps
+    its probability times 1 - p and the hover gains p = sigmoid(HOVER_START), step by step on the same states."""
+    from uamfleet.instances import make_fleet_instance
+    from uamfleet.rl.fleet_imitation import fleet_policy
+
+    shipped, converted = fleet_policy("berlin_fleet", 24), fleet_policy("berlin_fleet", 24, hover_anytime=True)
+    assert shipped.net.cfg.hover_logit and converted.net.cfg.hover_logit and converted.net.cfg.hover_anytime
+    shipped_logits, converted_logits = _recording(shipped)[1], _recording(converted)[1]
+    cfg = make_fleet_instance("berlin", SEEDS[0], 4, 24, separation="shield", hover_action=True)
+    flown = shipped.fly(cfg, seed=0).stacked("actions")
+    assert np.array_equal(flown, converted.fly(cfg, seed=0).stacked("actions"))
+    old = torch.softmax(torch.cat(shipped_logits).double(), dim=-1).numpy()  # [T * 4, 17]
+    new = torch.softmax(torch.cat(converted_logits).double(), dim=-1).numpy()
+    p = 1.0 / (1.0 + np.exp(-HOVER_START))  # 6.1e-6: the new hover's probability before any training
+    np.testing.assert_allclose(new[:, :NUM_HEADINGS], old[:, :NUM_HEADINGS] * (1 - p), rtol=1e-4, atol=1e-9)
+    np.testing.assert_allclose(new[:, HOVER_ACTION], old[:, HOVER_ACTION] * (1 - p) + p, rtol=1e-4, atol=1e-9)
+    closed = old[:, HOVER_ACTION] < 1e-30  # a stop open: the shipped hover closed, the new one at p
+    assert closed.any() and (~closed).any(), "both kinds of state were flown"
+    assert (flown == HOVER_ACTION).any(), "the shipped hover (no stop open) was flown, and still is"
 
 
 def test_the_converted_policy_flies_as_shipped_and_hovers_with_probability_below_1e_5(flights) -> None:

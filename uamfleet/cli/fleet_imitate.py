@@ -7,6 +7,11 @@ network is fitted to them.
 
     uamfleet fleet-imitate --run-name fleet_dagger
     uamfleet fleet-imitate --rounds 1 --mixture 2x12 --run-name try     # a quick look
+    uamfleet fleet-imitate --labels stop --beta-decay 0.7 --run-name stop   # the dispatcher's stop, not its heading
+
+``--labels stop`` labels each taxi with the network's own heading for the stop the dispatcher flies it to;
+``--hover-anytime`` (with ``--fit-improbable``) also lets it learn the dispatcher's hover where it reads a stop;
+``--kl-anchor`` holds each round's fit near the round's start (reports/2026-12-04-fleet-labels/).
 
 Writes runs/<name>/progress.csv (one row per round), runs/<name>/round<r>.pt and last.pt (loadable with
 load_policy; any fleet size). Choose a round on validation episodes with ``uamfleet fleet-bench --split validation

@@ -14,23 +14,31 @@ One network for every taxi and every fleet size: each taxi's observation row is 
 reads it at that fleet size (its window of passenger rows, its normaliser fitted to the world), and the other-taxi
 rows are padded to the largest fleet the network reads with masked rows (a masked mean ignores them, as in
 :mod:`uamfleet.env.mixture`). The fit is :func:`uamfleet.rl.imitation.fit` (cross-entropy on the masked logits,
-data aggregated over rounds in :class:`~uamfleet.rl.imitation.Dataset`). A label the policy's stop head rules out
-(log-probability at or below :data:`~uamfleet.rl.heads.PRIOR_FLOOR`: a heading toward no stop it reads, such as a
-step aside under the shield, or a hover while it has a stop to fly to) is flown but never fitted: the network can
-learn which stop each taxi flies for and when it waits, not headings off its stops' paths.
+data aggregated over rounds in :class:`~uamfleet.rl.imitation.Dataset`). A label the policy gives a
+log-probability at or below :data:`~uamfleet.rl.heads.PRIOR_FLOOR` is flown but never fitted (with
+``fit_improbable``, only a masked one, :data:`MASKED_LOG_PROB`).
+
+The network decides which stop each taxi flies for, and flies the stop's progress heading of its observation; the
+dispatcher steers by its own path fields, which rank the moves differently: most labels the shipped network
+rules out are such headings (``reports/2026-12-04-fleet-labels/``). ``labels="stop"`` labels each taxi with the
+network's heading for the dispatcher's stop instead (:func:`stop_labels`), and ``hover_anytime`` opens the hover at
+every step, so that the dispatcher's hover while the taxi reads a stop can be fitted too.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
 import torch
 
+from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import FLEET_ARRIVAL_WINDOW_S, EnvConfig
 from uamfleet.env.mixture import OTHER_TAXI_FIELDS
@@ -41,15 +49,23 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.policies import PolicyNameError, available, make_flown, parse
 from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
-from uamfleet.rl.heads import PRIOR_FLOOR
+from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
+from uamfleet.rl.expert_iteration import fit as exit_fit
+from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
+from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
 from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit
+from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rollout import observer_of
-from uamfleet.types import HOVER_ACTION
+from uamfleet.types import HOVER_ACTION, NUM_HEADINGS, WAITING
 
 TEACHER = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
 """The chosen dispatcher (docs/results.md "Fleets"): the default teacher."""
+
+MASKED_LOG_PROB = NOT_THIS / 2
+"""A label the network gives a log-probability at or below this is masked (a heading toward no stop it reads, the
+hover while a stop is open without ``hover_anytime``): no gradient reaches it, so it can never be fitted."""
 
 MIXTURE: tuple[str, ...] = ("2x12", "2x24", "4x24", "4x48", "8x48", "8x96")
 """The fleet settings (taxis x requests) of the training episodes: 2 to 8 taxis, light and loaded, as the shipped
@@ -73,6 +89,20 @@ class FleetImitationArgs:
     rounds: int = 6
     episodes_per_setting: int = 1
     """episodes of each mixture setting per round (fresh training seeds every round)"""
+    labels: Literal["heading", "stop"] = "heading"
+    """what a taxi is labelled with: the teacher's heading, or (``stop``) the heading the network's stop head flies to
+    the stop the teacher flies for (:func:`stop_labels`: the level the network decides at)"""
+    hover_anytime: bool = False
+    """start from the policy with the hover action open at every step (:func:`uamfleet.rl.hover.with_hover_anytime`):
+    the teacher's hover where the taxi reads a stop becomes a label the network can take"""
+    hover_learning_rate: float = 0.01
+    """with --hover-anytime: learning rate of the new hover logit (its bias starts at -12, out of reach at 1e-4)"""
+    fit_improbable: bool = False
+    """also fit labels the policy gives at most e^-12 but does not mask (a stop its nearness prior weighs out; with
+    --hover-anytime, the hover where a stop is open); else only labels above e^-12 are fitted"""
+    kl_anchor: float = 0.0
+    """weight of the KL divergence from the round's start network over the headings in each round's fit (the fit of
+    :func:`uamfleet.rl.expert_iteration.fit`); 0: the plain cross-entropy of :func:`uamfleet.rl.imitation.fit`"""
     beta0: float = 1.0
     """share of steps flown by the teacher in round 0 (1: the teacher's own episodes)"""
     beta_decay: float = 0.5
@@ -93,6 +123,10 @@ class FleetImitationArgs:
             check_integer(f"--{name.replace('_', '-')}", getattr(self, name), 1)
         check_integer("--max-samples", self.max_samples, self.minibatch)
         check_number("--learning-rate", self.learning_rate, positive=True)
+        check_number("--hover-learning-rate", self.hover_learning_rate, positive=True)
+        check_number("--kl-anchor", self.kl_anchor, minimum=0.0)
+        if self.labels not in ("heading", "stop"):
+            raise ConfigError(f"--labels={self.labels!r} is unknown; use 'heading' or 'stop'.")
         for name in ("beta0", "beta_decay"):
             value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), minimum=0.0)
             if value > 1:
@@ -107,6 +141,10 @@ class FleetImitationArgs:
         """Probability that a step of round ``round_index`` flies the teacher's joint move."""
         return self.beta0 * self.beta_decay**round_index
 
+    def fit_floor(self) -> float:
+        """Labels the policy gives a log-probability at or below this are flown, never fitted."""
+        return MASKED_LOG_PROB if self.fit_improbable else PRIOR_FLOOR
+
     def fit_args(self) -> ImitationArgs:
         """The options :func:`uamfleet.rl.imitation.fit` reads (its fit group)."""
         options = FitOptions(self.epochs, self.minibatch, self.learning_rate, max_samples=self.max_samples)
@@ -118,11 +156,14 @@ def setting_size(setting: str) -> tuple[int, int]:
     return fleet_setting(setting, "--mixture")
 
 
-def fleet_policy(init: str, passenger_window: int) -> GreedyPolicy:
+def fleet_policy(init: str, passenger_window: int, hover_anytime: bool = False) -> GreedyPolicy:
     """A fresh copy of the greedy policy ``init`` (a shipped name or a file) reading ``passenger_window`` rows per
-    taxi: one network for every fleet size (fitted to each world at reset). Fresh, so that fitting it never changes
-    the process's cached shipped policy."""
+    taxi: one network for every fleet size (fitted to each world at reset); with ``hover_anytime``, converted by
+    :func:`~uamfleet.rl.hover.with_hover_anytime`. Fresh, so that fitting it never changes the process's cached
+    shipped policy."""
     policy = load_policy(checkpoint_source(init))[0]
+    if hover_anytime:
+        policy = with_hover_anytime(policy)
     return policy.reading(spec_of(policy, LearnedOptions(passenger_window=passenger_window)))
 
 
@@ -160,44 +201,85 @@ class EpisodeLabels:
     ruled_out_hovers: int  # of them, hovers (the teacher waits where the policy's stop head sees a stop)
 
 
+StepWatch = Callable[[VectorEnv, dict[str, np.ndarray], PolicyBase, np.ndarray, np.ndarray], None]
+"""Called at every step of :func:`label_episode` before the step is flown, with the env, its observation, the
+teacher, the teacher's actions [A] and the policy's log-probabilities [A, 16 or 17]: a look at the labels."""
+
+
 def label_episode(
-    cfg: EnvConfig, policy: GreedyPolicy, teacher: PolicyBase, beta: float, rng: np.random.Generator
-) -> EpisodeLabels:
+    cfg: EnvConfig, policy: GreedyPolicy, teacher: PolicyBase, beta: float, rng: np.random.Generator,
+    labels: Literal["heading", "stop"] = "heading", fit_floor: float = PRIOR_FLOOR, watch: StepWatch | None = None,
+) -> EpisodeLabels:  # fmt: skip
     """Fly one episode of ``cfg`` with ``teacher`` observing every step (module docstring): each step is the
     teacher's joint move with probability ``beta``, else the policy's greedy one; every taxi's state is labelled
-    with the teacher's action there."""
+    with the teacher's action there (``labels="stop"``: at the level the network decides at, :func:`stop_labels`).
+    Labels the policy gives a log-probability at or below ``fit_floor`` are flown, never fitted."""
     env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
     obs, _ = env.reset(seed=0)
     policy.reset(env.sim)
     teacher.reset(env.sim)
     parts: list[dict[str, np.ndarray]] = []
-    labels, corrected, teacher_actions, flown = [], [], [], []
+    taught, corrected, teacher_actions, flown = [], [], [], []
     steps = teacher_steps = 0
     while True:
-        label = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
+        action = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
         inputs = policy.network_input(obs)
         logits = policy.logits_of(inputs)  # [A, 16 or 17]
         own = policy.choose(obs, logits)  # [1, A] greedy, with the loop guard (as it flies)
-        rows = padded_rows(policy, inputs)
         log_probs = torch.log_softmax(logits, -1).numpy()
-        fitted = log_probs[np.arange(label.shape[1]), label[0]] > PRIOR_FLOOR
-        parts.append({k: v[fitted] for k, v in rows.items()})
-        labels.append(label[0][fitted])
-        corrected.append((label[0] != own[0])[fitted])
+        if watch is not None:
+            watch(env, obs, teacher, action[0], log_probs)
+        label = stop_labels(env, obs, teacher, action[0]) if labels == "stop" else action[0]
+        fitted = log_probs[np.arange(len(label)), label] > fit_floor
+        parts.append({k: v[fitted] for k, v in padded_rows(policy, inputs).items()})
+        taught.append(label[fitted])
+        corrected.append((label != own[0])[fitted])
         by_teacher = bool(rng.random() < beta)
         teacher_steps += by_teacher
-        teacher_actions.append(label[0])
-        flown.append((label if by_teacher else own)[0])
-        obs, _, terminated, truncated, _ = env.step(label if by_teacher else own)
+        teacher_actions.append(action[0])
+        flown.append((action if by_teacher else own)[0])
+        obs, _, terminated, truncated, _ = env.step(action if by_teacher else own)
         steps += 1
         if terminated[0] or truncated[0]:
             break
     stacked = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    taught, all_labels = np.concatenate(labels), np.stack(teacher_actions)
-    ruled_out = all_labels.size - len(taught)
-    hovers = int((all_labels == HOVER_ACTION).sum() - (taught == HOVER_ACTION).sum())
-    return EpisodeLabels(stacked, taught, np.concatenate(corrected), all_labels, np.stack(flown), steps, teacher_steps,
-                         ruled_out, hovers)  # fmt: skip
+    fitted_labels, all_actions = np.concatenate(taught), np.stack(teacher_actions)
+    ruled_out = all_actions.size - len(fitted_labels)
+    hovers = int((all_actions == HOVER_ACTION).sum() - (fitted_labels == HOVER_ACTION).sum())
+    return EpisodeLabels(stacked, fitted_labels, np.concatenate(corrected), all_actions, np.stack(flown), steps,
+                         teacher_steps, ruled_out, hovers)  # fmt: skip
+
+
+def stop_points(env: VectorEnv) -> tuple[np.ndarray, np.ndarray]:
+    """(rows [A, K]: the state's passenger in each slot of each taxi's window, -1 where empty; points [A, K, 2]: the
+    stop each slot's row stands for, its origin while it waits, else its destination) of env 0."""
+    s = env.state
+    rows = env.observer.window_rows(s)[0]  # [A, K]
+    p = np.maximum(rows, 0)
+    waiting = (s.pax_status[0, p] == WAITING)[..., None]  # [A, K, 1]
+    return rows, np.where(waiting, s.pax_origin_m[0, p], s.pax_dest_m[0, p])
+
+
+def stop_labels(env: VectorEnv, obs: dict[str, np.ndarray], teacher: PolicyBase, actions: np.ndarray) -> np.ndarray:
+    """[A] the teacher's ``actions`` [A] of env 0 at the level the network decides at: a taxi heading for a stop of
+    its schedule that it reads (a row of its window whose stop is there, ``stop_heading_mask`` set) is labelled with
+    the heading its stop head flies to that stop; a hover, a step aside (no stop to fly to) and a heading for a stop
+    outside its window keep the teacher's action. The two headings differ where the teacher's path fields and the
+    observation's distance table rank the moves differently (ties included): which stop the taxi flies for is the
+    teacher's either way."""
+    if not isinstance(teacher, ScheduleFleetPolicy):
+        raise ConfigError(f"stop labels read a schedule dispatcher's targets, not a {type(teacher).__name__}.")
+    rows, points = stop_points(env)
+    heading_of = obs["stop_heading_mask"][0]  # [A, K, 16] one-hot where the row is actionable
+    out = actions.copy()
+    for a in range(len(actions)):
+        target = teacher.target(a)
+        if target is None or actions[a] >= NUM_HEADINGS:
+            continue
+        serves = (rows[a] >= 0) & heading_of[a].any(-1) & np.all(np.abs(points[a] - target) < 1e-6, axis=-1)
+        if serves.any():
+            out[a] = int(np.argmax(heading_of[a, np.argmax(serves)]))
+    return out
 
 
 def training_episodes(args: FleetImitationArgs, round_index: int) -> list[EnvConfig]:
@@ -228,9 +310,9 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
     rng = np.random.default_rng(args.seed)
     start = time.time()
     initial = Checkpoint.load(checkpoint_source(args.init))  # what every saved round keeps but its weights
-    policy = fleet_policy(args.init, args.passenger_window)  # one set of weights, flown by every fleet size
+    policy = fleet_policy(args.init, args.passenger_window, args.hover_anytime)  # one set of weights, any fleet size
     net = policy.net
-    optimizer = torch.optim.Adam(net.parameters(), lr=args.learning_rate)
+    optimizer = torch.optim.Adam(parameter_groups(net, args))
     fit_args = args.fit_args()
     claim.clear()
     data, rows = Dataset(), []
@@ -239,7 +321,9 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
             break
         counts = _collect_round(args, r, policy, data, rng)
         data.trim(args.max_samples)
-        stats = fit(net, data, fit_args, optimizer, rng)
+        stats = (
+            anchored_fit(policy, data, args, rng) if args.kl_anchor > 0 else fit(net, data, fit_args, optimizer, rng)
+        )
         rows.append({"round": r, "beta": args.beta(r), **counts, "samples": len(data), **stats,
                      "wall_s": time.time() - start})  # fmt: skip
         print(", ".join(f"{k}={v:.4g}" for k, v in rows[-1].items()), flush=True)
@@ -257,7 +341,7 @@ def _collect_round(
               "teacher_steps": 0}  # fmt: skip
     for cfg in training_episodes(args, r):
         teacher = make_teacher(args.teacher, cfg.num_taxis)
-        episode = label_episode(cfg, policy, teacher, args.beta(r), rng)
+        episode = label_episode(cfg, policy, teacher, args.beta(r), rng, args.labels, args.fit_floor())
         data.add(episode.obs, episode.labels, episode.corrected)
         counts["new_samples"] += len(episode.labels)
         counts["corrections"] += int(episode.corrected.sum())
@@ -266,6 +350,35 @@ def _collect_round(
         counts["steps"] += episode.steps
         counts["teacher_steps"] += episode.teacher_steps
     return counts
+
+
+def anchored_fit(
+    policy: GreedyPolicy, data: Dataset, args: FleetImitationArgs, rng: np.random.Generator
+) -> dict[str, float]:
+    """Fit ``policy`` to the aggregated labels with ``args.kl_anchor`` times the KL divergence from its network as
+    the round starts (:func:`uamfleet.rl.expert_iteration.fit`, one-hot targets, a fresh optimiser per round); the
+    fit's statistics under :func:`~uamfleet.rl.imitation.fit`'s names, and the mean KL."""
+    obs, labels, _ = data.arrays()
+    target = np.zeros((len(labels), policy.net.num_actions), np.float32)
+    target[np.arange(len(labels)), labels] = 1.0
+    options = ExItOptions(
+        init=args.init, epochs=args.epochs, learning_rate=args.learning_rate, minibatch=args.minibatch,
+        kl_anchor=args.kl_anchor, hover_lr_scale=args.hover_learning_rate / args.learning_rate,
+    )  # fmt: skip
+    stats = exit_fit(policy, copy.deepcopy(policy), LabelSet(obs, target, np.ones(len(labels))), options, rng)
+    return {"bc_loss": stats["fit_loss"], "bc_agreement": stats["fit_agreement"], "fit_kl": stats["fit_kl"]}
+
+
+def parameter_groups(net: torch.nn.Module, args: FleetImitationArgs) -> list[dict[str, Any]]:
+    """The optimiser's parameter groups: every parameter at ``learning_rate``, the hover logit that
+    ``--hover-anytime`` adds at ``hover_learning_rate``."""
+    named = list(net.named_parameters())
+    hover = [p for name, p in named if name.startswith(NEW_PARAMETERS)]
+    rest = [p for name, p in named if not name.startswith(NEW_PARAMETERS)]
+    groups: list[dict[str, Any]] = [{"params": rest, "lr": args.learning_rate}]
+    if hover:
+        groups.append({"params": hover, "lr": args.hover_learning_rate})
+    return groups
 
 
 def make_teacher(name: str, taxis: int) -> PolicyBase:
@@ -282,7 +395,7 @@ def make_teacher(name: str, taxis: int) -> PolicyBase:
 
 
 def save_fleet_checkpoint(
-    path: Path, ckpt: Checkpoint, net: torch.nn.Module, args: FleetImitationArgs, row: dict[str, Any]
+    path: Path, ckpt: Checkpoint, net: MSHAActorCritic, args: FleetImitationArgs, row: dict[str, Any]
 ) -> None:
     """The start's checkpoint ``ckpt`` with the fitted weights (the same network, normaliser and spec: it loads and
     flies like the start, any fleet size), its DAgger options and this round's row recorded, without optimiser
@@ -292,6 +405,7 @@ def save_fleet_checkpoint(
     out = dataclasses.replace(
         ckpt,
         model={k: v.detach().clone() for k, v in net.state_dict().items()},
+        net_config={**ckpt.net_config, "hover_anytime": True} if net.cfg.hover_anytime else ckpt.net_config,
         args={**ckpt.args, "fleet_imitation": options},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
@@ -300,14 +414,20 @@ def save_fleet_checkpoint(
 
 
 __all__ = [
+    "MASKED_LOG_PROB",
     "MIXTURE",
     "TEACHER",
     "EpisodeLabels",
     "FleetImitationArgs",
+    "StepWatch",
+    "anchored_fit",
     "fleet_imitate",
     "label_episode",
     "make_teacher",
     "padded_rows",
+    "parameter_groups",
     "save_fleet_checkpoint",
+    "stop_labels",
+    "stop_points",
     "training_episodes",
 ]

@@ -84,8 +84,9 @@ class StopHead(nn.Module):
     ``hover_anytime=True`` (``NetConfig.hover_anytime``, for an env with the hover action) opens action 16 at every
     step, stops open or not: :meth:`with_anytime_hover` turns the masked heading logits into 17 log-probabilities,
     the headings' old probabilities times 1 - p and action 16's p = sigmoid(b + w . features), with ``b`` learned
-    from :data:`HOVER_START` and ``w`` from zero. The search's "wait here" is then a decision the policy can imitate
-    wherever it is taken.
+    from :data:`HOVER_START` and ``w`` from zero (with ``hover_logit``, p is added to the hover component's
+    probability). The search's "wait here", or a dispatcher's, is then a decision the policy can imitate wherever it
+    is taken.
 
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
@@ -162,13 +163,18 @@ class StopHead(nn.Module):
         return self._corrected(logp, weights, hidden, features, lookahead)
 
     def with_anytime_hover(self, logits: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        """``hover_anytime``: masked heading logits [B, 16] and the torso's features [B, F] → log pi [B, 17]: the
-        headings' log-probabilities plus log(1 - p), and log p in column 16 (the hover action), p = sigmoid(b + w .
-        features). The headings keep their order, so the greedy heading stays the greedy action while p < (1 - p)
-        max_h pi_old(h), and a masked heading stays at the masked value (probability 0)."""
+        """``hover_anytime``: masked logits [B, 16] (or [B, 17] with ``hover_logit``) and the torso's features [B, F]
+        → log pi [B, 17]: each old action's log-probability plus log(1 - p), and in column 16 (the hover action) p
+        added, p = sigmoid(b + w . features): with ``hover_logit`` pi(16) = (1 - p) pi_old(16) + p, the hover
+        component's where no stop is open plus this one's at every step. The old actions keep their order, so the
+        greedy action stays the same while p is small, and a masked heading stays at the masked value
+        (probability 0)."""
         z = self.anytime_hover(features)  # [B, 1] the hover's log-odds
-        headings = torch.log_softmax(logits, dim=-1) + F.logsigmoid(-z)  # [B, 16] log(pi_old(h) (1 - p))
-        return torch.cat([headings, F.logsigmoid(z)], dim=-1)  # [B, 17]
+        kept = torch.log_softmax(logits, dim=-1) + F.logsigmoid(-z)  # [B, 16 (+ 1)] log(pi_old (1 - p))
+        if logits.shape[-1] == NUM_HEADINGS:
+            return torch.cat([kept, F.logsigmoid(z)], dim=-1)  # [B, 17]
+        hover = torch.logaddexp(kept[:, NUM_HEADINGS:], F.logsigmoid(z))  # [B, 1] log((1 - p) pi_old(16) + p)
+        return torch.cat([kept[:, :NUM_HEADINGS], hover], dim=-1)  # [B, 17]
 
     def _stop_scores(
         self, features: torch.Tensor, tokens: torch.Tensor, actionable: torch.Tensor,

@@ -33,13 +33,14 @@ def with_hover_anytime(policy: GreedyPolicy) -> GreedyPolicy:
     HOVER_START`, so each heading keeps its probability times 1 - 6.1e-6 and the greedy actions stay the same. Its
     spec says ``hover=True``: it flies worlds made with ``hover_action=True`` and refuses others (one line at
     ``reset``). ``trained_on`` stays the config its weights were evaluated on. A policy that already takes the
-    hover at every step is returned as it is; ValueError for one without a stop head or with ``hover_logit`` (action
-    16 open where no stop is), ConfigError for one without an observer spec (load it with ``load_policy``)."""
+    hover at every step is returned as it is; one with ``hover_logit`` (action 16 open where no stop is, the shipped
+    fleet policy) keeps that hover and adds this one's probability to it. ValueError for one without a stop head,
+    ConfigError for one without an observer spec (load it with ``load_policy``)."""
     if policy.spec is None:
         raise ConfigError("this policy has no observer spec to give the hover action: load it with load_policy.")
     if policy.net.cfg.hover_anytime:
         return policy
-    cfg = dataclasses.replace(policy.net.cfg, hover_anytime=True)  # ValueError naming the conflict, if any
+    cfg = dataclasses.replace(policy.net.cfg, hover_anytime=True)  # ValueError without a stop head
     net = policy.net
     space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
     with torch.random.fork_rng(devices=[]):  # the initial weights drawn here are all replaced: leave the caller's RNG

@@ -107,7 +107,8 @@ class NetConfig:
     # (not learned) that makes the untrained head fly the least look-ahead heading (:data:`LOOKAHEAD_RULE`); 0: none
     lookahead_rule: float = 0.0
     # "stops", for an env with the hover action: action 16's logit open at every step, stops open or not (a learned
-    # bias from HOVER_START plus a zero-initialised linear map of the features); 17 logits (StopHead.with_anytime_hover)
+    # bias from HOVER_START plus a zero-initialised linear map of the features; 17 logits, StopHead.with_anytime_hover);
+    # with hover_logit the two hovers add up: hover_logit's where no stop is open, this one's at every step
     hover_anytime: bool = False
 
     def __post_init__(self) -> None:
@@ -172,11 +173,6 @@ class NetConfig:
         if self.hover_anytime and self.action_head != "stops":
             raise ValueError(
                 "hover_anytime=True mixes the hover action into the stop head's output: it needs action_head='stops'."
-            )
-        if self.hover_anytime and self.hover_logit:
-            raise ValueError(
-                "hover_anytime=True and hover_logit=True both make the logit of action 16: keep one (hover_anytime "
-                "opens it at every step, hover_logit only where no stop is open)."
             )
         if self.lookahead_inputs and self.action_head != "stops":
             raise ValueError(
