@@ -101,9 +101,11 @@ class ExItOptions:
     ppo_envs: int = 10
     """PPO's envs, spread over the start's thresholds; an iteration is ``ppo_envs`` x ``ppo_steps`` agent-steps"""
     ppo_steps: int = 128
-    ppo_hover_reward: float = 0.0
-    """reward of a hover step in PPO's worlds (``RewardConfig.hover``): 0 prices a hover like a move (one step's
-    time), +2 refunds it, so the return counts the moves flown, the distance the loop validates"""
+    ppo_hover_reward: float = 1.0
+    """reward of a hover step in PPO's worlds (``RewardConfig.hover``, on top of every step's -2): 0 prices a hover
+    like a move, +2 makes it free (the distance the loop validates, but then hovering to the time limit is the best
+    return, since an instance's reward pays no delivery); +1, half a move, keeps waiting cheaper than flying and a
+    600-step hover dearer than a tour"""
     patience: int = 2
     seed: int = 0
     threads: int = 1
