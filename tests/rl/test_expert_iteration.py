@@ -5,13 +5,23 @@ from __future__ import annotations
 
 import copy
 import csv
+import math
 
 import numpy as np
 import pytest
 import torch
 
 from uamfleet.config import ConfigError
-from uamfleet.rl.expert_iteration import ExItOptions, LabelSet, expert_iteration, fit, instance_world, start_policy
+from uamfleet.rl.expert_iteration import (
+    ExItOptions,
+    LabelSet,
+    expert_iteration,
+    fine_tune,
+    fit,
+    instance_world,
+    label_set,
+    start_policy,
+)
 from uamfleet.rl.policy import load_policy
 from uamfleet.types import HOVER_ACTION
 
@@ -116,3 +126,92 @@ def test_a_rejected_round_keeps_the_start_and_progress_records_the_cost(tmp_path
     for a, b in zip(start.net.state_dict().values(), best.net.state_dict().values(), strict=True):
         assert torch.equal(a, b)
     assert not (tmp_path / "tiny" / "round0.pt").exists()
+
+
+def test_bad_ppo_options_name_the_fix() -> None:
+    with pytest.raises(ConfigError, match="ppo_after=-1"):
+        ExItOptions(ppo_after=-1)
+    with pytest.raises(ConfigError, match=r"ppo_after=100 is less than one PPO iteration .* = 1280 .*--ppo-after 0"):
+        ExItOptions(ppo_after=100)
+    with pytest.raises(ConfigError, match="'berlin_burst' has no training scenario 'berlin_burst_instances'"):
+        ExItOptions(ppo_after=1280, family="berlin_burst")
+    with pytest.raises(ConfigError, match="ppo_kl"):
+        ExItOptions(ppo_kl=-0.1)
+    with pytest.raises(ConfigError, match="ppo_learning_rate"):
+        ExItOptions(ppo_learning_rate=0.0)
+    ExItOptions(family="berlin_burst")  # without PPO any family labels and validates as before
+
+
+ADAM_STEP_BOUND = 0.1 / math.sqrt(0.001)
+"""Kingma & Ba 2015, §2.1: one Adam step moves a parameter by at most lr (1 − β1) / √(1 − β2) when 1 − β1 > √(1 − β2)
+(β = 0.9, 0.999, the learner's): 3.16 lr."""
+
+
+def _kl(policy, reference, rows: dict[str, np.ndarray]) -> float:
+    """Mean KL(π_policy ‖ π_reference) over ``rows``, all 17 actions."""
+    p, q = _logp(policy, rows), _logp(reference, rows)
+    return float((p.exp() * (p - q)).sum(-1).mean())
+
+
+@pytest.mark.slow
+def test_ppo_after_the_fit_moves_the_network_within_the_bounds(start, tmp_path) -> None:
+    """One PPO iteration (5 envs x 64 steps, 4 epochs x 8 minibatches = 32 Adam steps) on the fitted network: its
+    weights change, no parameter by more than 32 Adam steps can move one (ADAM_STEP_BOUND x lr each, the first
+    iteration's rate), the fitted network's own file is written, and on the start's states the KL toward the fitted
+    network is positive and smaller with a strong KL term (weight 10) than without one (same seed, same rollout)."""
+    source, fitted = start
+    rows = _states(fitted, count=40)
+    moved = {}
+    for kl in (0.0, 10.0):
+        opts = ExItOptions(ppo_after=320, ppo_envs=5, ppo_steps=64, ppo_kl=kl, ppo_learning_rate=1e-3)
+        moved[kl] = copy.deepcopy(fitted)
+        figures = fine_tune(moved[kl], source, opts, tmp_path / f"kl{kl:g}", 0)
+        assert figures["ppo_agent_steps"] == 320 and figures["ppo_cpu_s"] > 0
+        assert (tmp_path / f"kl{kl:g}" / "fit0.pt").is_file()
+        pairs = zip(moved[kl].net.parameters(), fitted.net.parameters(), strict=True)
+        change = max(float((a - b).detach().abs().max()) for a, b in pairs)
+        assert 0 < change <= 32 * ADAM_STEP_BOUND * 1e-3 * (1 + 1e-6)
+    free, held = _kl(moved[0.0], fitted, rows), _kl(moved[10.0], fitted, rows)
+    assert 0 < held < free
+
+
+@pytest.mark.slow
+def test_the_loop_validates_the_fit_without_ppo_and_the_fine_tuned_fit_with_it(tmp_path, monkeypatch) -> None:
+    """A tiny seeded round: with ppo_after=0 the network validated is, bit for bit, the fit of the start to the
+    round's labels reproduced here from its saved labels (today's loop), and PPO never runs; with ppo_after=320 the
+    validated network is that fit after PPO (other weights), written first as ppo/fit0.pt."""
+    import uamfleet.rl.expert_iteration as exit_module
+    from uamfleet.instances import split_seeds
+    from uamfleet.rl.labels import load_labels
+    from uamfleet.rl.policy import GreedyPolicy
+
+    validated: list[dict[str, torch.Tensor]] = []
+    flights = exit_module.validation_flights
+
+    def recording(policy, *args, **kwargs):
+        if isinstance(policy, GreedyPolicy):
+            validated.append({k: v.clone() for k, v in policy.net.state_dict().items()})
+        return flights(policy, *args, **kwargs)
+
+    monkeypatch.setattr(exit_module, "validation_flights", recording)
+    tiny = dict(rounds=1, label_instances=2, label_futures=2, val_instances=2, workers=1, epochs=1, run_dir=tmp_path)
+    real_fine_tune = exit_module.fine_tune
+    monkeypatch.setattr(exit_module, "fine_tune", lambda *a: pytest.fail("PPO ran with ppo_after=0"))
+    opts = ExItOptions(**tiny, run_name="fit_only")
+    expert_iteration(opts)
+    _, policy = start_policy(opts)
+    seeds = [int(s) for s in split_seeds("train", 2, 0)]  # round 0's block, as the loop draws it
+    labels = load_labels(tmp_path / "fit_only" / "labels" / "0", seeds)
+    refit = copy.deepcopy(policy)
+    fit(refit, policy, label_set(policy, labels, opts), opts, np.random.default_rng(opts.seed))
+    assert len(validated) == 2  # the start, then the round's candidate
+    for name, value in refit.net.state_dict().items():
+        assert torch.equal(validated[1][name], value), name
+    monkeypatch.setattr(exit_module, "fine_tune", real_fine_tune)
+    expert_iteration(ExItOptions(**tiny, run_name="with_ppo", ppo_after=320, ppo_envs=5, ppo_steps=64))
+    assert (tmp_path / "with_ppo" / "ppo" / "fit0.pt").is_file()
+    assert len(validated) == 4
+    assert any(not torch.equal(validated[3][k], v) for k, v in refit.net.state_dict().items())
+    with (tmp_path / "with_ppo" / "progress.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert float(rows[1]["ppo_agent_steps"]) == 320 and float(rows[1]["ppo_cpu_s"]) > 0

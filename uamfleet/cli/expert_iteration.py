@@ -3,11 +3,14 @@
     uamfleet expert-iteration --run-name exit_berlin                       # 4 rounds from the shipped berlin
     uamfleet expert-iteration --rounds 1 --label-instances 4 --val-instances 4 --run-name try   # a quick look
     uamfleet expert-iteration --map munich --run-name exit_munich          # another map's instances (or a file's)
+    uamfleet expert-iteration --ppo-after 25600 --run-name exit_ppo        # PPO on each round's fit before validating
 
 Each round labels fresh training instances with the hedge over the current network (worker processes), fits the
-network to the labels held near the round's start, and keeps the fit only if it flies shorter on the validation
+network to the labels held near the round's start (with ``--ppo-after N``, then N agent-steps of PPO on the family's
+random episodes with a KL term toward the fit), and keeps the result only if it flies shorter on the validation
 block (paired per instance). Writes runs/<name>/progress.csv (per round: labelling cost, fit, validation TD paired
-against the round's start and against replan), start.pt, round<k>.pt, best.pt and labels/<round>/*.npz.
+against the round's start and against replan), start.pt, round<k>.pt, best.pt, labels/<round>/*.npz and, with
+PPO, ppo/fit<k>.pt (each round's fit before PPO).
 """
 
 from __future__ import annotations

@@ -37,12 +37,20 @@ from uamfleet.config import ConfigError, EnvConfig, check_integer, check_number
 from uamfleet.instances import FAMILIES, make_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.metrics import episode_metrics
+from uamfleet.presets import SCENARIOS, make_config
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, pretrained_path
+from uamfleet.rl.collector import make_run
+from uamfleet.rl.distributed import Ranks
 from uamfleet.rl.hover import NEW_PARAMETERS, hover_checkpoint, with_hover_anytime
 from uamfleet.rl.labels import LabelOptions, Labels, label_instances, load_labels
+from uamfleet.rl.learner import make_learner, with_init_architecture
 from uamfleet.rl.networks import obs_to_torch
+from uamfleet.rl.options import TrainArgs
 from uamfleet.rl.policy import GreedyPolicy, load_policy
+from uamfleet.rl.ppo import PPOLossInfo
 from uamfleet.rl.runs import claim_run
+from uamfleet.rl.trainer import ppo_iteration
+from uamfleet.rl.trainer import start as trainer_start
 from uamfleet.rollout import fly
 from uamfleet.types import NUM_HEADINGS
 
@@ -83,6 +91,21 @@ class ExItOptions:
     hover_lr_scale: float = 30.0
     """the hover logit's parameters learn this many times faster than the rest"""
     max_samples: int = 200_000
+    ppo_after: int = 0
+    """agent-steps of PPO after each round's fit, on the family's random training episodes in hover worlds, with a
+    KL term toward the fitted network (0: none, the fit alone is validated)"""
+    ppo_kl: float = 0.01
+    """weight of that KL term (``TrainArgs.net.kl_to_init``; the main job's recipe's 0.01)"""
+    ppo_learning_rate: float = 3e-4
+    """PPO's learning rate, annealed to 0 over ``ppo_after`` (the main job's fine-tuning recipe's)"""
+    ppo_envs: int = 10
+    """PPO's envs, spread over the start's thresholds; an iteration is ``ppo_envs`` x ``ppo_steps`` agent-steps"""
+    ppo_steps: int = 128
+    ppo_hover_reward: float = 1.0
+    """reward of a hover step in PPO's worlds (``RewardConfig.hover``, on top of every step's -2): 0 prices a hover
+    like a move, +2 makes it free (the distance the loop validates, but then hovering to the time limit is the best
+    return, since an instance's reward pays no delivery); +1, half a move, keeps waiting cheaper than flying and a
+    600-step hover dearer than a tour"""
     patience: int = 2
     seed: int = 0
     threads: int = 1
@@ -104,6 +127,29 @@ class ExItOptions:
         check_number("learning_rate", self.learning_rate, positive=True)
         check_number("kl_anchor", self.kl_anchor, minimum=0.0)
         check_number("hover_lr_scale", self.hover_lr_scale, positive=True)
+        self._check_ppo()
+
+    def _check_ppo(self) -> None:
+        """``--ppo-after`` 0, or at least one PPO iteration on a family with a training scenario."""
+        for name, low in (("ppo_after", 0), ("ppo_envs", 1), ("ppo_steps", 1)):
+            check_integer(name, getattr(self, name), low)
+        check_number("ppo_kl", self.ppo_kl, minimum=0.0)
+        check_number("ppo_learning_rate", self.ppo_learning_rate, positive=True)
+        check_number("ppo_hover_reward", self.ppo_hover_reward)
+        if not self.ppo_after:
+            return
+        batch = self.ppo_envs * self.ppo_steps
+        if self.ppo_after < batch:
+            raise ConfigError(
+                f"ppo_after={self.ppo_after} is less than one PPO iteration of ppo_envs x ppo_steps = {batch} "
+                f"agent-steps; give --ppo-after 0 (no PPO) or at least {batch}, or fewer --ppo-envs / --ppo-steps."
+            )
+        if ppo_scenario(self.family) not in SCENARIOS:
+            raise ConfigError(
+                f"ppo_after={self.ppo_after}: the family {self.family!r} has no training scenario "
+                f"{ppo_scenario(self.family)!r} to fine-tune on; give --ppo-after 0, or a family whose *_instances "
+                "scenario exists (e.g. berlin)."
+            )
 
     def label_options(self) -> LabelOptions:
         return LabelOptions(
@@ -194,14 +240,72 @@ def fit(
     return {"fit_loss": float(np.mean(losses)), "fit_agreement": agreement, "fit_kl": float(np.mean(kls))}
 
 
+def fine_tune(policy: GreedyPolicy, source: Checkpoint, opts: ExItOptions, folder: Path, r: int) -> dict[str, float]:
+    """``opts.ppo_after`` agent-steps of the trainer's PPO on ``policy``'s network, in place, with the KL term toward
+    ``policy`` as it came from the fit (the trainer's ``--kl-to-init``, from ``folder/fit<r>.pt``). The envs draw the
+    family's random training episodes (:func:`ppo_world`) at the start's thresholds; the observation statistics stay
+    frozen, since the aggregated labels were normalised with them. Returns PPO's cost and last iteration's figures."""
+    fitted = folder / f"fit{r}.pt"
+    save_policy(fitted, source, policy, opts, {})
+    args = ppo_args(source, fitted, opts, r)
+    cpu, wall = time.process_time(), time.time()
+    run = make_run(args, ppo_world(opts), Ranks(), torch.device("cpu"))
+    try:
+        learner = make_learner(run)
+        trainer_start(run, learner, None)
+        run.obs_stats_frozen = True
+        sums, infos = np.zeros(4), list[PPOLossInfo]()
+        for iteration in range(run.num_iterations):
+            _, rollout, _, _, infos = ppo_iteration(run, learner, iteration)
+            episodes = rollout.episodes
+            sums += (episodes.count, episodes.episode_return, episodes.distance_m, episodes.service_rate)
+    finally:
+        run.venv.close()
+    policy.net.load_state_dict(learner.net.state_dict())
+    policy.net.eval()
+    return {
+        "ppo_agent_steps": float(run.num_iterations * run.batch_size), "ppo_cpu_s": time.process_time() - cpu,
+        "ppo_wall_s": time.time() - wall, "ppo_episodes": float(sums[0]),
+        "ppo_return": float(sums[1] / max(sums[0], 1)), "ppo_distance_m": float(sums[2] / max(sums[0], 1)),
+        "ppo_service_rate": float(sums[3] / max(sums[0], 1)),
+        "ppo_kl_to_fit": float(np.mean([i.kl_to_init for i in infos])),
+        "ppo_approx_kl": float(np.mean([i.approx_kl for i in infos])),
+    }  # fmt: skip
+
+
+def ppo_scenario(family: str) -> str:
+    """The training scenario of ``family``'s PPO: its random episodes (``berlin`` -> ``berlin_instances``)."""
+    return f"{family}_instances"
+
+
+def ppo_world(opts: ExItOptions) -> EnvConfig:
+    """The world PPO trains in: the family's training scenario with the hover action, a hover step rewarded
+    ``opts.ppo_hover_reward`` (on top of every step's time cost)."""
+    cfg = make_config(ppo_scenario(opts.family), hover_action=True)
+    return cfg.replace(reward=dataclasses.replace(cfg.reward, hover=opts.ppo_hover_reward))
+
+
+def ppo_args(source: Checkpoint, fitted: Path, opts: ExItOptions, r: int) -> TrainArgs:
+    """The trainer's options for round ``r``'s PPO: the start's own (discount, clipping, epochs, minibatches, reward
+    normalisation), from ``fitted`` with the KL term toward it, at the family's thresholds, on ``opts``' budget."""
+    saved = TrainArgs.from_saved(source.args)
+    return with_init_architecture(saved.with_options(
+        scenario=ppo_scenario(opts.family), map=None, sinr_min_db=None, thresholds=FAMILIES[opts.family].thresholds_db,
+        init_from=str(fitted), kl_to_init=opts.ppo_kl, total_timesteps=opts.ppo_after,
+        learning_rate=opts.ppo_learning_rate, anneal_lr=True, num_envs=opts.ppo_envs, num_steps=opts.ppo_steps,
+        seed=opts.seed + r, threads=opts.threads, device="cpu", env_workers=0, vector_backend="auto",
+        run_dir=fitted.parent, run_name=f"ppo{r}", resume=False, overwrite=False, tensorboard=False, progress=False,
+    ))  # fmt: skip
+
+
 def validation_flights(policy: GreedyPolicy | Any, family: str, seeds: list[int], hover: bool) -> np.ndarray:
-    """[n, 2]: (passengers delivered %, distance flown m) of ``policy`` on each instance of ``seeds``, one
-    recorded episode each in the instance's world (with the hover action when ``hover``)."""
-    out = np.zeros((len(seeds), 2))
+    """[n, 3]: (passengers delivered %, distance flown m, average wait s) of ``policy`` on each instance of
+    ``seeds``, one recorded episode each in the instance's world (with the hover action when ``hover``)."""
+    out = np.zeros((len(seeds), 3))
     for i, seed in enumerate(seeds):
         cfg = instance_world(family, seed, hover)
         m = episode_metrics(fly(cfg, policy), cfg.radio, threshold_db=cfg.sinr_min_db)
-        out[i] = (m.pr_pct, m.td_m)
+        out[i] = (m.pr_pct, m.td_m, m.awt_s)
     return out
 
 
@@ -252,6 +356,8 @@ def _iterate(opts: ExItOptions, folder: Path) -> dict[str, float]:
         data = new.tail(opts.max_samples) if data is None else data.extended(new, opts.max_samples)
         candidate = copy.deepcopy(policy)
         stats = fit(candidate, policy, data, opts, rng)
+        if opts.ppo_after:
+            stats |= fine_tune(candidate, source, opts, folder / "ppo", r)
         flights = validation_flights(candidate, opts.family, val_seeds, opts.hover)
         delta, _ = paired(flights[:, 1], current[:, 1])
         accepted = delta < 0 and flights[:, 0].mean() >= current[:, 0].mean()
@@ -274,14 +380,15 @@ def _iterate(opts: ExItOptions, folder: Path) -> dict[str, float]:
 def _row(
     r: int, flights: np.ndarray, start: np.ndarray, reference: np.ndarray, started: float, accepted: bool
 ) -> dict[str, float]:
-    """A progress row: validation PR and TD, TD paired against the round's start and against ``replan``."""
+    """A progress row: validation PR, TD and AWT, TD paired against the round's start and against ``replan``."""
     vs_start, vs_start_ci = paired(flights[:, 1], start[:, 1])
     vs_replan, vs_replan_ci = paired(flights[:, 1], reference[:, 1])
     return {
         "round": float(r), "wall_s": time.time() - started, "val_pr_pct": float(flights[:, 0].mean()),
         "val_td_m": float(flights[:, 1].mean()), "vs_start_m": vs_start, "vs_start_ci_m": vs_start_ci,
         "vs_replan_m": vs_replan, "vs_replan_ci_m": vs_replan_ci, "replan_td_m": float(reference[:, 1].mean()),
-        "accepted": float(accepted),
+        "accepted": float(accepted), "val_awt_s": float(np.nanmean(flights[:, 2])),
+        "replan_awt_s": float(np.nanmean(reference[:, 2])),
     }  # fmt: skip
 
 

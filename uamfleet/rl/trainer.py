@@ -306,10 +306,7 @@ def _train(
     snapshot = capture(run, learner, counters) if ranks.is_main else None
     try:
         for iteration in range(counters.iteration, run.num_iterations):
-            shaping_weight = set_schedules(run, learner, iteration, clock_start)
-            rollout = collect_rollout(run, learner.net, learner.normalizer, learner.scaler)
-            advantages, returns = compute_advantages(run, learner)
-            infos = ppo_update(run, learner, advantages, returns)
+            shaping_weight, rollout, advantages, returns, infos = ppo_iteration(run, learner, iteration, clock_start)
             counters.global_step += run.batch_size
             if on_iteration is not None:
                 on_iteration(iteration, learner.net)
@@ -329,6 +326,19 @@ def _train(
             log.close()
     ranks.barrier()
     return _result(run, counters, rows, interrupted=False)
+
+
+def ppo_iteration(
+    run: Run, learner: Learner, iteration: int, clock_start: int | None = None
+) -> tuple[float, RolloutStats, np.ndarray, np.ndarray, list[PPOLossInfo]]:
+    """One iteration of PPO on every rank: the iteration's schedules, a rollout of the run's envs, GAE and the
+    clipped update (with the KL term toward ``learner.reference`` when it has one). Returns the shaping weight,
+    the rollout's statistics, the advantages and returns [T, N] and the minibatches' loss figures."""
+    shaping_weight = set_schedules(run, learner, iteration, clock_start)
+    rollout = collect_rollout(run, learner.net, learner.normalizer, learner.scaler)
+    advantages, returns = compute_advantages(run, learner)
+    infos = ppo_update(run, learner, advantages, returns)
+    return shaping_weight, rollout, advantages, returns, infos
 
 
 def first_delivery(run: Run, rows: list[dict[str, float]]) -> int | None:
@@ -434,6 +444,6 @@ def set_numpy_rng_state(state: dict[str, Any]) -> None:
 __all__ = [
     "ARCHITECTURE_FIELDS", "CHECKPOINT_FORMAT", "ENVIRONMENT_FIELDS", "RUN_FILES", "RUN_NAME", "Checkpoint",
     "CheckpointError", "GreedyPolicy", "Logger", "TrainArgs", "TrainResult", "checkpoint_args", "collect_rollout",
-    "compute_advantages", "evaluate", "load_policy", "make_env_config", "ppo_update", "read_progress", "run_folder",
-    "train", "upgrade_checkpoint",
+    "compute_advantages", "evaluate", "load_policy", "make_env_config", "ppo_iteration", "ppo_update",
+    "read_progress", "run_folder", "train", "upgrade_checkpoint",
 ]  # fmt: skip
