@@ -233,3 +233,30 @@ def test_every_packaged_city_flies_through_rollout_fleet_bench_and_render(name: 
     assert written["html"].is_file()
     printed = capsys.readouterr().out
     assert printed.count("Map: ") == 3 and f"on {name}:" in printed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", RAY_TRACED_CITIES)
+def test_every_packaged_city_trains_imitates_and_runs_the_quickstart(name: str, tmp_path: Path, capsys) -> None:
+    """The learning commands on each packaged ray-traced city by name, at tiny budgets (the tests above check what
+    they do with a map; here each city's own instances, thresholds and rasters go through them)."""
+    from uamfleet.cli import imitate, quickstart, train
+
+    threshold = map_family(name).thresholds_db[-1]
+    argv = ["--scenario", "berlin_instances", "--map", name, "--total-timesteps", "64", "--num-envs", "4",
+            "--num-steps", "16", "--eval-every", "1", "--curve-instances", "2", "--run-dir", str(tmp_path / "train"),
+            "--threads", "1"]  # fmt: skip
+    assert train.cli(argv) == 0
+    [run] = list((tmp_path / "train").iterdir())
+    [row] = _rows(run / "progress.csv")
+    assert float(row["val_td_m"]) > 0
+    argv = ["--map", name, "--envs-per-threshold", "1", "--rounds", "1", "--steps-per-round", "6",
+            "--eval-instances", "2", "--epochs", "1", "--minibatch", "16", "--run-dir", str(tmp_path / "imitate"),
+            "--run-name", "tiny"]  # fmt: skip
+    assert imitate.cli(argv) == 0
+    assert len(_rows(tmp_path / "imitate" / "tiny" / "progress.csv")) == 2
+    argv = ["--map", name, "--total-timesteps", "2048", "--test-count", "2", "--run-dir", str(tmp_path / "quick")]
+    assert quickstart.cli(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count(f"Map: packaged map '{name}'") == 3
+    assert f"on berlin_instances on {name} at {threshold:g} dB" in out
