@@ -9,24 +9,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from uamfleet.radio.channel_3gpp import expected_sinr_map_3gpp
-from uamfleet.radio.packaged import DETROIT_3GPP_GBS_HEIGHT_M, DETROIT_3GPP_LOADING, DETROIT_3GPP_NOISE_DBM
-from uamfleet.radio.packaged import DETROIT_3GPP_POWER_DBM
-from uamfleet.radio.radio_map import BaseStation
+from uamfleet.radio.packaged import DETROIT_3GPP_NOISE_DBM, umi_av_stations
 from uamfleet.radio.raytrace import save_radio_map_npz
 
 SIDE_M, SPACING_M = 2000.0, 750.0
 sites = [(250.0 + i * SPACING_M, 250.0 + j * SPACING_M) for i in range(3) for j in range(3)]
-stations = tuple(
-    BaseStation(
-        x_m=x,
-        y_m=y,
-        height_m=DETROIT_3GPP_GBS_HEIGHT_M,
-        power_dbm=DETROIT_3GPP_POWER_DBM,
-        loading=DETROIT_3GPP_LOADING,
-        name=f"GBS {k}",
-    )
-    for k, (x, y) in enumerate(sites)
-)
+stations = umi_av_stations(sites)  # detroit_3gpp's masts (20 m), power (40 dBm) and loading
 radio = expected_sinr_map_3gpp(
     stations,
     side_m=SIDE_M,

@@ -33,6 +33,7 @@ import io
 import math
 import os
 from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -182,8 +183,9 @@ def _detroit_estimate() -> RadioMap:
     )
 
 
-def _detroit_3gpp() -> RadioMap:
-    stations = tuple(
+def umi_av_stations(sites_m: Sequence[tuple[float, float]]) -> tuple[BaseStation, ...]:
+    """GBS at ``sites_m`` with ``detroit_3gpp``'s masts, power and loading (``GBS 0``, ``GBS 1``, ...)."""
+    return tuple(
         BaseStation(
             x_m=x,
             y_m=y,
@@ -192,10 +194,13 @@ def _detroit_3gpp() -> RadioMap:
             loading=DETROIT_3GPP_LOADING,
             name=f"GBS {k}",
         )
-        for k, (x, y) in enumerate(DETROIT_GBS_SITES_M)
+        for k, (x, y) in enumerate(sites_m)
     )
+
+
+def _detroit_3gpp() -> RadioMap:
     return expected_sinr_map_3gpp(
-        stations,
+        umi_av_stations(DETROIT_GBS_SITES_M),
         side_m=DETROIT_SIDE_M,
         resolution_m=DETROIT_3GPP_RESOLUTION_M,
         altitude_m=100.0,
