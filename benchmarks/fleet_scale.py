@@ -29,14 +29,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.cli.fleet_benchmark import limit_threads, run_episode_set, setting_size
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.zoo import pretrained_path
 
-BEST_DISPATCHER = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
-"""The chosen dispatcher of docs/results.md "Fleets"."""
-METHODS = ("greedy", "insertion", "batch_assignment", BEST_DISPATCHER, "learned")
+METHODS = ("greedy", "insertion", "batch_assignment", CHOSEN_DISPATCHER, "learned")
 COLUMNS = ("family", "setting", "taxis", "requests", "seed", "arrival_window_s", "method", "steps", "wall_s",
            "fields_s", "fly_s", "s_per_step", "peak_rss_mb", "decision_p50_ms", "decision_max_ms", "service_pct",
            "delivered", "separation_violations", "shield_interventions", "wait_p50_s", "wait_p95_s",

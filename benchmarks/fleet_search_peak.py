@@ -23,18 +23,20 @@ import torch
 import tyro
 from fleet_search_time import fly_fleet
 
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.cli.fleet_benchmark import dispatcher
 from uamfleet.config import EnvConfig, Request, fleet_window_steps
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
 from uamfleet.metrics import episode_metrics
 
-CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
-
 
 @dataclass
 class Args:
-    names: tuple[str, ...] = (CHOSEN, f"fleet_search:demand=estimated,futures=2,waits=3,end_wait=1({CHOSEN})")
+    names: tuple[str, ...] = (
+        CHOSEN_DISPATCHER,
+        f"fleet_search:demand=estimated,futures=2,waits=3,end_wait=1({CHOSEN_DISPATCHER})",
+    )
     family: str = "berlin"
     taxis: int = 4
     requests: int = 48

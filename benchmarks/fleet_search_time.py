@@ -22,6 +22,7 @@ import numpy as np
 import torch
 import tyro
 
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.baselines.fleet_dispatch import shared_fields
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
@@ -30,12 +31,10 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.policies import make_named
 from uamfleet.rollout import Trajectory, run_episode
 
-CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
-
 
 @dataclass
 class Args:
-    names: tuple[str, ...] = (f"fleet_search({CHOSEN})",)
+    names: tuple[str, ...] = (f"fleet_search({CHOSEN_DISPATCHER})",)
     """the fleet searches to time, by their recorded names"""
     family: str = "berlin"
     taxis: int = 8

@@ -61,6 +61,9 @@ MAX_SECONDS = 1e9
 VALUE_DISPATCHER = "batch_assignment_value"
 """The dispatcher name of ``batch_assignment`` with a learned value; ``batch_assignment_value:<price_s>`` prices it
 other than its file does (:func:`value_for_dispatcher`)."""
+CHOSEN_DISPATCHER = f"{VALUE_DISPATCHER}:100+wait=1+release+price=1000+guard=600"
+"""The fleet dispatcher chosen on validation episodes, the yardstick of the fleet tables (docs/results.md): the
+learned value priced at 100 s, a 1-step wait before releasing a batch, the price of a release and the guard."""
 
 
 @dataclass(frozen=True)
@@ -215,6 +218,7 @@ def value_for_dispatcher(
 
 
 __all__ = [
+    "CHOSEN_DISPATCHER",
     "FEATURES",
     "INCREASING",
     "MAX_SECONDS",

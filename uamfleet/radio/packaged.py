@@ -32,8 +32,8 @@ import functools
 import io
 import math
 import os
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 

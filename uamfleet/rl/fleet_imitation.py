@@ -38,6 +38,7 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import FLEET_ARRIVAL_WINDOW_S, EnvConfig
@@ -60,7 +61,7 @@ from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
 from uamfleet.rollout import observer_of
 from uamfleet.types import HOVER_ACTION, NUM_HEADINGS, WAITING
 
-TEACHER = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
+TEACHER = CHOSEN_DISPATCHER
 """The chosen dispatcher (docs/results.md "Fleets"): the default teacher."""
 
 MASKED_LOG_PROB = NOT_THIS / 2
