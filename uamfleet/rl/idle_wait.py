@@ -3,10 +3,9 @@
 Why: the network picks among the allowed headings only (its logits are masked), so a lone taxi without the hover
 action can never stay in place, and with nothing to do it zig-zags about a point at one move per step. ``replan``
 waits instead, by asking for a heading the rule forbids (the taxi stays:
-``StepPlannerPolicy._wait_action``). On Berlin's instances a taxi is never idle (its trips outlast the two-minute
-release window), but on a small map it is: on San Francisco's 920 m square the shipped policy flew 27 % of its
-steps with nobody on board and no request waiting, and those moves were 97 % of its extra distance over
-``replan`` (reports/2026-12-04-small-maps/README.md).
+``StepPlannerPolicy._wait_action``). On Berlin's instances a taxi is hardly ever idle (its trips outlast the
+release window), but on a small map it often is, and the moves it then flies are most of what it flies beyond
+``replan`` (measured in reports/2026-12-04-small-maps/README.md).
 
 The rule (docs/rules.md "Greedy decoding of a trained policy"): a taxi with no rider on board, no released request
 waiting and no request the fleet's matching gives it (``stop_claims``, when observed) takes the hover action where
