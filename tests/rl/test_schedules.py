@@ -71,7 +71,7 @@ def fake_evaluations(delivered_from: int):
     """A stand-in for the greedy evaluation: the row of iteration k (1-based, as progress.csv counts) delivers
     everyone from ``delivered_from`` on, half before; it is never a new best."""
 
-    def evaluate(run, learner, counters, row):
+    def evaluate(run, learner, counters, row, last=False):
         row["eval/pr_pct"] = 100.0 if row["iteration"] >= delivered_from else 50.0
         row["eval/td_m"] = 1000.0
         return False
@@ -144,6 +144,25 @@ def test_the_curve_flies_the_validation_instances_after_each_evaluation(tmp_path
         max_passengers=6))  # fmt: skip
     assert float(rows[-1]["val_td_m"]) == pytest.approx(distance.mean())
     assert float(rows[-1]["val_pr_pct"]) == pytest.approx(100 * served.mean())
+
+
+def test_the_curve_is_flown_at_every_nth_evaluation_and_at_the_last(tmp_path):
+    """--curve-every 2 on a run of 5 iterations evaluated after each: the validation panel is flown where the row's
+    iteration is a multiple of 2 (2 and 4) and at the last (5), never at 1 or 3; the training and its own
+    evaluations are those of the run that flies the panel every time, to the bit."""
+    common = dict(scenario="berlin_p4", sinr_min_db=-3.0, total_timesteps=5 * 2 * 8, time_limit_steps=60,
+                  eval_time_limit_steps=60, curve_instances=2, curve_family="berlin")  # fmt: skip
+    train(tiny_args(tmp_path / "every2", curve_every=2, **common))
+    train(tiny_args(tmp_path / "every1", **common))
+    rows, every = progress(tmp_path / "every2" / "tiny"), progress(tmp_path / "every1" / "tiny")
+    assert [int(r["iteration"]) for r in rows] == [1, 2, 3, 4, 5]
+    assert [int(r["iteration"]) for r in rows if r["val_td_m"]] == [2, 4, 5]
+    for r, e in zip(rows, every, strict=True):
+        assert r["eval/td_m"] == e["eval/td_m"] and r["losses/policy_loss"] == e["losses/policy_loss"]
+        if r["val_td_m"]:
+            assert (r["val_td_m"], r["val_pr_pct"]) == (e["val_td_m"], e["val_pr_pct"])
+    with pytest.raises(ConfigError, match=r"--curve-every=0 must be an integer >= 1"):
+        tiny_args(Path("unused"), curve_every=0)
 
 
 def test_the_curve_needs_a_family():

@@ -125,6 +125,9 @@ class Args:
     """after each evaluation also fly the first this many validation instances of the family (Berlin's, or --map's)
     in one batch (TrainArgs.eval.curve_instances: progress.csv's val_td_m / val_pr_pct, the curve's second panel;
     about 1 s per evaluation for 10); 0: none. The training itself is the same with or without them"""
+    curve_every: int = 4
+    """fly the curve's validation instances at every this-many-th evaluation and at the last
+    (TrainArgs.eval.curve_every); 1: at every evaluation (four times the panel's cost)"""
     run_dir: Path = Path("runs")
     """folder of the run (relative to the current folder)"""
     run_name: str = DEFAULT_RUN
@@ -180,7 +183,8 @@ def training_args(args: Args) -> TrainArgs:
     if args.map is not None:  # its instances' world, at the map family's strictest threshold (TrainArgs.env.map)
         common.update(scenario="berlin_instances", map=args.map, sinr_min_db=None)
     if args.curve_instances:
-        common.update(curve_instances=args.curve_instances, curve_family=args.map or "berlin")
+        common.update(curve_instances=args.curve_instances, curve_every=args.curve_every,
+                      curve_family=args.map or "berlin")  # fmt: skip
     if recipe != "fine-tune":
         steps = SEARCH_START_STEPS if recipe == "scratch-search-start" else SCRATCH_STEPS
         steps = steps if args.total_timesteps is None else args.total_timesteps

@@ -22,7 +22,7 @@ _COUNTS: dict[str, int] = {
     "time_limit_steps": 1, "d_model": 1, "num_heads": 1, "local_window": 1, "seed": 0, "total_timesteps": 1,
     "num_envs": 1, "num_steps": 1, "num_minibatches": 1, "update_epochs": 1, "eval_every": 0,
     "checkpoint_every": 1, "threads": 0, "eval_instances": 0, "env_workers": 0, "curve_instances": 0,
-    "warm_start_rounds": 0,
+    "curve_every": 1, "warm_start_rounds": 0,
 }  # fmt: skip
 # (low, high or None, low excluded) of TrainArgs' float options; None values (unset options) are skipped.
 _RANGES: dict[str, tuple[float, float | None, bool]] = {

@@ -228,6 +228,9 @@ class EvalOptions:
     --curve-family (one batch; uamfleet.instances.validation_metrics) and log their mean distance and delivered
     share as progress.csv's val_td_m and val_pr_pct (the learning curve's validation panel); never used to keep a
     checkpoint. 0: none"""
+    curve_every: int = 1
+    """with --curve-instances, fly them at every this-many-th evaluation (its progress.csv row's iteration a
+    multiple of it) and at the last one; the rows between carry no val_td_m / val_pr_pct. 1: at every evaluation"""
     curve_family: str | None = None
     """instance family of --curve-instances (uamfleet.instances.FAMILIES, e.g. berlin); None: the scenario's own
     (a *_instances, *_fleet or *_random scenario)"""

@@ -175,16 +175,20 @@ def progress_row(
     return row
 
 
-def evaluate_greedy(run: Run, learner: Learner, counters: Counters, row: dict[str, float]) -> bool:
+def evaluate_greedy(
+    run: Run, learner: Learner, counters: Counters, row: dict[str, float], last: bool = False
+) -> bool:  # fmt: skip
     """Rank 0: fly the greedy policy (one episode, or the validation instances), add eval/* to the row, keep the
-    best; True when it is a new best. The policy reads the run's spec (:attr:`Run.spec`) in the evaluation world."""
+    best; True when it is a new best. The policy reads the run's spec (:attr:`Run.spec`) in the evaluation world.
+    The curve's validation panel is flown at every ``--curve-every``-th evaluation and at the ``last``."""
     policy = GreedyPolicy(learner.net, learner.normalizer, run.device, spec=run.spec)
     if run.args.eval.eval_instances:
         m = validation_metrics(policy, family_of(run.args.env.scenario), run.args.eval.eval_instances, run.eval_cfg)
     else:
         m = evaluate(policy, run.eval_cfg).as_dict()
     row.update({f"eval/{k}": v for k, v in m.items()})
-    if run.args.eval.curve_instances:  # the curve's validation panel; the best is kept on the evaluation alone
+    curve_due = last or int(row["iteration"]) % run.args.eval.curve_every == 0
+    if run.args.eval.curve_instances and curve_due:  # the curve's validation panel; never used to keep the best
         curve = curve_metrics(run, policy)
         row["val_td_m"], row["val_pr_pct"] = curve["td_m"], curve["pr_pct"]
     target = run.args.eval.stop_at_td_m
@@ -384,7 +388,7 @@ def evaluate_and_decide(
     last = ranks.broadcast_flag(iteration == run.num_iterations - 1 or out_of_time)
     new_best = False
     if ranks.is_main and ((args.eval.eval_every and (iteration + 1) % args.eval.eval_every == 0) or last):
-        new_best = evaluate_greedy(run, learner, counters, row)
+        new_best = evaluate_greedy(run, learner, counters, row, last=last)
     counters.iteration = iteration + 1
     stop = ranks.broadcast_flag(last or (counters.target_step is not None and args.eval.stop_at_td_m is not None))
     return stop, new_best
