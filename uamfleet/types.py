@@ -83,6 +83,15 @@ STOP_CLAIM_FEATURES: tuple[str, ...] = (
     "claimed_by_me",  # 1: the nearest-first matching of free taxis to waiting rows gives this row to this taxi
     "claimed_by_other",  # 1: ... to another taxi
 )  # the "stop_claims" field (int8), with EnvConfig.stop_claims, for any fleet size
+DISPATCH_CLAIM_FEATURES: tuple[str, ...] = (
+    "scheduled_to_me",  # 1: the stop of this row is on this taxi's schedule in a dispatcher the policy runs alongside
+    "scheduled_to_other",  # 1: ... on another taxi's schedule
+    "my_next_stop",  # 1: it is the first stop of this taxi's schedule that the taxi can act on now
+    "my_schedule_rank",  # 1 / (1 + its position among this taxi's open stops), 0 when not on its schedule
+)  # the "dispatch_claims" rows a fleet policy reads beside its observation (uamfleet.rl.fleet_claims), any fleet
+DISPATCH_CLAIMS_FIELD = "dispatch_claims"
+"""The network input [P, len(DISPATCH_CLAIM_FEATURES)] of a dispatcher's claims (``NetConfig.dispatch_claim_inputs``):
+not an observation field; the policy that runs the dispatcher alongside adds it to the network's rows."""
 STOP_CLAIMED_BY_ME = STOP_CLAIM_FEATURES.index("claimed_by_me")
 STOP_CLAIMED_BY_OTHER = STOP_CLAIM_FEATURES.index("claimed_by_other")
 STOP_PATH_CLIP = 16.0

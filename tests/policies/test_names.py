@@ -115,6 +115,10 @@ RECORDED: dict[str, tuple[str, dict]] = {
     **{f"learned:{name}+window24": ("learned", {"source": f"runs/{name}/best.pt", "passenger_window": 24})
        for name in ("labels_r0", "labels_r1", "labels_r2", "stoplabels_r1", "stoplabels_r2", "anchored_r2",
                     "anchored_r3")},
+    # a fleet policy reading the chosen dispatcher's claims, flown as a dispatcher (docs/results/fleet_claims_val.csv)
+    **{f"fleet_claims:source=reports/2026-12-04-fleet-claims/{stem}.pt": (
+        "fleet_claims", {"source": f"reports/2026-12-04-fleet-claims/{stem}.pt"})
+       for stem in ("claims_r2", "claims_r3", "claims_hover_r2", "claims_hover_r3")},
     "learned:hover_ft+window24": ("learned", {"source": "runs/hover_ft/best.pt", "passenger_window": 24}),
     "learned:mix_ft+window24": ("learned", {"source": "runs/mix_ft/best.pt", "passenger_window": 24}),
     "learned:switched+window24": ("learned", {"source": "runs/switched/best.pt", "passenger_window": 24}),
@@ -129,7 +133,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 83
+    assert len(recorded) == 87
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

@@ -38,10 +38,10 @@ def test_available_lists_every_kind_and_the_benchmarks_policies() -> None:
         "cptsp": "planner", "pdpcc": "planner", "raster_replan": "planner", "raster_opt": "planner",
         "straight": "planner", "replan": "planner", "best_known": "planner", "replan_futures": "planner",
         "random": "planner", "greedy": "dispatcher", "insertion": "dispatcher", "batch_assignment": "dispatcher",
-        "batch_assignment_value": "dispatcher", "learned": "learned", "argmax": "search", "guided": "search",
-        "hedge": "search", "finish": "search", "fleet_search": "search",
+        "batch_assignment_value": "dispatcher", "learned": "learned", "fleet_claims": "dispatcher", "argmax": "search",
+        "guided": "search", "hedge": "search", "finish": "search", "fleet_search": "search",
     }  # fmt: skip
-    assert set(policies.available("dispatcher")) == {"greedy", "insertion", "batch_assignment", V}
+    assert set(policies.available("dispatcher")) == {"greedy", "insertion", "batch_assignment", V, "fleet_claims"}
 
 
 V = "batch_assignment_value"

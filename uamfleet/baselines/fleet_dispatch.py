@@ -511,15 +511,23 @@ class ScheduleFleetPolicy(PolicyBase):
         return fleet_actions(self.sim, self.fields, self._idle_at, [self.target(a) for a in range(self.num_taxis)])
 
     def target(self, taxi: int) -> np.ndarray | None:
-        """The first stop of the taxi's schedule it can act on now."""
+        """The point of the first stop of the taxi's schedule it can act on now (:meth:`next_stop`)."""
+        stop = self.next_stop(taxi)
+        if stop is None:
+            return None
+        return self.origin_m[stop[0]] if stop[1] == PICKUP else self.dest_m[stop[0]]
+
+    def next_stop(self, taxi: int) -> Stop | None:
+        """The first stop of the taxi's schedule it can act on now: a pick-up while it has a free seat, a drop-off
+        of a passenger it carries."""
         assert self.sim is not None
         s = self.sim.state
         free = int(s.free_seats[0, taxi])
         for p, kind in self.routes[taxi]:
             if kind == PICKUP and s.pax_status[0, p] == WAITING and free > 0:
-                return self.origin_m[p]
+                return p, kind
             if kind == DROPOFF and s.pax_status[0, p] == ON_BOARD and s.pax_taxi[0, p] == taxi:
-                return self.dest_m[p]
+                return p, kind
         return None
 
     def check_schedules(self) -> None:

@@ -12,6 +12,9 @@ network is fitted to them.
 ``--labels stop`` labels each taxi with the network's own heading for the stop the dispatcher flies it to;
 ``--hover-anytime`` (with ``--fit-improbable``) also lets it learn the dispatcher's hover where it reads a stop;
 ``--kl-anchor`` holds each round's fit near the round's start (reports/2026-12-04-fleet-labels/).
+``--dispatch-claims`` gives each passenger row the dispatcher's claim on it (on my schedule, another taxi's, my next
+stop, my schedule's order; zero weights at first); fly the result with the dispatcher alongside,
+``--dispatchers fleet_claims:source=runs/<name>/round<r>.pt`` (reports/2026-12-04-fleet-claims/).
 
 Writes runs/<name>/progress.csv (one row per round), runs/<name>/round<r>.pt and last.pt (loadable with
 load_policy; any fleet size). Choose a round on validation episodes with ``uamfleet fleet-bench --split validation

@@ -21,10 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from uamfleet.checks import MAX_PASSENGERS, MAX_TAXIS, check_integer
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
+from uamfleet.checks import MAX_PASSENGERS, MAX_TAXIS, check_integer, check_number
+from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
 from uamfleet.observe.spec import ObserverSpec
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
+from uamfleet.rl.fleet_claims import ClaimsFleetPolicy, with_dispatch_claims
 from uamfleet.rl.idle_wait import IdleWait
 from uamfleet.rl.legacy import with_stored_spec
 from uamfleet.rl.policy import GreedyPolicy, load_policy
@@ -165,10 +168,44 @@ def load(options: LearnedOptions) -> GreedyPolicy:
 
 register("learned", "learned", LearnedOptions, lambda o, _b: load(o))
 
+
+@dataclass(frozen=True)
+class FleetClaimsOptions:
+    """``fleet_claims``: the fleet policy of checkpoint ``source`` (trained with ``uamfleet fleet-imitate
+    --dispatch-claims``) reading ``passenger_window`` rows per taxi and, on each, the claims of the chosen dispatcher
+    (:data:`~uamfleet.baselines.assignment_value.CHOSEN_DISPATCHER`) that runs alongside for a service of
+    ``arrival_window_s`` (:mod:`uamfleet.rl.fleet_claims`); the network decides every move. A fleet method that
+    the fleet benchmark flies like a dispatcher (``--dispatchers fleet_claims:source=<file>``). A source that reads
+    no claims (the default, the shipped ``berlin_fleet``) is converted with them at zero weight: it flies as
+    itself."""
+
+    source: str = "berlin_fleet"
+    passenger_window: int = 24
+    arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
+
+    def __post_init__(self) -> None:
+        check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=" (e.g. 24)")
+        check_number("arrival_window_s", self.arrival_window_s, positive=True)
+
+
+def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
+    """The :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy` ``options`` names (a fresh dispatcher alongside)."""
+    from uamfleet.policies.planners import make_flown  # here: importing it at the top registers planners first
+
+    policy = load(LearnedOptions(source=options.source, passenger_window=options.passenger_window))
+    policy = with_dispatch_claims(policy)  # a copy reading claims at zero weight, unless it reads them already
+    teacher = make_flown(CHOSEN_DISPATCHER, arrival_window_s=options.arrival_window_s)
+    return ClaimsFleetPolicy(policy, teacher)
+
+
+register("fleet_claims", "dispatcher", FleetClaimsOptions, lambda o, _b: fleet_claims(o))
+
 __all__ = [
     "PRETRAINED",
+    "FleetClaimsOptions",
     "LearnedOptions",
     "export_policy",
+    "fleet_claims",
     "for_world",
     "learned_policy",
     "load",

@@ -52,6 +52,7 @@ from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
 from uamfleet.rl.expert_iteration import fit as exit_fit
+from uamfleet.rl.fleet_claims import CLAIM_SCORE, dispatch_claims, with_claims, with_dispatch_claims
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
 from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit
@@ -67,6 +68,9 @@ TEACHER = CHOSEN_DISPATCHER
 MASKED_LOG_PROB = NOT_THIS / 2
 """A label the network gives a log-probability at or below this is masked (a heading toward no stop it reads, the
 hover while a stop is open without ``hover_anytime``): no gradient reaches it, so it can never be fitted."""
+
+CONVERSIONS: tuple[str, ...] = ("hover_anytime", "dispatch_claim_inputs")
+"""The ``NetConfig`` flags a conversion of the start may set (:func:`fleet_policy`): a saved round records them."""
 
 MIXTURE: tuple[str, ...] = ("2x12", "2x24", "4x24", "4x48", "8x48", "8x96")
 """The fleet settings (taxis x requests) of the training episodes: 2 to 8 taxis, light and loaded, as the shipped
@@ -101,6 +105,13 @@ class FleetImitationArgs:
     fit_improbable: bool = False
     """also fit labels the policy gives at most e^-12 but does not mask (a stop its nearness prior weighs out; with
     --hover-anytime, the hover where a stop is open); else only labels above e^-12 are fitted"""
+    dispatch_claims: bool = False
+    """start from the policy converted to read the teacher's claims (:func:`uamfleet.rl.fleet_claims.
+    with_dispatch_claims`: each passenger row's stop on my schedule, another taxi's, my next stop, my schedule's
+    order; zero weights at first); flown with the dispatcher alongside (``fleet_claims`` in uamfleet.policies)"""
+    claims_learning_rate: float = 0.03
+    """with --dispatch-claims: learning rate of the claims' term in each stop's score (from zero; at 1e-4 it would
+    move about 0.01 logits per round)"""
     kl_anchor: float = 0.0
     """weight of the KL divergence from the round's start network over the headings in each round's fit (the fit of
     :func:`uamfleet.rl.expert_iteration.fit`); 0: the plain cross-entropy of :func:`uamfleet.rl.imitation.fit`"""
@@ -125,6 +136,7 @@ class FleetImitationArgs:
         check_integer("--max-samples", self.max_samples, self.minibatch)
         check_number("--learning-rate", self.learning_rate, positive=True)
         check_number("--hover-learning-rate", self.hover_learning_rate, positive=True)
+        check_number("--claims-learning-rate", self.claims_learning_rate, positive=True)
         check_number("--kl-anchor", self.kl_anchor, minimum=0.0)
         if self.labels not in ("heading", "stop"):
             raise ConfigError(f"--labels={self.labels!r} is unknown; use 'heading' or 'stop'.")
@@ -157,14 +169,19 @@ def setting_size(setting: str) -> tuple[int, int]:
     return fleet_setting(setting, "--mixture")
 
 
-def fleet_policy(init: str, passenger_window: int, hover_anytime: bool = False) -> GreedyPolicy:
+def fleet_policy(
+    init: str, passenger_window: int, hover_anytime: bool = False, dispatch_claims: bool = False
+) -> GreedyPolicy:
     """A fresh copy of the greedy policy ``init`` (a shipped name or a file) reading ``passenger_window`` rows per
     taxi: one network for every fleet size (fitted to each world at reset); with ``hover_anytime``, converted by
-    :func:`~uamfleet.rl.hover.with_hover_anytime`. Fresh, so that fitting it never changes the process's cached
-    shipped policy."""
+    :func:`~uamfleet.rl.hover.with_hover_anytime`, with ``dispatch_claims`` by
+    :func:`~uamfleet.rl.fleet_claims.with_dispatch_claims`. Fresh, so that fitting it never changes the process's
+    cached shipped policy."""
     policy = load_policy(checkpoint_source(init))[0]
     if hover_anytime:
         policy = with_hover_anytime(policy)
+    if dispatch_claims:
+        policy = with_dispatch_claims(policy)
     return policy.reading(spec_of(policy, LearnedOptions(passenger_window=passenger_window)))
 
 
@@ -225,6 +242,8 @@ def label_episode(
     while True:
         action = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
         inputs = policy.network_input(obs)
+        if policy.net.cfg.dispatch_claim_inputs:  # the teacher's claims after its act: as ClaimsFleetPolicy reads them
+            inputs = with_claims(inputs, teacher_claims(env, teacher))
         logits = policy.logits_of(inputs)  # [A, 16 or 17]
         own = policy.choose(obs, logits)  # [1, A] greedy, with the loop guard (as it flies)
         log_probs = torch.log_softmax(logits, -1).numpy()
@@ -249,6 +268,14 @@ def label_episode(
     hovers = int((all_actions == HOVER_ACTION).sum() - (fitted_labels == HOVER_ACTION).sum())
     return EpisodeLabels(stacked, fitted_labels, np.concatenate(corrected), all_actions, np.stack(flown), steps,
                          teacher_steps, ruled_out, hovers)  # fmt: skip
+
+
+def teacher_claims(env: VectorEnv, teacher: PolicyBase) -> np.ndarray:
+    """[A, K, 4] the claims of the teacher's schedules on each taxi's window rows in env 0
+    (:func:`~uamfleet.rl.fleet_claims.dispatch_claims`)."""
+    if not isinstance(teacher, ScheduleFleetPolicy):
+        raise ConfigError(f"dispatch claims read a schedule dispatcher's schedules, not a {type(teacher).__name__}.")
+    return dispatch_claims(env.observer.window_rows(env.state)[0], teacher)
 
 
 def stop_points(env: VectorEnv) -> tuple[np.ndarray, np.ndarray]:
@@ -311,7 +338,9 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
     rng = np.random.default_rng(args.seed)
     start = time.time()
     initial = Checkpoint.load(checkpoint_source(args.init))  # what every saved round keeps but its weights
-    policy = fleet_policy(args.init, args.passenger_window, args.hover_anytime)  # one set of weights, any fleet size
+    policy = fleet_policy(
+        args.init, args.passenger_window, args.hover_anytime, args.dispatch_claims
+    )  # one set of weights, any fleet size
     net = policy.net
     optimizer = torch.optim.Adam(parameter_groups(net, args))
     fit_args = args.fit_args()
@@ -372,13 +401,17 @@ def anchored_fit(
 
 def parameter_groups(net: torch.nn.Module, args: FleetImitationArgs) -> list[dict[str, Any]]:
     """The optimiser's parameter groups: every parameter at ``learning_rate``, the hover logit that
-    ``--hover-anytime`` adds at ``hover_learning_rate``."""
+    ``--hover-anytime`` adds at ``hover_learning_rate``, the claims' score term of ``--dispatch-claims`` at
+    ``claims_learning_rate``."""
     named = list(net.named_parameters())
     hover = [p for name, p in named if name.startswith(NEW_PARAMETERS)]
-    rest = [p for name, p in named if not name.startswith(NEW_PARAMETERS)]
+    claims = [p for name, p in named if name == CLAIM_SCORE]
+    rest = [p for name, p in named if not name.startswith(NEW_PARAMETERS) and name != CLAIM_SCORE]
     groups: list[dict[str, Any]] = [{"params": rest, "lr": args.learning_rate}]
     if hover:
         groups.append({"params": hover, "lr": args.hover_learning_rate})
+    if claims:
+        groups.append({"params": claims, "lr": args.claims_learning_rate})
     return groups
 
 
@@ -406,7 +439,7 @@ def save_fleet_checkpoint(
     out = dataclasses.replace(
         ckpt,
         model={k: v.detach().clone() for k, v in net.state_dict().items()},
-        net_config={**ckpt.net_config, "hover_anytime": True} if net.cfg.hover_anytime else ckpt.net_config,
+        net_config={**ckpt.net_config, **{k: True for k in CONVERSIONS if getattr(net.cfg, k)}},
         args={**ckpt.args, "fleet_imitation": options},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
@@ -415,6 +448,7 @@ def save_fleet_checkpoint(
 
 
 __all__ = [
+    "CONVERSIONS",
     "MASKED_LOG_PROB",
     "MIXTURE",
     "TEACHER",
@@ -430,5 +464,6 @@ __all__ = [
     "save_fleet_checkpoint",
     "stop_labels",
     "stop_points",
+    "teacher_claims",
     "training_episodes",
 ]

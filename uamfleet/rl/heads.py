@@ -16,7 +16,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from uamfleet.rl.encoders import as_bool, layer_init
-from uamfleet.types import NUM_HEADINGS, STOP_CLAIM_FEATURES, STOP_PATH_FEATURES
+from uamfleet.types import DISPATCH_CLAIM_FEATURES, NUM_HEADINGS, STOP_CLAIM_FEATURES, STOP_PATH_FEATURES
 
 TOUR_VIA_STOP = STOP_PATH_FEATURES.index("tour_via_stop")
 PATH_TO_STOP = STOP_PATH_FEATURES.index("path_to_stop")
@@ -88,6 +88,10 @@ class StopHead(nn.Module):
     probability). The search's "wait here", or a dispatcher's, is then a decision the policy can imitate wherever it
     is taken.
 
+    ``dispatch=True`` (``NetConfig.dispatch_claim_inputs``) adds to each stop's score a learned linear term of a
+    dispatcher's claims on it (``DISPATCH_CLAIM_FEATURES``: on my schedule, on another taxi's, my next stop, my
+    schedule's order; :mod:`uamfleet.rl.fleet_claims`), zero at first.
+
     ``free_move=False`` (the default) gives the free component weight only when the taxi has no actionable
     stop (nothing released, or everyone delivered): the policy then chooses stops only. With ``free_move=True``
     it is always a component (starting at ``free_bias``), so the policy may wait or reposition.
@@ -113,7 +117,7 @@ class StopHead(nn.Module):
     def __init__(
         self, features: int, d_model: int, hidden: int, free_bias: float = -2.0, free_move: bool = False,
         claims: bool = False, hover: bool = False, residual: bool = False, lookahead: bool = False,
-        hover_logit: bool = False, lookahead_rule: float = 0.0, hover_anytime: bool = False,
+        hover_logit: bool = False, lookahead_rule: float = 0.0, hover_anytime: bool = False, dispatch: bool = False,
     ) -> None:  # fmt: skip
         super().__init__()
         self.lookahead_rule = lookahead_rule  # fixed logits per move of look-ahead (NetConfig.lookahead_rule)
@@ -141,20 +145,30 @@ class StopHead(nn.Module):
             self.anytime_hover = nn.Linear(features, 1)
             nn.init.zeros_(self.anytime_hover.weight)
             nn.init.constant_(self.anytime_hover.bias, HOVER_START)
+        self.dispatch = dispatch
+        if dispatch:  # a dispatcher's claims on each stop, a linear term of its score: zero at first, made last
+            self.dispatch_score = nn.Linear(len(DISPATCH_CLAIM_FEATURES), 1, bias=False)
+            nn.init.zeros_(self.dispatch_score.weight)
 
     def forward(
         self, features: torch.Tensor, tokens: torch.Tensor, heading_mask: torch.Tensor, free_logits: torch.Tensor,
         path_to_stop: torch.Tensor | None = None, claimed_by_other: torch.Tensor | None = None,
         hover_mask: torch.Tensor | None = None, with_residual: bool = True, lookahead: torch.Tensor | None = None,
+        dispatch_claims: torch.Tensor | None = None,
     ) -> torch.Tensor:  # fmt: skip
         """features [B, F], tokens [B, P, D], heading_mask [B, P, 16], free_logits [B, 16] (masked), path_to_stop
         [B, P] (map sides; None: no prior), claimed_by_other [B, P] bool (with ``claims``), hover_mask [B, 16]
-        one-hot (with ``hover``), lookahead [B, 16] (with ``lookahead``) → log pi [B, 16]; with ``residual`` or
+        one-hot (with ``hover``), lookahead [B, 16] (with ``lookahead``), dispatch_claims [B, P, 4] (with
+        ``dispatch``) → log pi [B, 16]; with ``residual`` or
         ``lookahead`` (and ``with_residual``) unnormalised logits: the mixture's log-probabilities floored at
         :data:`PRIOR_FLOOR` plus the learned per-heading corrections."""
         onehot = as_bool(heading_mask)  # [B, P, 16]
         actionable = onehot.any(-1)  # [B, P]
         hidden, scores, open_stop = self._stop_scores(features, tokens, actionable, path_to_stop, claimed_by_other)
+        if self.dispatch:
+            if dispatch_claims is None:
+                raise ValueError("this stop head reads a dispatcher's claims: pass dispatch_claims [B, P, 4].")
+            scores = scores + self.dispatch_score(dispatch_claims.to(scores.dtype)).squeeze(-1) * actionable
         idle, hover_at = self._idle_scores(features, open_stop, hover_mask)
         weights = torch.log_softmax(torch.cat([scores, *idle], dim=-1), dim=-1)  # [B, P + 1 (+ 1)]
         logp = self._mixture(weights, onehot, free_logits, hover_at)  # [B, 16 (+ 1)]

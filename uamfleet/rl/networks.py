@@ -64,7 +64,7 @@ from uamfleet.rl.encoders import (
     HybridAttention,
 )
 from uamfleet.rl.heads import CLAIMED_BY_OTHER, LOOKAHEAD_RULE, PATH_TO_STOP, TOUR_VIA_STOP, StopHead
-from uamfleet.types import NUM_HEADINGS
+from uamfleet.types import DISPATCH_CLAIM_FEATURES, DISPATCH_CLAIMS_FIELD, NUM_HEADINGS
 
 
 VARIANTS: tuple[str, ...] = ("le", "de", "de_msfea", "full")
@@ -110,6 +110,10 @@ class NetConfig:
     # bias from HOVER_START plus a zero-initialised linear map of the features; 17 logits, StopHead.with_anytime_hover);
     # with hover_logit the two hovers add up: hover_logit's where no stop is open, this one's at every step
     hover_anytime: bool = False
+    # "stops": each passenger row also reads a dispatcher's claims on it (DISPATCH_CLAIM_FEATURES, the field
+    # DISPATCH_CLAIMS_FIELD), which the policy supplies beside the observation (uamfleet.rl.fleet_claims), and each
+    # stop's score gets a learned linear term of them; both zero at first (the network flies as without them)
+    dispatch_claim_inputs: bool = False
 
     def __post_init__(self) -> None:
         self._check_head()
@@ -159,6 +163,11 @@ class NetConfig:
                             ("stop_hover", "claim_inputs")):  # fmt: skip
             if getattr(self, name) and not getattr(self, needs):
                 raise ValueError(f"{name}=True needs {needs}=True (the observation has them only together).")
+        if self.dispatch_claim_inputs and self.action_head != "stops":
+            raise ValueError(
+                "dispatch_claim_inputs=True scores the stop head's stops by a dispatcher's claims: it needs "
+                "action_head='stops' (and stop_inputs=True)."
+            )
         self._check_stop_head_inputs()
 
     def _check_stop_head_inputs(self) -> None:
@@ -309,6 +318,8 @@ class DesignedTorso(nn.Module):
         extra = shapes["stop_paths"][1] + 1 if self.stop_inputs else 0
         extra += shapes["stop_rivals"][1] if self.rival_inputs else 0  # a fleet: what the other taxis offer
         extra += shapes["stop_claims"][1] if self.claim_inputs else 0  # the nearest-first matching's claims
+        self.dispatch_inputs = cfg.dispatch_claim_inputs
+        extra += len(DISPATCH_CLAIM_FEATURES) if self.dispatch_inputs else 0  # a dispatcher's claims, last
         self.passengers = PassengerEncoder(shapes["passengers"][1] + extra, D, cfg.num_heads)
         self.sinr_cnn = MapEncoder(C)
         self.visit_cnn = MapEncoder(C)  # a separate CNN: SINR and visit ratio are different physical fields
@@ -339,6 +350,8 @@ class DesignedTorso(nn.Module):
             parts = [rows, obs["stop_paths"], actionable] + ([obs["stop_rivals"]] if self.rival_inputs else [])
             if self.claim_inputs:
                 parts.append(obs["stop_claims"].to(rows.dtype))
+            if self.dispatch_inputs:
+                parts.append(obs[DISPATCH_CLAIMS_FIELD].to(rows.dtype))
             rows = torch.cat(parts, dim=-1)  # [B, P, F + 3 (+ 2 rivals + 2 claims)]
         pax = self.passengers(rows, released)  # [B, P, D]
         maps = paired_map_features(self.sinr_cnn, self.visit_cnn, obs["sinr_patch"], obs["visit_patch"])  # [B, G, 2C]
@@ -377,6 +390,7 @@ class MSHAActorCritic(nn.Module):
                 features, cfg.d_model, cfg.hidden, free_move=cfg.stop_free_move, claims=cfg.claim_inputs,
                 hover=cfg.stop_hover, residual=cfg.heading_residual, lookahead=cfg.lookahead_inputs,
                 hover_logit=cfg.hover_logit, lookahead_rule=cfg.lookahead_rule, hover_anytime=cfg.hover_anytime,
+                dispatch=cfg.dispatch_claim_inputs,
             )  # fmt: skip
 
     @property
@@ -399,8 +413,9 @@ class MSHAActorCritic(nn.Module):
         claimed = as_bool(obs["stop_claims"][..., CLAIMED_BY_OTHER]) if self.stop_head.claims else None  # [B, P]
         hover = obs["hover_heading_mask"] if self.stop_head.hovers else None  # [B, 16]
         look = obs["heading_lookahead"] if self.stop_head.lookahead else None  # [B, 16]
+        dispatch = obs[DISPATCH_CLAIMS_FIELD] if self.cfg.dispatch_claim_inputs else None  # [B, P, 4]
         logp = self.stop_head(
-            features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual, look
+            features, tokens, obs["stop_heading_mask"], free, prior, claimed, hover, with_residual, look, dispatch
         )  # [B, 16 (+ 1)]
         allowed = obs["action_mask"]  # [B, 16]
         if self.cfg.hover_logit:

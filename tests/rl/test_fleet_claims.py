@@ -1,0 +1,141 @@
+"""A fleet policy that reads the chosen dispatcher's claims (uamfleet/rl/fleet_claims.py): converted, it flies as
+the policy it was converted from; the claims are the dispatcher's schedules, checked by hand on a small drawn
+scene; and neither they nor the moves read a request before its release."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from uamfleet import policies
+from uamfleet.baselines.sequencing import DROPOFF, PICKUP
+from uamfleet.checks import ConfigError
+from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import make_fleet_instance, split_seeds
+from uamfleet.rl.fleet_claims import CLAIM_SCORE, ClaimsFleetPolicy, dispatch_claims, with_claims, with_dispatch_claims
+from uamfleet.rl.fleet_imitation import TEACHER, FleetImitationArgs, fleet_imitate, fleet_policy, make_teacher
+from uamfleet.rollout import fly, observer_of
+from uamfleet.types import DISPATCH_CLAIM_FEATURES, ON_BOARD, WAITING
+
+
+def scene(taxis: int = 3, requests: int = 8, split: str = "train"):
+    """A small drawn Berlin fleet scene under the shield with the hover action (as the fleet benchmark flies)."""
+    return make_fleet_instance("berlin", split_seeds(split, 1)[0], taxis, requests, separation="shield",
+                               hover_action=True)  # fmt: skip
+
+
+def claims_policy(taxis: int) -> ClaimsFleetPolicy:
+    return ClaimsFleetPolicy(with_dispatch_claims(fleet_policy("berlin_fleet", 24)), make_teacher(TEACHER, taxis))
+
+
+def test_the_converted_policy_gives_the_same_logits_whatever_the_claims_and_flies_as_the_base() -> None:
+    cfg = scene()
+    base = fleet_policy("berlin_fleet", 24)
+    converted = with_dispatch_claims(fleet_policy("berlin_fleet", 24))
+    assert converted.net.cfg.dispatch_claim_inputs and not base.net.cfg.dispatch_claim_inputs
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(base))
+    obs, _ = env.reset(seed=0)
+    base.reset(env.sim)
+    converted.reset(env.sim)
+    for _ in range(5):
+        obs, *_ = env.step(np.full((1, cfg.num_taxis), 3))
+    inputs = base.network_input(obs)
+    rows = inputs["passengers"].shape[1]
+    drawn = np.random.default_rng(0).integers(0, 2, (cfg.num_taxis, rows, len(DISPATCH_CLAIM_FEATURES)))
+    assert drawn.any()
+    torch.testing.assert_close(converted.logits_of(with_claims(inputs, drawn)), base.logits_of(inputs), rtol=0, atol=0)
+    alone, alongside = fly(cfg, base), fly(cfg, policies.make("fleet_claims"))  # berlin_fleet, claims at zero
+    assert np.array_equal(alone.positions_m, alongside.positions_m)
+    assert all(np.array_equal(a.actions, b.actions) for a, b in zip(alone.events, alongside.events, strict=True))
+
+
+def hand_scene():
+    """An env after reset with the first three released requests and a dispatcher whose schedules are set by hand."""
+    cfg = scene(taxis=2, requests=8)
+    first = [r for r in cfg.requests if r.release_step == 0]
+    later = [dataclasses.replace(r, release_step=0) for r in cfg.requests[len(first) : 3]]
+    cfg = cfg.replace(requests=tuple(first + later) + cfg.requests[3:])  # requests 0, 1, 2 released at step 0
+    env = VectorEnv(cfg, num_envs=1, autoreset=False)
+    env.reset(seed=0)
+    dispatcher = make_teacher(TEACHER, 2)
+    dispatcher.reset(env.sim)
+    return env, dispatcher
+
+
+def test_claims_by_hand_on_a_small_scene() -> None:
+    env, dispatcher = hand_scene()
+    s = env.sim.state
+    assert (s.pax_status[0, :3] == WAITING).all()
+    dispatcher.routes = [
+        [(1, PICKUP), (0, PICKUP), (1, DROPOFF), (0, DROPOFF)],  # taxi 0: 1 first, then 0
+        [(2, PICKUP), (2, DROPOFF)],  # taxi 1: 2
+    ]
+    rows = np.array([[0, 2, 1, -1], [1, -1, 2, 0]])
+    got = dispatch_claims(rows, dispatcher)
+    # columns: scheduled_to_me, scheduled_to_other, my_next_stop, my_schedule_rank
+    want = np.array([
+        [[1, 0, 0, 1 / 2], [0, 1, 0, 0], [1, 0, 1, 1], [0, 0, 0, 0]],
+        [[0, 1, 0, 0], [0, 0, 0, 0], [1, 0, 1, 1], [0, 1, 0, 0]],
+    ], np.float32)  # fmt: skip
+    np.testing.assert_array_equal(got, want)
+    # passenger 1 on board taxi 0 (one seat left): its row now stands for the drop-off, second on the schedule
+    s.pax_status[0, 1], s.pax_taxi[0, 1] = ON_BOARD, 0
+    s.free_seats[0, 0] = env.sim.cfg.seats - 1
+    dispatcher.routes[0] = [(0, PICKUP), (1, DROPOFF), (0, DROPOFF)]
+    got = dispatch_claims(rows, dispatcher)
+    np.testing.assert_array_equal(got[0, 0], [1, 0, 1, 1])  # passenger 0's pick-up: first, the next stop
+    np.testing.assert_array_equal(got[0, 2], [1, 0, 0, 1 / 2])  # passenger 1's drop-off: second
+    np.testing.assert_array_equal(got[1, 0], [0, 1, 0, 0])  # taxi 1 reads passenger 1 as taxi 0's
+    # no free seat: the pick-up is not a stop taxi 0 can act on now, so the drop-off is its next stop
+    s.free_seats[0, 0] = 0
+    got = dispatch_claims(rows, dispatcher)
+    np.testing.assert_array_equal(got[0, :, 2], [0, 0, 1, 0])
+
+
+def test_neither_claims_nor_moves_read_a_request_before_its_release() -> None:
+    cfg = scene(taxis=3, requests=12)
+    late = int(np.argmax([r.release_step for r in cfg.requests]))
+    release = cfg.requests[late].release_step
+    assert release > 10
+    other = cfg.requests[0]  # the late request moved to another trip of the map, unknown until its release
+    moved = dataclasses.replace(cfg.requests[late], origin_m=other.destination_m, destination_m=other.origin_m)
+    changed = cfg.replace(requests=tuple(moved if i == late else r for i, r in enumerate(cfg.requests)))
+    seen = []
+    for world in (cfg, changed):
+        policy = claims_policy(3)
+        env = VectorEnv(world, num_envs=1, autoreset=False, observer=observer_of(policy))
+        obs, _ = env.reset(seed=0)
+        policy.reset(env.sim)
+        moves, claims = [], []
+        for _ in range(release):
+            moves.append(policy.act(obs).copy())
+            claims.append(policy.claims())
+            assert all(late not in (p for p, _ in route) for route in policy.dispatcher.routes)
+            obs, *_ = env.step(moves[-1])
+        seen.append((np.stack(moves), np.stack(claims)))
+    np.testing.assert_array_equal(seen[0][0], seen[1][0])
+    np.testing.assert_array_equal(seen[0][1], seen[1][1])
+
+
+def test_a_policy_reading_no_claims_or_a_dispatcher_keeping_none_is_refused() -> None:
+    with pytest.raises(ConfigError, match="with_dispatch_claims"):
+        ClaimsFleetPolicy(fleet_policy("berlin_fleet", 24), make_teacher(TEACHER, 2))
+    with pytest.raises(ConfigError, match="keeps none"):
+        ClaimsFleetPolicy(with_dispatch_claims(fleet_policy("berlin_fleet", 24)), policies.make("greedy"))
+
+
+def test_one_round_learns_the_claims_and_flies_by_its_registry_name(tmp_path) -> None:
+    args = FleetImitationArgs(rounds=1, mixture=("2x12",), labels="stop", dispatch_claims=True, run_dir=tmp_path,
+                              run_name="claims")  # fmt: skip
+    fleet_imitate(args)
+    saved = torch.load(tmp_path / "claims" / "round0.pt", weights_only=True)
+    assert saved["net_config"]["dispatch_claim_inputs"] is True
+    weight = saved["model"][CLAIM_SCORE][0]
+    assert weight[0] > 0 and weight[1] < 0  # on my schedule up, on another taxi's down: the labels follow them
+    policy = policies.make_named(f"fleet_claims:source={tmp_path / 'claims' / 'round0.pt'}")
+    cfg = scene(taxis=2, requests=6, split="validation")
+    traj = fly(cfg, policy)
+    assert traj.terminated

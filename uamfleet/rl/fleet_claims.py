@@ -1,0 +1,169 @@
+"""A fleet policy that reads a dispatcher's commitments: the dispatcher runs alongside, the network decides.
+
+The chosen fleet dispatcher keeps commitments the fleet policy's observation does not show: which taxi serves which
+request and in what order (its stop schedules). :class:`ClaimsFleetPolicy` runs such a dispatcher beside the
+network, watching every step exactly as when it flies (its ``act`` is called on the simulator at every step, so its
+schedules advance, as in :func:`uamfleet.rl.fleet_imitation.label_episode`), and gives each passenger row of each
+taxi's window the dispatcher's claim on that row's stop from this taxi's point of view
+(:data:`~uamfleet.types.DISPATCH_CLAIM_FEATURES`, :func:`dispatch_claims`): on my schedule, on another taxi's, my
+next stop, my schedule's order. The network (``NetConfig.dispatch_claim_inputs``) reads them as four more columns
+of each passenger row and as a linear term of each stop's score; :func:`with_dispatch_claims` converts a trained
+stop-head policy with both at zero, so the converted policy flies exactly as before until it is trained
+(``uamfleet fleet-imitate --dispatch-claims``). One set of weights for every taxi and fleet size, as before.
+
+The claims are the dispatcher's, so they read what it reads: released requests only (a row of the window is a
+released request, and a dispatcher assigns a request at its release).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+from gymnasium import spaces
+
+from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy
+from uamfleet.baselines.sequencing import PICKUP
+from uamfleet.checks import ConfigError
+from uamfleet.env.protocol import PolicyBase
+from uamfleet.observe.observer import Observer
+from uamfleet.rl.loop_guard import LoopGuard
+from uamfleet.rl.networks import MSHAActorCritic
+from uamfleet.rl.policy import GreedyPolicy
+from uamfleet.sim.core import Simulator
+from uamfleet.types import DISPATCH_CLAIM_FEATURES, DISPATCH_CLAIMS_FIELD, ON_BOARD, WAITING
+
+PASSENGER_EMBED = "torso.passengers.embed.weight"
+"""The parameter :func:`with_dispatch_claims` widens: the passenger rows' embedding gets four zero columns, last."""
+CLAIM_SCORE = "stop_head.dispatch_score.weight"
+"""The parameter it adds: the claims' linear term in each stop's score, zero."""
+SCHEDULED_TO_ME, SCHEDULED_TO_OTHER, MY_NEXT_STOP, MY_SCHEDULE_RANK = range(len(DISPATCH_CLAIM_FEATURES))
+
+
+def open_stops(dispatcher: ScheduleFleetPolicy, taxi: int) -> list[int]:
+    """The passengers of the stops still open on ``taxi``'s schedule, in its order: the pick-up of a passenger who
+    waits, the drop-off of one this taxi carries (a waiting passenger's drop-off is not a stop it can fly to yet)."""
+    assert dispatcher.sim is not None
+    s = dispatcher.sim.state
+    status, carrier = s.pax_status[0], s.pax_taxi[0]
+    out = []
+    for p, kind in dispatcher.routes[taxi]:
+        if (kind == PICKUP and status[p] == WAITING) or (status[p] == ON_BOARD and carrier[p] == taxi):
+            out.append(int(p))
+    return out
+
+
+def dispatch_claims(rows: np.ndarray, dispatcher: ScheduleFleetPolicy) -> np.ndarray:
+    """[A, K, 4] float32: the claims (:data:`~uamfleet.types.DISPATCH_CLAIM_FEATURES`) of ``dispatcher``'s schedules
+    on each taxi's window rows ``rows`` [A, K] (the state's passenger in each slot, -1 where empty; each row stands
+    for its passenger's next stop: the pick-up while they wait, else the drop-off). Zero for an empty slot."""
+    A, K = rows.shape
+    out = np.zeros((A, K, len(DISPATCH_CLAIM_FEATURES)), np.float32)
+    owner: dict[int, tuple[int, int]] = {}  # passenger -> (taxi, position among its open stops)
+    for a in range(A):
+        for rank, p in enumerate(open_stops(dispatcher, a)):
+            owner.setdefault(p, (a, rank))
+    for a in range(A):
+        following = dispatcher.next_stop(a)
+        for k in range(K):
+            p = int(rows[a, k])
+            if p < 0 or p not in owner:
+                continue
+            taxi, rank = owner[p]
+            if taxi != a:
+                out[a, k, SCHEDULED_TO_OTHER] = 1.0
+                continue
+            out[a, k, SCHEDULED_TO_ME] = 1.0
+            out[a, k, MY_SCHEDULE_RANK] = 1.0 / (1 + rank)
+            out[a, k, MY_NEXT_STOP] = float(following is not None and following[0] == p)
+    return out
+
+
+def with_dispatch_claims(policy: GreedyPolicy) -> GreedyPolicy:
+    """A copy of ``policy`` whose network also reads a dispatcher's claims (``NetConfig.dispatch_claim_inputs``): the
+    same weights and normaliser, the passenger rows' embedding widened by four zero columns and a zero linear term
+    of the claims in each stop's score, so the copy flies the same greedy actions whatever the claims. A policy
+    that reads them already is returned as it is. ConfigError for one without a stop head or an observer spec."""
+    if policy.spec is None or policy.net.cfg.action_head != "stops":
+        raise ConfigError("only a stop-head fleet policy loaded with load_policy reads a dispatcher's claims.")
+    if policy.net.cfg.dispatch_claim_inputs:
+        return policy
+    net = policy.net
+    cfg = dataclasses.replace(net.cfg, dispatch_claim_inputs=True)
+    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
+    with torch.random.fork_rng(devices=[]):  # the initial weights drawn here are all replaced: leave the caller's RNG
+        new = MSHAActorCritic(space, cfg).to(policy.device)
+    old = net.state_dict()
+    state = new.state_dict()
+    for key, value in old.items():
+        if key == PASSENGER_EMBED:  # [D, F] -> [D, F + 4]: the claims' columns come last, at zero
+            state[key] = torch.cat([value, value.new_zeros(value.shape[0], len(DISPATCH_CLAIM_FEATURES))], dim=1)
+        else:
+            state[key] = value
+    state[CLAIM_SCORE] = torch.zeros_like(state[CLAIM_SCORE])
+    if set(state) != set(old) | {CLAIM_SCORE}:
+        raise ValueError(f"the policy's network does not carry over: {sorted(set(state) ^ set(old))}.")
+    new.load_state_dict(state)
+    new.train(net.training)
+    converted = type(policy)(
+        new, policy.normalizer, policy.device, policy.obs_shapes, policy.num_taxis, policy.passenger_slots,
+        policy.trained_on, policy.thresholds_db, policy.spec,
+    )  # fmt: skip
+    converted.loop_guard = LoopGuard() if policy.loop_guard is not None else None
+    return converted.trace_actor(policy.traced)
+
+
+def with_claims(inputs: dict[str, np.ndarray], claims: np.ndarray) -> dict[str, np.ndarray]:
+    """The network's rows ``inputs`` (:meth:`GreedyPolicy.network_input`, ``[A, ...]`` for one env) with the
+    claims [A, K, 4] added as :data:`~uamfleet.types.DISPATCH_CLAIMS_FIELD`."""
+    return {**inputs, DISPATCH_CLAIMS_FIELD: claims.reshape(-1, *claims.shape[-2:]).astype(np.float32)}
+
+
+class ClaimsFleetPolicy(PolicyBase):
+    """A fleet policy whose network reads ``dispatcher``'s claims (module docstring), acting greedily through its
+    loop guard as :class:`GreedyPolicy` does; ``dispatcher`` (a schedule dispatcher, fresh or reused) watches every
+    step. Its :attr:`spec` is the network policy's: the env is built to what the network reads."""
+
+    def __init__(self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy) -> None:
+        if not policy.net.cfg.dispatch_claim_inputs:
+            raise ConfigError(
+                "this policy's network reads no dispatcher claims: convert it with with_dispatch_claims (and train "
+                "it with uamfleet fleet-imitate --dispatch-claims), or fly it as 'learned'."
+            )
+        if not isinstance(dispatcher, ScheduleFleetPolicy):
+            raise ConfigError(f"the claims are a schedule dispatcher's; {type(dispatcher).__name__} keeps none.")
+        self.policy, self.dispatcher = policy, dispatcher
+        self.spec = policy.spec
+        self._observer: Observer | None = None
+
+    def reset(self, sim: Simulator | None = None) -> None:
+        if sim is None:
+            raise ConfigError("ClaimsFleetPolicy.reset needs the simulator: its dispatcher watches it.")
+        self.policy.reset(sim)
+        self.dispatcher.reset(sim)
+        if self._observer is None or self._observer.world is not sim.world:
+            self._observer = Observer(sim.world, self.spec)  # only for the window's rows (its stop table is cached)
+
+    def claims(self) -> np.ndarray:
+        """[A, K, 4] the dispatcher's claims on each taxi's window rows now (call after its ``act`` this step)."""
+        assert self._observer is not None and self.dispatcher.sim is not None, "call reset(sim) first"
+        return dispatch_claims(self._observer.window_rows(self.dispatcher.sim.state)[0], self.dispatcher)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        if obs["action_mask"].shape[0] != 1:
+            raise ConfigError("a ClaimsFleetPolicy flies one env at a time (its dispatcher watches env 0).")
+        self.dispatcher.act(obs)  # its schedules advance by this step, as when it flies
+        inputs = with_claims(self.policy.network_input(obs), self.claims())
+        return self.policy.choose(obs, self.policy.logits_of(inputs))
+
+
+__all__ = [
+    "CLAIM_SCORE",
+    "PASSENGER_EMBED",
+    "ClaimsFleetPolicy",
+    "dispatch_claims",
+    "open_stops",
+    "with_claims",
+    "with_dispatch_claims",
+]
