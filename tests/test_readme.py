@@ -463,8 +463,8 @@ def search_start_claims() -> list[str]:
     assert all(r["pr_pct"] == "100.0" for r in runs) and kept == fixed("berlin_p4@-3dB", "best_known")
     secs = sorted(int(r["train_wall_s"]) for r in runs)
     starts = sum(r["best_step"] == "0" for r in runs)
-    claim = (f"every run kept {m(kept)} m, `best_known` itself, with {secs[0]}–{secs[-1]} s of training on the "
-             f"shared machine. The warm start alone already flew {m(kept)} m on {starts} of them")  # fmt: skip
+    claim = (f"every run kept {m(kept)} m, `best_known` itself, with {secs[0]}–{secs[-1]} s of training on one core "
+             f"of the 2-core machine. The warm start alone already flew {m(kept)} m on {starts} of them")  # fmt: skip
     says(QUICK, claim)
     assert len(runs) - starts == 1, "the other one"
     return [str(secs[0]), str(secs[-1]), str(starts)]
