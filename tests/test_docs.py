@@ -325,13 +325,15 @@ def test_every_block_is_tested_or_says_why_not() -> None:
 # ---- the README ----
 
 README = (ROOT / "README.md").read_text(encoding="utf-8")
+# The README's test command, also .ci/run's and the landing and getting-started pages' (two workers: pytest-xdist).
+TEST_COMMAND = ".venv/bin/python -m pytest -q -n 2"
 
 
 def test_the_readme_is_short_and_has_what_a_newcomer_needs() -> None:
     lines = README.splitlines()
     assert len(lines) <= 150, f"README.md has {len(lines)} lines; keep it at most 150 (move the rest to docs/)"
     assert "bash scripts/setup.sh && .venv/bin/python -m eval.quickstart" in README  # the main job (.ci/run)
-    assert "bash scripts/setup.sh && .venv/bin/python -m pytest -q" in README  # the test command (.ci/run)
+    assert f"bash scripts/setup.sh && {TEST_COMMAND}\n" in README  # the test command (.ci/run)
     assert re.search(r"^while env\.agents:$", README, re.M), "the README shows a `while env.agents:` loop"
     assert re.search(r"!\[[^\]]+\]\(docs/(figures|screenshots)/[^)]+\.png\)", README), "one picture"
     begin, end = "<!-- docs-tables:begin readme -->", "<!-- docs-tables:end readme -->"
@@ -354,6 +356,13 @@ def expected_output(text: str) -> str:
 @pytest.mark.parametrize("page", ["docs/index.md", "docs/getting-started.md"])
 def test_the_pages_show_the_readmes_expected_output(page: str) -> None:
     assert expected_output((ROOT / page).read_text(encoding="utf-8")) == expected_output(README)
+
+
+@pytest.mark.parametrize("page", ["docs/index.md", "docs/getting-started.md"])
+def test_the_pages_show_the_readmes_test_command(page: str) -> None:
+    """(.ci/run's: tests/test_docs_site.py.)"""
+    lines = (ROOT / page).read_text(encoding="utf-8").splitlines()
+    assert f"bash scripts/setup.sh && {TEST_COMMAND}" in lines, f"{page} should show the README's test command"
 
 
 def test_the_layout_page_is_the_layer_table() -> None:
