@@ -16,6 +16,15 @@ from uamfleet.radio import RadioMap
 # depend on what an earlier run left there. tests/paths/test_table_cache.py turns it on in a temporary folder.
 os.environ["UAMFLEET_CACHE"] = "off"
 
+# Under pytest-xdist (the README's `-n 2`) each worker runs one torch/OpenMP thread: torch's default of every core
+# per worker made the workers' threads spin against each other on a 2-core machine. Set before torch is imported
+# (the variables also reach the commands a test starts); ``pytest_configure`` below covers a torch already loaded.
+XDIST_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
+if XDIST_WORKER:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("MKL_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 GOOD_DB = 0.0
 BAD_DB = -10.0
 
@@ -63,6 +72,13 @@ def small_config(art: str = OPEN_5, **overrides: Any) -> EnvConfig:
     if overrides.get("starts_m") is not None and "num_taxis" not in overrides:
         base["num_taxis"] = len(overrides["starts_m"])
     return EnvConfig(**base)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if XDIST_WORKER:
+        import torch
+
+        torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
 
 
 @pytest.fixture

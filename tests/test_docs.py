@@ -21,6 +21,9 @@ that the suite would run as written (``<!-- test: -->`` runs it as written). Its
 
 - ``slow``: the block runs only in the page's second test, ``[<page>:slow]``, marked ``slow`` (run with
   ``pytest -m slow``), which runs all the page's blocks in order; for a block over about 20 s;
+- ``apart``: the block reads nothing that an earlier block of its page wrote, so it runs in a test of its own,
+  ``[<page>:<line>]``, in a fresh folder: the two workers of the README's ``pytest -n 2`` then share a long page
+  (docs/results.md's blocks took 99 s as one test). A block that did read an earlier one's file fails there;
 - ``needs:MODULE``: the page's tests are skipped when ``MODULE`` is not importable (``needs:sionna`` for ray tracing);
 - ``engines`` (python blocks): the block runs alone in the engines venv (``bash scripts/engines.sh --setup``,
   ``$UAMFLEET_ENGINES_VENV`` or ``~/.cache/uamfleet-engines/venv``) as a script from a temporary folder with the
@@ -68,6 +71,7 @@ class Directive:
     """What the ``<!-- test: ... -->`` comment above a block says (see the module's docstring)."""
 
     slow: bool = False
+    apart: bool = False
     engines: bool = False
     skip: str | None = None
     needs: list[str] = field(default_factory=list)
@@ -97,6 +101,8 @@ def parse_directive(text: str, where: str) -> Directive:
     for word in shlex.split(text):
         if word == "slow":
             directive.slow = True
+        elif word == "apart":
+            directive.apart = True
         elif word == "engines":
             directive.engines = True
         elif word.startswith("needs:"):
@@ -201,18 +207,25 @@ def is_slow(block: Block) -> bool:
     return bool(block.directive and block.directive.slow)
 
 
+def is_apart(block: Block) -> bool:
+    return bool(block.directive and block.directive.apart)
+
+
 def params(lang: str) -> list:
-    """The page tests of ``lang``: per page, its blocks that are not ``slow`` (id: the page), and, when it has
-    ``slow`` blocks, all its blocks in order (id: ``<page>:slow``, marked ``slow``), so that a slow block may read
-    what an earlier block of its page wrote."""
+    """The page tests of ``lang``: per page, its blocks that are neither ``slow`` nor ``apart`` (id: the page), each
+    ``apart`` block that is not ``slow`` alone (id: ``<page>:<line>``), and, when it has ``slow`` blocks, all its
+    blocks in order (id: ``<page>:slow``, marked ``slow``), so that a slow block may read what an earlier block of
+    its page wrote."""
     out = []
     for page in PAGES:
         mine = [b for b in ALL if b.page == page and b.lang == lang and not (b.directive and b.directive.engines)]
         if lang == "bash":
             mine = [b for b in mine if commands(b.code)]
         page_id = str(page.relative_to(ROOT))
-        if any(not is_slow(b) for b in mine):
-            out.append(pytest.param([b for b in mine if not is_slow(b)], id=page_id))
+        quick = [b for b in mine if not is_slow(b)]
+        if any(not is_apart(b) for b in quick):
+            out.append(pytest.param([b for b in quick if not is_apart(b)], id=page_id))
+        out += [pytest.param([b], id=f"{page_id}:{b.line}") for b in quick if is_apart(b)]
         if any(is_slow(b) for b in mine):
             out.append(pytest.param(mine, id=f"{page_id}:slow", marks=pytest.mark.slow))
     return out
@@ -305,6 +318,7 @@ def test_the_directive_rules() -> None:
     directive = parse_directive(" slow needs:sionna --cell-m 50 ", "here")
     assert (directive.slow, directive.needs, directive.args, directive.skip) == (True, ["sionna"], ["--cell-m", "50"],
                                                                                  None)  # fmt: skip
+    assert parse_directive(" apart --count 1 ", "here").apart and not directive.apart
     assert parse_directive(" skip: needs a GPU ", "here").skip == "needs a GPU"
     with pytest.raises(AssertionError, match="needs a reason"):
         parse_directive(" skip: ", "here")
@@ -322,16 +336,28 @@ def test_every_block_is_tested_or_says_why_not() -> None:
             assert block.lang == "python", f"{block.where}: `engines` is for python blocks"
 
 
+def test_the_split_runs_every_quick_block_in_exactly_one_default_test() -> None:
+    """``apart`` moves a block into a test of its own: the split loses no block and runs none twice."""
+    assert any(is_apart(b) for b in ALL), "docs/results.md's long blocks are `apart`"
+    for lang in ("python", "bash"):
+        ran = [b.where for p in params(lang) if not p.marks for b in p.values[0]]
+        quick = [b.where for b in ALL if b.lang == lang and not is_slow(b) and not (b.directive and b.directive.engines)
+                 and (lang == "python" or commands(b.code))]  # fmt: skip
+        assert sorted(ran) == sorted(quick)
+
+
 # ---- the README ----
 
 README = (ROOT / "README.md").read_text(encoding="utf-8")
+# The README's test command, also .ci/run's and the landing and getting-started pages' (two workers: pytest-xdist).
+TEST_COMMAND = ".venv/bin/python -m pytest -q -n 2"
 
 
 def test_the_readme_is_short_and_has_what_a_newcomer_needs() -> None:
     lines = README.splitlines()
     assert len(lines) <= 150, f"README.md has {len(lines)} lines; keep it at most 150 (move the rest to docs/)"
     assert "bash scripts/setup.sh && .venv/bin/python -m eval.quickstart" in README  # the main job (.ci/run)
-    assert "bash scripts/setup.sh && .venv/bin/python -m pytest -q" in README  # the test command (.ci/run)
+    assert f"bash scripts/setup.sh && {TEST_COMMAND}\n" in README  # the test command (.ci/run)
     assert re.search(r"^while env\.agents:$", README, re.M), "the README shows a `while env.agents:` loop"
     assert re.search(r"!\[[^\]]+\]\(docs/(figures|screenshots)/[^)]+\.png\)", README), "one picture"
     begin, end = "<!-- docs-tables:begin readme -->", "<!-- docs-tables:end readme -->"
@@ -354,6 +380,13 @@ def expected_output(text: str) -> str:
 @pytest.mark.parametrize("page", ["docs/index.md", "docs/getting-started.md"])
 def test_the_pages_show_the_readmes_expected_output(page: str) -> None:
     assert expected_output((ROOT / page).read_text(encoding="utf-8")) == expected_output(README)
+
+
+@pytest.mark.parametrize("page", ["docs/index.md", "docs/getting-started.md"])
+def test_the_pages_show_the_readmes_test_command(page: str) -> None:
+    """(.ci/run's: tests/test_docs_site.py.)"""
+    lines = (ROOT / page).read_text(encoding="utf-8").splitlines()
+    assert f"bash scripts/setup.sh && {TEST_COMMAND}" in lines, f"{page} should show the README's test command"
 
 
 def test_the_layout_page_is_the_layer_table() -> None:

@@ -9,6 +9,8 @@ from typing import Any
 
 import pytest
 
+from tests.test_docs import TEST_COMMAND
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 
@@ -48,7 +50,7 @@ def test_every_page_under_docs_is_in_the_nav() -> None:
 
 def test_ci_builds_the_site_strictly_after_the_tests() -> None:
     lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()]
-    tests = lines.index(".venv/bin/python -m pytest -q")
+    tests = lines.index(TEST_COMMAND)  # the README's
     builds = [i for i, line in enumerate(lines) if "mkdocs build --strict" in line and not line.startswith("#")]
     assert builds and builds[0] > tests, ".ci/run must run `mkdocs build --strict` after the test command"
 

@@ -30,8 +30,9 @@ The table entries of ``tables.toml``:
   cell the aggregation ``cell = {value, agg, format, when}`` of the group's rows with that value;
 - ``command``: the command that wrote the CSV, printed above the table in a ``bash`` block, with ``test``;
 - ``test``: how ``tests/test_docs.py`` runs the command, written as ``<!-- test: ... -->`` above its block: the
-  sizes that replace the command's (``"--count 1 --jobs 1 --out-csv out.csv"``), ``slow``, ``needs:MODULE`` or
-  ``skip: <reason>``; a ``command`` without ``test`` is refused, so that every documented command runs in a test;
+  sizes that replace the command's (``"--count 1 --jobs 1 --out-csv out.csv"``), ``slow``, ``apart``,
+  ``needs:MODULE`` or ``skip: <reason>``; a ``command`` without ``test`` is refused, so that every documented
+  command runs in a test;
 - ``note``: a line printed under the table;
 - ``parts``: a list of other tables' names, rendered one after another (then no other key is needed).
 
