@@ -38,8 +38,8 @@ def test_a_search_over_the_learned_base_flies_as_the_shipped_policy_flies_itself
 @pytest.mark.parametrize(
     ("name", "message"),
     [
-        ("dqn", "unknown --policy 'dqn'; choose one of 'learned', 'cptsp',"),
-        ("hedge(dqn)", "unknown policy 'dqn'; the registered policies are learned, cptsp,"),
+        ("dqn", "unknown --policy 'dqn'; choose one of 'learned', 'fleet_claims', 'cptsp',"),
+        ("hedge(dqn)", "unknown policy 'dqn'; the registered policies are learned, fleet_claims, cptsp,"),
         ("replan:beem=3", "--policy 'replan:beem=3': policy 'replan' has no option 'beem'; its options are: beam,"),
     ],
 )

@@ -22,7 +22,7 @@ SECTIONS = {"env": "--scenario", "observer": "--passenger-window", "net": "--d-m
 
 def test_every_option_lies_in_one_group_and_the_flat_dict_reads_back() -> None:
     names = [f.name for cls in GROUPS.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == 70
+    assert len(names) == len(set(names)) == 71
     assert list(GROUPS) == ["env", "observer", "net", "ppo", "eval", "run"]
     default = TrainArgs()
     assert set(default.flat()) == set(names) and default.flat()["run_dir"] == "runs"  # plain values
