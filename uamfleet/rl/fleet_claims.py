@@ -21,14 +21,12 @@ import dataclasses
 
 import numpy as np
 import torch
-from gymnasium import spaces
 
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy
 from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.checks import ConfigError
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.observe.observer import Observer
-from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.sim.core import Simulator
@@ -89,29 +87,21 @@ def with_dispatch_claims(policy: GreedyPolicy) -> GreedyPolicy:
         raise ConfigError("only a stop-head fleet policy loaded with load_policy reads a dispatcher's claims.")
     if policy.net.cfg.dispatch_claim_inputs:
         return policy
-    net = policy.net
-    cfg = dataclasses.replace(net.cfg, dispatch_claim_inputs=True)
-    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
-    with torch.random.fork_rng(devices=[]):  # the initial weights drawn here are all replaced: leave the caller's RNG
-        new = MSHAActorCritic(space, cfg).to(policy.device)
-    old = net.state_dict()
-    state = new.state_dict()
-    for key, value in old.items():
-        if key == PASSENGER_EMBED:  # [D, F] -> [D, F + 4]: the claims' columns come last, at zero
-            state[key] = torch.cat([value, value.new_zeros(value.shape[0], len(DISPATCH_CLAIM_FEATURES))], dim=1)
-        else:
-            state[key] = value
-    state[CLAIM_SCORE] = torch.zeros_like(state[CLAIM_SCORE])
-    if set(state) != set(old) | {CLAIM_SCORE}:
-        raise ValueError(f"the policy's network does not carry over: {sorted(set(state) ^ set(old))}.")
-    new.load_state_dict(state)
-    new.train(net.training)
-    converted = type(policy)(
-        new, policy.normalizer, policy.device, policy.obs_shapes, policy.num_taxis, policy.passenger_slots,
-        policy.trained_on, policy.thresholds_db, policy.spec,
-    )  # fmt: skip
-    converted.loop_guard = LoopGuard() if policy.loop_guard is not None else None
-    return converted.trace_actor(policy.traced)
+    cfg = dataclasses.replace(policy.net.cfg, dispatch_claim_inputs=True)
+
+    def carry_over(new: MSHAActorCritic) -> None:
+        old, state = policy.net.state_dict(), new.state_dict()
+        for key, value in old.items():
+            if key == PASSENGER_EMBED:  # [D, F] -> [D, F + 4]: the claims' columns come last, at zero
+                state[key] = torch.cat([value, value.new_zeros(value.shape[0], len(DISPATCH_CLAIM_FEATURES))], dim=1)
+            else:
+                state[key] = value
+        state[CLAIM_SCORE] = torch.zeros_like(state[CLAIM_SCORE])
+        if set(state) != set(old) | {CLAIM_SCORE}:
+            raise ValueError(f"the policy's network does not carry over: {sorted(set(state) ^ set(old))}.")
+        new.load_state_dict(state)
+
+    return policy.with_network(cfg, carry_over)
 
 
 def with_claims(inputs: dict[str, np.ndarray], claims: np.ndarray) -> dict[str, np.ndarray]:

@@ -11,13 +11,8 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
-import numpy as np
-import torch
-from gymnasium import spaces
-
 from uamfleet.checks import ConfigError
 from uamfleet.rl.checkpoint import CHECKPOINT_FORMAT, Checkpoint, trained_spec
-from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.networks import MSHAActorCritic
 
 if TYPE_CHECKING:
@@ -41,20 +36,13 @@ def with_hover_anytime(policy: GreedyPolicy) -> GreedyPolicy:
     if policy.net.cfg.hover_anytime:
         return policy
     cfg = dataclasses.replace(policy.net.cfg, hover_anytime=True)  # ValueError without a stop head
-    net = policy.net
-    space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
-    with torch.random.fork_rng(devices=[]):  # the initial weights drawn here are all replaced: leave the caller's RNG
-        new = MSHAActorCritic(space, cfg).to(policy.device)
-    missing, unexpected = new.load_state_dict(net.state_dict(), strict=False)
-    if unexpected or any(not k.startswith(NEW_PARAMETERS) for k in missing):
-        raise ValueError(f"the policy's network does not carry over: missing {missing}, unexpected {unexpected}.")
-    new.train(net.training)
-    converted = type(policy)(
-        new, policy.normalizer, policy.device, policy.obs_shapes, policy.num_taxis, policy.passenger_slots,
-        policy.trained_on, policy.thresholds_db, dataclasses.replace(policy.spec, hover=True),
-    )  # fmt: skip
-    converted.loop_guard = LoopGuard() if policy.loop_guard is not None else None
-    return converted.trace_actor(policy.traced)
+
+    def carry_over(new: MSHAActorCritic) -> None:  # the new hover parameters keep their initial values
+        missing, unexpected = new.load_state_dict(policy.net.state_dict(), strict=False)
+        if unexpected or any(not k.startswith(NEW_PARAMETERS) for k in missing):
+            raise ValueError(f"the policy's network does not carry over: missing {missing}, unexpected {unexpected}.")
+
+    return policy.with_network(cfg, carry_over, dataclasses.replace(policy.spec, hover=True))
 
 
 def hover_checkpoint(source: Checkpoint, policy: GreedyPolicy) -> Checkpoint:

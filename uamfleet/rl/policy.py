@@ -10,10 +10,12 @@ import copy
 import math
 import warnings
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import torch
+from gymnasium import spaces
 
 from uamfleet.checks import ConfigError
 from uamfleet.config import EnvConfig, WorldConfig
@@ -32,7 +34,7 @@ from uamfleet.rl.buffer import ObservationNormalizer
 from uamfleet.rl.checkpoint import Checkpoint, check_network, run_config, trained_spec
 from uamfleet.rl.legacy import checkpoint_args, spec_of
 from uamfleet.rl.loop_guard import LoopGuard
-from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, obs_to_torch
+from uamfleet.rl.networks import DesignedTorso, MSHAActorCritic, NetConfig, obs_to_torch
 from uamfleet.rl.options import TrainArgs
 from uamfleet.rollout import Trajectory, fly
 from uamfleet.sim.core import Simulator
@@ -189,6 +191,27 @@ class GreedyPolicy(PolicyBase):
         other._fitted, other._fits = None, {}
         other.loop_guard = LoopGuard() if self.loop_guard is not None else None
         return other
+
+    def with_network(
+        self, cfg: NetConfig, load: Callable[[MSHAActorCritic], None], spec: ObserverSpec | None = None
+    ) -> GreedyPolicy:  # fmt: skip
+        """A copy of this policy (normaliser, device, shapes, training config, thresholds, loop guard, tracing) whose
+        network is a new :class:`MSHAActorCritic` of ``cfg`` on the same input shapes, its weights set by
+        ``load(network)`` and its training mode this one's; reading ``spec`` (None: this policy's). For converters
+        that widen a trained network with new inputs or logits at zero weight (:mod:`uamfleet.rl.hover`,
+        :mod:`uamfleet.rl.fleet_claims`)."""
+        net = self.net
+        space = spaces.Dict({k: spaces.Box(-np.inf, np.inf, shape, np.float32) for k, shape in net.shapes.items()})
+        with torch.random.fork_rng(devices=[]):  # the initial weights drawn here are replaced: leave the caller's RNG
+            new = MSHAActorCritic(space, cfg).to(self.device)
+        load(new)
+        new.train(net.training)
+        converted = type(self)(
+            new, self.normalizer, self.device, self.obs_shapes, self.num_taxis, self.passenger_slots,
+            self.trained_on, self.thresholds_db, self.spec if spec is None else spec,
+        )  # fmt: skip
+        converted.loop_guard = LoopGuard() if self.loop_guard is not None else None
+        return converted.trace_actor(self.traced)
 
     def fly(self, cfg: EnvConfig, seed: int | None = 0) -> Trajectory:
         """One recorded episode of this policy on the world ``cfg`` as given (observed by its :attr:`spec`); score
