@@ -44,7 +44,8 @@ def test_settings_beyond_the_table_are_taxis_x_requests():
 
 
 def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
-    """--separation shield: every flown episode has the shield (zero violations); the default stays as recorded."""
+    """--separation shield: every flown episode has the shield (zero violations); make_fleet_instance's own default
+    stays as the earliest tables recorded it (no shield)."""
     from uamfleet.cli.fleet_benchmark import run_episode_set
     from uamfleet.config import ConfigError
     from uamfleet.instances import make_fleet_instance
@@ -59,6 +60,20 @@ def test_fleet_episodes_fly_through_the_shield_when_asked() -> None:
     hovering = run_episode_set(("berlin", "4x24", 2000000, ("greedy",), (), "shield", True))
     assert hovering[0]["separation_violations"] == 0 and hovering[0]["service_pct"] == 100.0
     assert hovering[0]["hover_actions"] > 0 and hovering[0]["td_m"] < shielded[0]["td_m"]  # idle taxis stay put
+
+
+def test_the_command_flies_the_fleet_presets_rules_by_default() -> None:
+    """A new user's `uamfleet fleet-bench` flies the *_fleet presets' rules (shield, idle taxis hover); the rules
+    of the earliest tables are asked for by name, and the printed re-run command names whichever differ."""
+    from uamfleet.cli.fleet_benchmark import rerun_command
+    from uamfleet.presets import make_config
+
+    preset = make_config("berlin_fleet")
+    assert (Args().separation, Args().hover_action) == (preset.separation, preset.hover_action) == ("shield", True)
+    default = rerun_command(Args(settings=("2x6",), count=1))
+    assert "--separation" not in default and "hover-action" not in default
+    old = rerun_command(Args(settings=("2x6",), count=1, separation="none", hover_action=False))
+    assert old.endswith("--separation none --no-hover-action")
 
 
 def test_dispatchers_are_read_in_the_grammar_and_as_recorded() -> None:

@@ -5,7 +5,9 @@
 
 Instances come from :func:`uamfleet.instances.make_fleet_instance` (``--split test`` by default; settings
 :data:`uamfleet.instances.FLEET_SETTINGS`, or any ``<taxis>x<requests>`` such as the loaded ``4x48`` and ``8x96``:
-taxis x requests per episode, released over the first 10 minutes, or ``--arrival-window-s``). A learned fleet reads
+taxis x requests per episode, released over the first 10 minutes, or ``--arrival-window-s``), flown as the
+``*_fleet`` presets fly them: under the separation shield, idle taxis hovering (``--separation none`` and
+``--no-hover-action`` fly the earliest recorded tables' rules). A learned fleet reads
 every request of the episode on its passenger axis: it is flown with as many passenger slots as the setting has
 requests (``learned:source=<file>,taxis=<n>,passenger_slots=<requests>``; the light settings' own default), or with
 ``--passenger-window K`` each taxi reads K rows, its riders and nearest waiting requests, for any number of requests
@@ -99,10 +101,13 @@ class Args:
     merge_csv: Path | None = None
     """add an earlier run's rows (e.g. the dispatchers) on the episodes flown now to this run's; rows of a
     dispatcher flown now replace its earlier rows"""
-    separation: Literal["none", "shield"] = "none"
-    """EnvConfig.separation of every episode: "none" (as the recorded tables) or "shield" (docs/rules.md)"""
-    hover_action: bool = False
-    """EnvConfig.hover_action of every episode: idle dispatcher taxis hover (action 16) instead of zig-zagging"""
+    separation: Literal["none", "shield"] = "shield"
+    """EnvConfig.separation of every episode: "shield" (conflicts resolved before moves, as the *_fleet presets;
+    docs/rules.md) or "none" (the earliest recorded fleet tables)"""
+    hover_action: bool = True
+    """EnvConfig.hover_action of every episode: idle taxis hover (action 16, as the *_fleet presets);
+    --no-hover-action flies the 16 headings alone, where an idle dispatcher taxi zig-zags and its distance grows
+    with the episode's idle time"""
     passenger_window: int | None = None
     """fly the learned fleets reading a passenger window of K rows (the learned policy's passenger_window option; the
     trained passenger slot count is the K to choose): any number of requests; default: one slot per request"""
@@ -309,8 +314,8 @@ def rerun_command(args: Args) -> str:
         + (f" --dispatchers {' '.join(args.dispatchers)}" if tuple(args.dispatchers) != FLEET_DISPATCHERS else "")
         + (f" --assignment-value {args.assignment_value}" if args.assignment_value is not None else "")
         + (f" --checkpoints {' '.join(map(str, args.checkpoints))}" if args.checkpoints else "")
-        + (f" --separation {args.separation}" if args.separation != "none" else "")
-        + (" --hover-action" if args.hover_action else "")
+        + (f" --separation {args.separation}" if args.separation != "shield" else "")
+        + ("" if args.hover_action else " --no-hover-action")
         + (f" --passenger-window {args.passenger_window}" if args.passenger_window is not None else "")
         + (f" --arrival-window-s {args.arrival_window_s:g}" if args.arrival_window_s != FLEET_ARRIVAL_WINDOW_S else "")
         + (f" --merge-csv {args.merge_csv}" if args.merge_csv is not None else "")
