@@ -440,3 +440,29 @@ def test_a_traced_base_is_traced_at_reset_and_flies_as_the_eager_one(wait_action
     assert flights[0] == flights[1] and len(flights[0][1]) >= 3  # several searches, the same ones
     expected = 3 if wait_action == "hover" else 4  # scratch, root, futures: (3 + 1) x 3 (and 3 x 3 for forbidden)
     assert made_at_reset == [0, expected] and len(traced._traces) == expected  # none made during the flight
+
+
+def test_a_second_reset_makes_no_trace_and_runs_no_forward() -> None:
+    """Tracing at reset runs the actor only at a batch shape whose trace is missing: a second episode's reset
+    neither makes a trace nor runs a forward pass."""
+    import copy
+
+    from uamfleet.rl.guided import AnticipatingGuidedSearch
+
+    first = Request(0, (550.0, 150.0), (550.0, 550.0))
+    cfg = _hedge_config((first, Request(8, (150.0, 650.0), (650.0, 650.0)))).replace(hover_action=True)
+    traced = copy.copy(_policy(cfg, 0)).trace_actor()
+    hedge = AnticipatingGuidedSearch(traced, _prior(cfg), first_headings=3, futures=3, commit=3, wait_action="hover")
+    env = VectorEnv(cfg, 1, autoreset=False)
+    env.reset(seed=0)
+    hedge.reset(env.sim)
+    made = dict(traced._traces)
+    forwards: list[int] = []
+    eager_logits = traced.logits_of
+    traced.logits_of = lambda inputs: forwards.append(1) or eager_logits(inputs)  # type: ignore[method-assign]
+    env.reset(seed=1)
+    hedge._trace_search_shapes()
+    assert forwards == [] and traced._traces == made
+    traced.trace_actor()  # traces dropped: the next reset makes them again
+    hedge._trace_search_shapes()
+    assert len(forwards) == len(made) and set(traced._traces) == set(made)

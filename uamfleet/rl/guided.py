@@ -166,7 +166,7 @@ class GuidedSearchPolicy(PolicyBase):
         first search: a trace is made at its shape's first call (about 1 s on one core), setup that would otherwise
         count as that search's time. Observes its scratch states and flies nothing, so no search changes."""
         if self.policy.traced and self.scratch is not None:
-            self.policy.logits_of(self.policy.network_input(self.scratch.observer.observe(self.scratch.state)))
+            self.policy.trace_for(self.policy.network_input(self.scratch.observer.observe(self.scratch.state)))
 
     def _released_rows(self) -> np.ndarray:
         assert self.sim is not None
@@ -378,13 +378,13 @@ class AnticipatingGuidedSearch(GuidedSearchPolicy):
         if not self.policy.traced:
             return
         assert self.sim is not None and self.scratch is not None
-        self.policy.logits_of(self.policy.network_input(self.scratch.observer.observe(self.sim.state)))
+        self.policy.trace_for(self.policy.network_input(self.scratch.observer.observe(self.sim.state)))
         candidates = [self.first_headings + 1] if self.wait else []
         if not (self.wait and self.wait_action == "hover"):  # no wait, or a forbidden heading only some steps have
             candidates.append(self.first_headings)
         for count in candidates:
             env = self._futures_env(count * self.futures)
-            self.policy.logits_of(self.policy.network_input(env.observer.observe(env.state)))
+            self.policy.trace_for(self.policy.network_input(env.observer.observe(env.state)))
 
     def _future_rows(self, world_rows: int) -> int:
         """The passenger rows of its sampled futures: the world's, or the demand model's most requests if more."""

@@ -273,7 +273,7 @@ class GreedyPolicy(PolicyBase):
         if not self.traced:
             return net.masked_logits(x)
         keys = tuple(sorted(x))
-        signature = tuple((k, tuple(x[k].shape), x[k].dtype) for k in keys)
+        signature = _signature(x)
         trace = self._traces.get(signature)
         if trace is None:
             # The shape checks become constants of the trace, so there is one per set of shapes. torch 2.13 calls
@@ -291,6 +291,12 @@ class GreedyPolicy(PolicyBase):
             self._traces[signature] = trace
         return trace(*(x[k] for k in keys))
 
+    def trace_for(self, inputs: dict[str, np.ndarray]) -> None:
+        """With :meth:`trace_actor`, make the trace of ``inputs``' shapes unless it exists (one forward pass, whose
+        logits are dropped); nothing otherwise. A search calls it at reset for every batch shape it will feed."""
+        if self.traced and _signature(obs_to_torch(inputs, self.device)) not in self._traces:
+            self.logits_of(inputs)
+
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         return self.choose(obs, self.logits_of(self.network_input(obs)))
 
@@ -301,6 +307,11 @@ class GreedyPolicy(PolicyBase):
         if self.loop_guard is None:
             return logits.argmax(-1).cpu().numpy().reshape(E, A)
         return self.loop_guard.choose(obs, logits.cpu().numpy()).reshape(E, A)
+
+
+def _signature(x: dict[str, torch.Tensor]) -> tuple[tuple[object, ...], ...]:
+    """The key of a trace: each input's name, shape and dtype (a trace's shape checks are constants)."""
+    return tuple((k, tuple(x[k].shape), x[k].dtype) for k in sorted(x))
 
 
 class _Actor(torch.nn.Module):
