@@ -67,6 +67,7 @@ LAYERS: tuple[tuple[int, tuple[str, ...]], ...] = (
             "uamfleet.rl.imitation",
             "uamfleet.rl.fleet_imitation",  # DAgger from a fleet dispatcher: the learned policies' loader, rollout
             "uamfleet.rl.fleet_claims",  # a fleet policy reading a dispatcher's claims: the greedy policy, a dispatcher
+            "uamfleet.rl.fleet_finetune",  # the claims policy fine-tuned with the return: fleet_imitation's episodes
             "uamfleet.rl.expert_iteration",
             "uamfleet.rl.experts",
             "uamfleet.rl.guided",

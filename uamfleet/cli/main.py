@@ -25,6 +25,7 @@ COMMANDS: dict[str, str] = {
     "imitate": "imitate",
     "expert-iteration": "expert_iteration",
     "fleet-imitate": "fleet_imitate",
+    "fleet-finetune": "fleet_finetune",
     "quickstart": "quickstart",
     "rollout": "rollout",
     "render": "render",
