@@ -45,7 +45,7 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.fleet_claims import with_claims
 from uamfleet.rl.fleet_imitation import (
-    CONVERSIONS, MIXTURE, TEACHER, FleetImitationArgs, fleet_policy, make_teacher, padded_rows, setting_size,
+    CONVERSIONS, MIXTURE, TEACHER, FleetImitationArgs, check_mixture, fleet_policy, make_teacher, padded_rows,
     teacher_claims, training_episodes,
 )  # fmt: skip
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
@@ -124,10 +124,7 @@ class FleetFinetuneArgs:
             value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), positive=True)
             if value > 1:
                 raise ConfigError(f"--{name.replace('_', '-')}={value} is above 1: use a value in (0, 1].")
-        if not self.mixture:
-            raise ConfigError(f"--mixture is empty: give fleet settings <taxis>x<requests>, e.g. {' '.join(MIXTURE)}.")
-        for setting in (*self.mixture, *self.also_mixture):
-            setting_size(setting)
+        check_mixture(self.mixture, self.also_mixture)
         for name, family in (("--family", self.family), ("--also-family", self.also_family)):
             if family is not None and family not in FAMILIES:
                 raise ConfigError(f"{name}={family!r} is unknown; use one of {sorted(FAMILIES)}.")

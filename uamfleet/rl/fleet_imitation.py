@@ -32,7 +32,7 @@ import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -144,10 +144,7 @@ class FleetImitationArgs:
             value = check_number(f"--{name.replace('_', '-')}", getattr(self, name), minimum=0.0)
             if value > 1:
                 raise ConfigError(f"--{name.replace('_', '-')}={value} is a probability: use a value in [0, 1].")
-        if not self.mixture:
-            raise ConfigError(f"--mixture is empty: give fleet settings <taxis>x<requests>, e.g. {' '.join(MIXTURE)}.")
-        for setting in self.mixture:
-            setting_size(setting)
+        check_mixture(self.mixture)
         check_run_name(self.run_name, self.run_dir)
 
     def beta(self, round_index: int) -> float:
@@ -162,6 +159,14 @@ class FleetImitationArgs:
         """The options :func:`uamfleet.rl.imitation.fit` reads (its fit group)."""
         options = FitOptions(self.epochs, self.minibatch, self.learning_rate, max_samples=self.max_samples)
         return ImitationArgs(fit=dataclasses.replace(options, seed=self.seed))
+
+
+def check_mixture(mixture: Sequence[str], extra: Sequence[str] = ()) -> None:
+    """ConfigError in one line for an empty ``--mixture`` or a setting (of it or ``extra``) not <taxis>x<requests>."""
+    if not mixture:
+        raise ConfigError(f"--mixture is empty: give fleet settings <taxis>x<requests>, e.g. {' '.join(MIXTURE)}.")
+    for setting in (*mixture, *extra):
+        setting_size(setting)
 
 
 def setting_size(setting: str) -> tuple[int, int]:
