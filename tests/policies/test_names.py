@@ -119,6 +119,10 @@ RECORDED: dict[str, tuple[str, dict]] = {
     **{f"fleet_claims:source=reports/2026-12-04-fleet-claims/{stem}.pt": (
         "fleet_claims", {"source": f"reports/2026-12-04-fleet-claims/{stem}.pt"})
        for stem in ("claims_r2", "claims_r3", "claims_hover_r2", "claims_hover_r3")},
+    **{f"fleet_claims:source=reports/{path}.pt": ("fleet_claims", {"source": f"reports/{path}.pt"})
+       for path in ("2026-12-04-fleet-val50/claims_hover01_r3", "2026-12-04-fleet-val50/claims_hover01_r5",
+                    "2026-12-04-fleet-val50/claims_hover004_r3", "2026-12-04-fleet-finetune/ppoA_last",
+                    "2026-12-04-fleet-finetune/ppoB_last")},
     "learned:hover_ft+window24": ("learned", {"source": "runs/hover_ft/best.pt", "passenger_window": 24}),
     "learned:mix_ft+window24": ("learned", {"source": "runs/mix_ft/best.pt", "passenger_window": 24}),
     "learned:switched+window24": ("learned", {"source": "runs/switched/best.pt", "passenger_window": 24}),
@@ -133,7 +137,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 87
+    assert len(recorded) == 92
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))
