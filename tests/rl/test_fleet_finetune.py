@@ -83,6 +83,7 @@ def test_one_iteration_writes_a_checkpoint_that_flies_by_its_registry_name(tmp_p
     assert {"mean_return", "kl_to_start"} <= set(progress[0])
     saved = torch.load(tmp_path / "ft" / "iter0.pt", weights_only=True)
     assert saved["net_config"]["dispatch_claim_inputs"] is True
+    assert saved["args"]["fleet_finetune"]["learning_rate"] == 1e-3 and saved["best_eval"]["iteration"] == 0
     start = with_dispatch_claims(fleet_policy("berlin_fleet", 24)).net.state_dict()
     assert any(not torch.equal(saved["model"][k], v) for k, v in start.items())  # it learned something
     policy = policies.make_named(f"fleet_claims:source={tmp_path / 'ft' / 'iter0.pt'}")

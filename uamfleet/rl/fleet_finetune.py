@@ -45,8 +45,8 @@ from uamfleet.io import write_csv_atomic
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.fleet_claims import with_claims
 from uamfleet.rl.fleet_imitation import (
-    CONVERSIONS, MIXTURE, TEACHER, FleetImitationArgs, check_mixture, fleet_policy, make_teacher, padded_rows,
-    teacher_claims, training_episodes,
+    MIXTURE, TEACHER, FleetImitationArgs, check_mixture, fleet_policy, make_teacher, padded_rows,
+    save_fleet_checkpoint, teacher_claims, training_episodes,
 )  # fmt: skip
 from uamfleet.rl.networks import MSHAActorCritic, obs_to_torch
 from uamfleet.rl.policy import GreedyPolicy
@@ -351,29 +351,10 @@ def _fleet_finetune(args: FleetFinetuneArgs, claim: RunClaim) -> list[dict[str, 
         }  # fmt: skip
         rows.append(row)
         print(", ".join(f"{k}={v:.4g}" for k, v in row.items()), flush=True)
-        save_finetuned(claim.folder / f"iter{i}.pt", initial, policy.net, args, row)
-        save_finetuned(claim.folder / "last.pt", initial, policy.net, args, row)
+        for name in (f"iter{i}.pt", "last.pt"):
+            save_fleet_checkpoint(claim.folder / name, initial, policy.net, args, row, key="fleet_finetune")
         write_csv_atomic(claim.folder / "progress.csv", rows, list(rows[0]))
     return rows
-
-
-def save_finetuned(
-    path: Path, ckpt: Checkpoint, net: MSHAActorCritic, args: FleetFinetuneArgs, row: dict[str, Any]
-) -> None:
-    """The start's checkpoint ``ckpt`` with the fine-tuned weights (as :func:`~uamfleet.rl.fleet_imitation.
-    save_fleet_checkpoint`: the same network, normaliser and spec, the claims conversion recorded), its fine-tune
-    options and this iteration's row recorded, without optimiser state."""
-    options = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
-               for k, v in dataclasses.asdict(args).items()}  # fmt: skip
-    out = dataclasses.replace(
-        ckpt,
-        model={k: v.detach().clone() for k, v in net.state_dict().items()},
-        net_config={**ckpt.net_config, **{k: True for k in CONVERSIONS if getattr(net.cfg, k)}},
-        args={**ckpt.args, "fleet_finetune": options},
-        best_eval={k: float(v) for k, v in row.items()},
-        optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
-    )  # fmt: skip
-    out.save(path)
 
 
 __all__ = [
@@ -384,7 +365,6 @@ __all__ = [
     "cost_to_go",
     "fleet_finetune",
     "sample_episode",
-    "save_finetuned",
     "step_cost",
     "tempered",
     "update",

@@ -434,18 +434,19 @@ def make_teacher(name: str, taxis: int) -> PolicyBase:
 
 
 def save_fleet_checkpoint(
-    path: Path, ckpt: Checkpoint, net: MSHAActorCritic, args: FleetImitationArgs, row: dict[str, Any]
+    path: Path, ckpt: Checkpoint, net: MSHAActorCritic, args: Any, row: dict[str, Any], key: str = "fleet_imitation"
 ) -> None:
-    """The start's checkpoint ``ckpt`` with the fitted weights (the same network, normaliser and spec: it loads and
-    flies like the start, any fleet size), its DAgger options and this round's row recorded, without optimiser
-    state."""
+    """The start's checkpoint ``ckpt`` with the trained weights (the same network, normaliser and spec: it loads and
+    flies like the start, any fleet size, its conversions recorded), the run's options ``args`` (a dataclass:
+    :class:`FleetImitationArgs`, or fleet_finetune's with ``key="fleet_finetune"``) under ``args[key]`` and this
+    round's row recorded, without optimiser state."""
     options = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
                for k, v in dataclasses.asdict(args).items()}  # fmt: skip
     out = dataclasses.replace(
         ckpt,
         model={k: v.detach().clone() for k, v in net.state_dict().items()},
         net_config={**ckpt.net_config, **{k: True for k in CONVERSIONS if getattr(net.cfg, k)}},
-        args={**ckpt.args, "fleet_imitation": options},
+        args={**ckpt.args, key: options},
         best_eval={k: float(v) for k, v in row.items()},
         optimizer={}, reward_scaler=None, cuda_rng=None, numpy_rng={},
     )  # fmt: skip
