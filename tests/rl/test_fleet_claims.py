@@ -15,7 +15,9 @@ from uamfleet.baselines.sequencing import DROPOFF, PICKUP
 from uamfleet.checks import ConfigError
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
-from uamfleet.rl.fleet_claims import CLAIM_SCORE, ClaimsFleetPolicy, dispatch_claims, with_claims, with_dispatch_claims
+from uamfleet.rl.fleet_claims import (
+    CLAIM_SCORE, ClaimsFleetPolicy, dispatch_claims, open_stops, with_claims, with_dispatch_claims,
+)  # fmt: skip
 from uamfleet.rl.fleet_imitation import TEACHER, FleetImitationArgs, fleet_imitate, fleet_policy, make_teacher
 from uamfleet.rollout import fly, observer_of
 from uamfleet.types import DISPATCH_CLAIM_FEATURES, ON_BOARD, WAITING
@@ -139,3 +141,41 @@ def test_one_round_learns_the_claims_and_flies_by_its_registry_name(tmp_path) ->
     cfg = scene(taxis=2, requests=6, split="validation")
     traj = fly(cfg, policy)
     assert traj.terminated
+
+
+def test_hover_when_idle_keeps_a_taxi_with_an_open_stop_flying() -> None:
+    """A network that would hover every taxi at every step (its hover logit forced to the top): with
+    ``hover_when_idle`` only the taxis whose dispatcher schedule is empty hover, the others fly their best heading;
+    without it every taxi hovers."""
+    from uamfleet.rl.hover import with_hover_anytime
+    from uamfleet.types import HOVER_ACTION
+
+    cfg = scene(taxis=3, requests=8)
+    checked = {True: 0, False: 0}
+    for gate in (True, False):
+        policy = ClaimsFleetPolicy(
+            with_dispatch_claims(with_hover_anytime(fleet_policy("berlin_fleet", 24))), make_teacher(TEACHER, 3),
+            hover_when_idle=gate,
+        )  # fmt: skip
+        net_logits = policy.policy.logits_of
+
+        def hover_first(inputs, net_logits=net_logits):
+            logits = net_logits(inputs).clone()
+            logits[:, HOVER_ACTION] = logits.max() + 10.0
+            return logits
+
+        policy.policy.logits_of = hover_first
+        env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
+        obs, _ = env.reset(seed=0)
+        policy.reset(env.sim)
+        for _ in range(120):  # requests are released over the first 200 steps
+            actions = policy.act(obs)[0]
+            busy = [bool(open_stops(policy.dispatcher, a)) for a in range(3)]
+            for a in range(3):
+                hovered = actions[a] == HOVER_ACTION
+                assert hovered == (not (gate and busy[a])), (gate, a, busy)
+                checked[gate] += busy[a]
+            obs, _, terminated, truncated, _ = env.step(actions[None])
+            if terminated[0] or truncated[0]:
+                break
+    assert checked[True] > 0 and checked[False] > 0  # taxis with open stops were met, with and without the gate

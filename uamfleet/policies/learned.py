@@ -177,11 +177,13 @@ class FleetClaimsOptions:
     ``arrival_window_s`` (:mod:`uamfleet.rl.fleet_claims`); the network decides every move. A fleet method that
     the fleet benchmark flies like a dispatcher (``--dispatchers fleet_claims:source=<file>``). A source that reads
     no claims (the default, the shipped ``berlin_fleet``) is converted with them at zero weight: it flies as
-    itself."""
+    itself. ``hover_when_idle``: a taxi with an open stop on the dispatcher's schedule never hovers (a decoding rule
+    for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`)."""
 
     source: str = "berlin_fleet"
     passenger_window: int = 24
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
+    hover_when_idle: bool = False
 
     def __post_init__(self) -> None:
         check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=" (e.g. 24)")
@@ -195,7 +197,7 @@ def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
     policy = load(LearnedOptions(source=options.source, passenger_window=options.passenger_window))
     policy = with_dispatch_claims(policy)  # a copy reading claims at zero weight, unless it reads them already
     teacher = make_flown(CHOSEN_DISPATCHER, arrival_window_s=options.arrival_window_s)
-    return ClaimsFleetPolicy(policy, teacher)
+    return ClaimsFleetPolicy(policy, teacher, hover_when_idle=options.hover_when_idle)
 
 
 register("fleet_claims", "dispatcher", FleetClaimsOptions, lambda o, _b: fleet_claims(o))

@@ -30,7 +30,8 @@ from uamfleet.observe.observer import Observer
 from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy
 from uamfleet.sim.core import Simulator
-from uamfleet.types import DISPATCH_CLAIM_FEATURES, DISPATCH_CLAIMS_FIELD, ON_BOARD, WAITING
+from uamfleet.rl.heads import NOT_THIS
+from uamfleet.types import DISPATCH_CLAIM_FEATURES, DISPATCH_CLAIMS_FIELD, HOVER_ACTION, ON_BOARD, WAITING
 
 PASSENGER_EMBED = "torso.passengers.embed.weight"
 """The parameter :func:`with_dispatch_claims` widens: the passenger rows' embedding gets four zero columns, last."""
@@ -113,9 +114,13 @@ def with_claims(inputs: dict[str, np.ndarray], claims: np.ndarray) -> dict[str, 
 class ClaimsFleetPolicy(PolicyBase):
     """A fleet policy whose network reads ``dispatcher``'s claims (module docstring), acting greedily through its
     loop guard as :class:`GreedyPolicy` does; ``dispatcher`` (a schedule dispatcher, fresh or reused) watches every
-    step. Its :attr:`spec` is the network policy's: the env is built to what the network reads."""
+    step. Its :attr:`spec` is the network policy's: the env is built to what the network reads.
 
-    def __init__(self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy) -> None:
+    ``hover_when_idle`` (a decoding rule, for a network that may hover at any step, ``NetConfig.hover_anytime``):
+    a taxi with an open stop on the dispatcher's schedule (:func:`open_stops`) does not hover; its most likely
+    heading flies instead. The dispatcher itself hovers only with an empty schedule."""
+
+    def __init__(self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy, hover_when_idle: bool = False) -> None:
         if not policy.net.cfg.dispatch_claim_inputs:
             raise ConfigError(
                 "this policy's network reads no dispatcher claims: convert it with with_dispatch_claims (and train "
@@ -124,6 +129,7 @@ class ClaimsFleetPolicy(PolicyBase):
         if not isinstance(dispatcher, ScheduleFleetPolicy):
             raise ConfigError(f"the claims are a schedule dispatcher's; {type(dispatcher).__name__} keeps none.")
         self.policy, self.dispatcher = policy, dispatcher
+        self.hover_when_idle = hover_when_idle
         self.spec = policy.spec
         self._observer: Observer | None = None
 
@@ -145,7 +151,13 @@ class ClaimsFleetPolicy(PolicyBase):
             raise ConfigError("a ClaimsFleetPolicy flies one env at a time (its dispatcher watches env 0).")
         self.dispatcher.act(obs)  # its schedules advance by this step, as when it flies
         inputs = with_claims(self.policy.network_input(obs), self.claims())
-        return self.policy.choose(obs, self.policy.logits_of(inputs))
+        logits = self.policy.logits_of(inputs)
+        if self.hover_when_idle and logits.shape[-1] > HOVER_ACTION:
+            busy = [a for a in range(logits.shape[0]) if open_stops(self.dispatcher, a)]
+            if busy:
+                logits = logits.clone()  # an inference tensor: a copy takes the change
+                logits[busy, HOVER_ACTION] = NOT_THIS
+        return self.policy.choose(obs, logits)
 
 
 __all__ = [
