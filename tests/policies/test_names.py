@@ -123,6 +123,8 @@ RECORDED: dict[str, tuple[str, dict]] = {
        for path in ("2026-12-04-fleet-val50/claims_hover01_r3", "2026-12-04-fleet-val50/claims_hover01_r5",
                     "2026-12-04-fleet-val50/claims_hover004_r3", "2026-12-04-fleet-finetune/ppoA_last",
                     "2026-12-04-fleet-finetune/ppoB_last")},
+    "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt,hover_when_idle=true": (
+        "fleet_claims", {"source": "reports/2026-12-04-fleet-val50/claims_hover01_r3.pt", "hover_when_idle": True}),
     "learned:hover_ft+window24": ("learned", {"source": "runs/hover_ft/best.pt", "passenger_window": 24}),
     "learned:mix_ft+window24": ("learned", {"source": "runs/mix_ft/best.pt", "passenger_window": 24}),
     "learned:switched+window24": ("learned", {"source": "runs/switched/best.pt", "passenger_window": 24}),
@@ -137,7 +139,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 92
+    assert len(recorded) == 93
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))
