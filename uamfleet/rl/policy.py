@@ -268,7 +268,11 @@ class GreedyPolicy(PolicyBase):
         :meth:`network_input` rows (needs no critic state). Under inference mode, not only no_grad: less overhead per
         call, which a lone taxi's decision is mostly (docs/benchmarks.md, "Decision time"); with :meth:`trace_actor`,
         through a trace."""
-        x = obs_to_torch(inputs, self.device)
+        return self._logits(obs_to_torch(inputs, self.device))
+
+    @torch.inference_mode()
+    def _logits(self, x: dict[str, torch.Tensor]) -> torch.Tensor:
+        """:meth:`logits_of` of inputs already converted to tensors (``obs_to_torch``)."""
         net = self.fitted()[0]
         if not self.traced:
             return net.masked_logits(x)
@@ -294,8 +298,10 @@ class GreedyPolicy(PolicyBase):
     def trace_for(self, inputs: dict[str, np.ndarray]) -> None:
         """With :meth:`trace_actor`, make the trace of ``inputs``' shapes unless it exists (one forward pass, whose
         logits are dropped); nothing otherwise. A search calls it at reset for every batch shape it will feed."""
-        if self.traced and _signature(obs_to_torch(inputs, self.device)) not in self._traces:
-            self.logits_of(inputs)
+        if self.traced:
+            x = obs_to_torch(inputs, self.device)  # converted once: the signature and the forward pass share it
+            if _signature(x) not in self._traces:
+                self._logits(x)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         return self.choose(obs, self.logits_of(self.network_input(obs)))
