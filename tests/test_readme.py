@@ -470,6 +470,52 @@ def search_start_claims() -> list[str]:
     return [str(secs[0]), str(secs[-1]), str(starts)]
 
 
+CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
+CLAIMS_A = "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt"
+
+
+def fleet_readme_claims() -> list[str]:
+    """The README's fleet sentence, recomputed: the scale runs (fleet_scale_sizes_dispatchers.csv,
+    fleet_scale_64x1000.csv) and claims A' round 3 paired against the chosen dispatcher on 50 validation episodes
+    per setting (the rows of docs/results.md's table fleet_validation50, normal 95 % intervals as it has them)."""
+    scale = rows("fleet_scale_sizes_dispatchers.csv") + rows("fleet_scale_64x1000.csv")
+    assert all(float(r["separation_violations"]) == 0 for r in scale)
+    taxis = sorted({int(r["taxis"]) for r in scale})
+    biggest = [r for r in scale if int(r["taxis"]) == taxis[-1]]
+    val = [r for name in ("fleet_search_val_4x48.csv", "fleet_search_val_8x96.csv", "fleet_search_val_detroit.csv",
+                          "fleet_val50_dispatcher.csv", "fleet_val50_claims.csv") for r in rows(name)]  # fmt: skip
+    by = defaultdict(dict)
+    for r in val:
+        by[(r["family"], r["setting"], r["dispatcher"])][int(float(r["seed"]))] = r
+    p50, counts = [], set()
+    for family, setting in (("berlin", "4x48"), ("berlin", "8x96"), ("detroit3gpp", "4x24")):
+        base, mine = by[(family, setting, CHOSEN)], by[(family, setting, CLAIMS_A)]
+        assert set(base) == set(mine)
+        counts.add(len(mine))
+        for column in ("td_per_delivered_m", "wait_p50_s", "wait_p95_s"):
+            d = np.array([float(mine[s][column]) - float(base[s][column]) for s in sorted(base)])
+            half = 1.96 * d.std(ddof=1) / np.sqrt(len(d))
+            if family == "berlin":
+                assert abs(d.mean()) <= half  # a tie within the interval
+            if column == "wait_p50_s":
+                p50.append(d.mean())
+            if family == "detroit3gpp" and column == "td_per_delivered_m":
+                assert d.mean() + half < 0
+                detroit = f"flies {-d.mean():.0f} ± {half:.0f} m less per delivered passenger"
+    (n,) = counts
+    return [
+        f"from {taxis[0]} taxis up to {taxis[-1]} taxis with {int(biggest[0]['requests']):,} requests",
+        f"over {n} validation episodes per setting",
+        detroit,
+        f"median wait is {min(p50):.1f}–{max(p50):.1f} s longer",
+    ]
+
+
+def test_the_fleet_paragraph():
+    for claim in fleet_readme_claims():
+        says(RESULTS, claim)
+
+
 def test_every_result_number_is_accounted_for():
     """Every number in the quick start's prose and the results at a glance is one a test above recomputes, a
     setting of the experiment (SETUP) or a measurement the README dates (MEASURED)."""
@@ -478,7 +524,7 @@ def test_every_result_number_is_accounted_for():
             [
                 pct(mean_of_ratios("raster_opt")), pct(mean_of_ratios("replan")), pct(mean_of_ratios("learned")),
                 m(td("learned").mean()), m(td("replan").mean()), RESULTS_MD, BENCHMARKS_MD,
-                *expert_iteration_claims(), *search_start_claims(),
+                *expert_iteration_claims(), *search_start_claims(), *fleet_readme_claims(),
                 *(f"{int(r['agent_steps']):,}" for r in quickstart_seeds("scratch-search-start")),
             ]
         )
