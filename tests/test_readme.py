@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.cli.paper_numbers import PAPER_TABLE_II
 from uamfleet.cli.quickstart import SEARCH_START_STEPS, Args
 
@@ -470,7 +471,6 @@ def search_start_claims() -> list[str]:
     return [str(secs[0]), str(secs[-1]), str(starts)]
 
 
-CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
 CLAIMS_A = "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt"
 
 
@@ -489,7 +489,7 @@ def fleet_readme_claims() -> list[str]:
         by[(r["family"], r["setting"], r["dispatcher"])][int(float(r["seed"]))] = r
     p50, counts = [], set()
     for family, setting in (("berlin", "4x48"), ("berlin", "8x96"), ("detroit3gpp", "4x24")):
-        base, mine = by[(family, setting, CHOSEN)], by[(family, setting, CLAIMS_A)]
+        base, mine = by[(family, setting, CHOSEN_DISPATCHER)], by[(family, setting, CLAIMS_A)]
         assert set(base) == set(mine)
         counts.add(len(mine))
         for column in ("td_per_delivered_m", "wait_p50_s", "wait_p95_s"):
