@@ -11,10 +11,12 @@ from conftest import small_config
 
 from uamfleet.baselines import POLICIES
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, assign_trips
-from uamfleet.baselines.fleet_dispatch import SCHEDULE_DISPATCHERS, DispatchOptions, split_options
+from uamfleet.baselines.fleet_dispatch import SCHEDULE_DISPATCHERS, DispatchOptions, fleet_action, split_options
 from uamfleet.config import Request
+from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.policies import make_flown
+from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
 from uamfleet.types import DELIVERED
 
@@ -468,3 +470,37 @@ def test_the_fleet_benchmark_refuses_repeated_dispatchers_and_options_in_one_lin
     err = capsys.readouterr().err
     assert status == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize("cls", [InsertionPolicy, BatchAssignmentPolicy])
+def test_heading_table_flies_the_move_the_observation_marks_for_the_stop(cls) -> None:
+    """``heading="table"``: every taxi with a stop flies the heading the env's own ``stop_heading_mask`` marks for
+    that stop's row (the observation's kernel, read from the observation, not the dispatcher's call), where the
+    default field rule flies another heading at some steps; everyone is still delivered."""
+    cfg = make_config("berlin_random", num_taxis=3, stop_features=True, sinr_min_db=-5.0)
+    checked = {"table": 0, "field differs": 0}
+
+    class Compared(PolicyBase):
+        def __init__(self) -> None:
+            self.inner = cls(heading="table")
+
+        def reset(self, sim) -> None:
+            self.inner.reset(sim)
+
+        def act(self, obs):
+            moves = self.inner.act(obs)[0]
+            for a, k in enumerate(moves):
+                stop = self.inner.next_stop(a)
+                if stop is None:
+                    continue
+                marked = obs["stop_heading_mask"][0, a, stop[0]]
+                assert marked.any() and k == int(marked.argmax()), (a, stop, k)
+                checked["table"] += 1
+                target = self.inner.target(a)
+                by_field = fleet_action(self.inner.sim, self.inner.fields, [None] * len(moves), a, target)
+                checked["field differs"] += int(by_field != k)
+            return moves[None]
+
+    traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), Compared(), seed=3)
+    assert traj.terminated  # everyone delivered
+    assert checked["table"] > 50 and checked["field differs"] > 0, checked

@@ -135,8 +135,9 @@ class BatchAssignmentPolicy(ScheduleFleetPolicy):
         assign_on_release: bool = False,
         unassigned_price_s: float | None = None,
         unassigned_guard_s: float | None = None,
+        heading: str = "field",
     ) -> None:
-        super().__init__(exact_limit, wait_weight)
+        super().__init__(exact_limit, wait_weight, heading)
         # a request left unassigned costs this plus (1 + β) × the wait it has had (None: penalty_s for every one).
         # A trip's cost counts its riders' waits since their release, so a flat finite price would make a request
         # dearer to serve at every batch it waits and, once dearer than the price, never served; the wait so far

@@ -17,6 +17,14 @@ a schedule: :class:`~uamfleet.baselines.batch_assignment.InsertionPolicy` (``ins
 ``batch_assignment_value``) in :mod:`~uamfleet.baselines.batch_assignment`. Their names may carry options
 (:func:`split_options`).
 
+How a taxi heads for its stop (``heading``, a name's ``heading=<rule>``): ``"field"`` (the default, every recorded
+dispatcher's) flies the allowed move whose end is nearest the stop by the stop's distance field
+(:meth:`DistanceFields.heading`); ``"table"`` flies the move the observation's ``stop_heading_mask`` marks for it,
+the least move plus distance-table distance left, a move ending within the pick-up radius costing the move alone
+(:func:`uamfleet.observe.moves.progress_heading`). A fleet policy with a stop head steers by the latter, so a
+dispatcher flying ``"table"`` separates what such a policy decides from how it steers
+(reports/2026-12-05-fleet-headings/).
+
 A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
 ``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
 separation shield an idle taxi in the way of a busy taxi's next move steps aside (:func:`make_way`): the shield
@@ -42,7 +50,8 @@ from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan,
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.config import heading_vectors
 from uamfleet.env.protocol import PolicyBase
-from uamfleet.paths import DistanceFields
+from uamfleet.observe.moves import progress_heading
+from uamfleet.paths import DistanceFields, DistanceTable, table_for
 from uamfleet.sim.core import Simulator
 from uamfleet.sim.motion import passes_within_each
 from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
@@ -161,18 +170,36 @@ def shared_fields(sim: Simulator, warm: bool = False) -> DistanceFields:
     return fields
 
 
+HEADING_RULES = ("field", "table")
+"""How a dispatcher's taxi heads for its stop (module docstring): by the stop's distance field or as the
+observation's ``stop_heading_mask`` marks it."""
+
+
+def check_heading(value: object) -> str:
+    """``value`` if it is one of :data:`HEADING_RULES`; ConfigError naming it otherwise."""
+    if value not in HEADING_RULES:
+        raise ConfigError(f"heading={value!r}: choose one of {', '.join(HEADING_RULES)} (module docstring).")
+    return str(value)
+
+
 def fleet_action(
-    env: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None
-) -> int:
-    """Taxi ``taxi``'s action in env 0: the heading toward ``target`` along feasible paths; with nothing to do, the
-    hover (:data:`~uamfleet.types.HOVER_ACTION`: no distance flown) where the env has it (``hover_action``), else
-    the heading back toward the point where it became idle, so it zig-zags about that point (``idle_at`` keeps
-    those points per taxi)."""
+    env: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None,
+    table: DistanceTable | None = None,
+) -> int:  # fmt: skip
+    """Taxi ``taxi``'s action in env 0: the heading toward ``target`` along feasible paths (by ``fields``, or with
+    a ``table`` the move ``stop_heading_mask`` would mark: module docstring); with nothing to do, the hover
+    (:data:`~uamfleet.types.HOVER_ACTION`: no distance flown) where the env has it (``hover_action``), else the
+    heading back toward the point where it became idle, so it zig-zags about that point (``idle_at`` keeps those
+    points per taxi)."""
     s = env.state
     pos = s.pos_m[0, taxi]
     if target is not None:
         idle_at[taxi] = None
         goal = target
+        if table is not None:
+            heading = progress_heading(table, env.world.arrays, s.action_mask[0, taxi], pos, goal)
+            if heading >= 0:  # -1: no allowed move reaches the stop by the table; the field's heading flies
+                return heading
     elif env.cfg.hover_action:
         return HOVER_ACTION
     else:
@@ -184,12 +211,15 @@ def fleet_action(
 
 
 def fleet_actions(
-    sim: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None]
-) -> np.ndarray:
-    """[1, A] every taxi's action in env 0: :func:`fleet_action` toward its target (None: nothing to do), then,
-    under the separation shield, the idle taxis in the way of a busy taxi's next move step aside
+    sim: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None],
+    table: DistanceTable | None = None,
+) -> np.ndarray:  # fmt: skip
+    """[1, A] every taxi's action in env 0: :func:`fleet_action` toward its target (None: nothing to do; ``table``
+    as there), then, under the separation shield, the idle taxis in the way of a busy taxi's next move step aside
     (:func:`make_way`)."""
-    actions = np.array([[fleet_action(sim, fields, idle_at, a, t) for a, t in enumerate(targets)]], dtype=np.int64)
+    actions = np.array(
+        [[fleet_action(sim, fields, idle_at, a, t, table) for a, t in enumerate(targets)]], dtype=np.int64
+    )
     if sim.cfg.separation == "shield":
         make_way(sim, actions[0], [t is None for t in targets], idle_at)
     return actions
@@ -238,10 +268,11 @@ class ScheduleFleetPolicy(PolicyBase):
     ``stats`` counts the DP solves, heuristic insertions and assignment programmes of the episode.
     """
 
-    def __init__(self, exact_limit: int = 6, wait_weight: float = 0.0) -> None:
+    def __init__(self, exact_limit: int = 6, wait_weight: float = 0.0, heading: str = "field") -> None:
         self.exact_limit = check_integer("exact_limit", exact_limit, 1, MAX_PASSENGERS, fix=" (solve_pdp's limit)")
         # β: a schedule costs its total ride time + β · its total wait
         self.wait_weight = check_wait_weight("wait_weight", wait_weight)
+        self.heading = check_heading(heading)
         self.sim: Simulator | None = None
 
     # ---- episode start -------------------------------------------------------------------------------
@@ -250,6 +281,7 @@ class ScheduleFleetPolicy(PolicyBase):
             raise ValueError(f"{type(self).__name__} drives a one-env core, got num_envs={sim.num_envs}")
         self.sim = sim
         self.fields = shared_fields(sim)
+        self._table = table_for(sim.world) if self.heading == "table" else None
         s = sim.state
         self.num_taxis = sim.num_taxis
         self._idle_at: list[np.ndarray | None] = [None] * sim.num_taxis  # where an idle taxi zig-zags (no hover action)
@@ -508,7 +540,8 @@ class ScheduleFleetPolicy(PolicyBase):
         self._seen |= newly
         self._repair()
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
-        return fleet_actions(self.sim, self.fields, self._idle_at, [self.target(a) for a in range(self.num_taxis)])
+        targets = [self.target(a) for a in range(self.num_taxis)]
+        return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table)
 
     def target(self, taxi: int) -> np.ndarray | None:
         """The point of the first stop of the taxi's schedule it can act on now (:meth:`next_stop`)."""
@@ -549,10 +582,12 @@ class ScheduleFleetPolicy(PolicyBase):
 
 
 __all__ = [
+    "HEADING_RULES",
     "OPTION_SEPARATOR",
     "SCHEDULE_DISPATCHERS",
     "DispatchOptions",
     "ScheduleFleetPolicy",
+    "check_heading",
     "check_wait_weight",
     "fleet_action",
     "fleet_actions",

@@ -11,11 +11,18 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from uamfleet.paths.distance_table import Corners, TableArrays, corner_distance, new_corners, prepare_corners
+from uamfleet.paths.distance_table import (
+    Corners,
+    DistanceTable,
+    TableArrays,
+    corner_distance,
+    new_corners,
+    prepare_corners,
+)
 from uamfleet.sim.arrays import WorldArrays
 from uamfleet.types import NUM_HEADINGS
 
-__all__ = ["MoveGeometry", "StopRows", "prepare_moves"]
+__all__ = ["MoveGeometry", "StopRows", "prepare_moves", "progress_heading"]
 
 
 class StopRows(NamedTuple):
@@ -51,6 +58,16 @@ def _progress_heading(
     prepare_corners(t, gx, gy, stop, 0)
     return _progress_heading_prepared(allowed, MoveGeometry(w.moves_m, w.step_m, w.radius_m), t, x, y, gx, gy, taxi,
                                       stop, 0, np.empty(NUM_HEADINGS))  # fmt: skip
+
+
+def progress_heading(
+    table: DistanceTable, w: WorldArrays, allowed: np.ndarray, pos: np.ndarray, goal: np.ndarray
+) -> int:
+    """The heading ``stop_heading_mask`` marks for a stop at ``goal`` (:func:`_progress_heading`), from Python: the
+    table rows it reads are computed first. A fleet dispatcher flying ``heading="table"`` steers by it."""
+    table.ensure(goal)
+    x, y, gx, gy = float(pos[0]), float(pos[1]), float(goal[0]), float(goal[1])
+    return int(_progress_heading(np.ascontiguousarray(allowed), w, table.arrays, x, y, gx, gy))
 
 
 @njit(cache=True, inline="always")

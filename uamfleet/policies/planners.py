@@ -24,7 +24,7 @@ from uamfleet.baselines import (
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, check_seconds
-from uamfleet.baselines.fleet_dispatch import check_wait_weight
+from uamfleet.baselines.fleet_dispatch import check_heading, check_wait_weight
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
 from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
@@ -81,27 +81,32 @@ class RandomOptions:
 
 @dataclass(frozen=True)
 class InsertionOptions:
-    """``insertion``: schedules cost their total ride time plus ``wait`` (β) times their total wait."""
+    """``insertion``: schedules cost their total ride time plus ``wait`` (β) times their total wait; ``heading``: how
+    a taxi heads for its stop, ``field`` or ``table`` (:data:`~uamfleet.baselines.fleet_dispatch.HEADING_RULES`)."""
 
     wait: float = 0.0
+    heading: str = "field"
 
     def __post_init__(self) -> None:
         check_wait_weight("wait", self.wait)
+        check_heading(self.heading)
 
 
 @dataclass(frozen=True)
 class BatchOptions:
     """``batch_assignment``: ``wait`` as :class:`InsertionOptions`; ``release``: also re-assign at each release;
     ``unassigned_price_s``: what a request left out costs (plus (1 + β) times its wait; none: 10^6 s), up to
-    ``unassigned_guard_s`` of wait (needs a price)."""
+    ``unassigned_guard_s`` of wait (needs a price); ``heading`` as :class:`InsertionOptions`."""
 
     wait: float = 0.0
     release: bool = False
     unassigned_price_s: float | None = None
     unassigned_guard_s: float | None = None
+    heading: str = "field"
 
     def __post_init__(self) -> None:
         check_wait_weight("wait", self.wait)
+        check_heading(self.heading)
         _seconds("unassigned_price_s", self.unassigned_price_s)
         _seconds("unassigned_guard_s", self.unassigned_guard_s)
         if self.unassigned_guard_s is not None and self.unassigned_price_s is None:
@@ -224,6 +229,7 @@ def _batch(options: BatchOptions, value: Any = None) -> BatchAssignmentPolicy:
         assign_on_release=options.release,
         unassigned_price_s=options.unassigned_price_s,
         unassigned_guard_s=options.unassigned_guard_s,
+        heading=options.heading,
     )
 
 
@@ -252,7 +258,8 @@ def _register() -> None:
     register("replan_futures", "planner", NoOptions, lambda _o, _b: FamilyReplan())
     register("random", "planner", RandomOptions, lambda o, _b: RandomPolicy(seed=o.seed))
     register("greedy", "dispatcher", NoOptions, lambda _o, _b: GreedyFleetPolicy())
-    register("insertion", "dispatcher", InsertionOptions, lambda o, _b: InsertionPolicy(wait_weight=o.wait))
+    register("insertion", "dispatcher", InsertionOptions,
+             lambda o, _b: InsertionPolicy(wait_weight=o.wait, heading=o.heading))  # fmt: skip
     register("batch_assignment", "dispatcher", BatchOptions, lambda o, _b: _batch(o))
     register(VALUE_DISPATCHER, "dispatcher", ValueBatchOptions, lambda o, _b: _valued(o))
 
