@@ -40,3 +40,18 @@ def test_a_flight_by_name_takes_planners_and_dispatchers_only() -> None:
     with pytest.raises(ConfigError, match=r"^--policy replan_futures is a single-taxi planner but the fleet has 2"):
         make_flown("replan_futures", num_taxis=2)
     assert not hasattr(uamfleet.baselines, "make_policy")  # the registry is the one factory
+
+
+def test_two_policies_of_one_source_share_the_weights_but_not_the_loop_guard() -> None:
+    """The loop guard keeps the episode's moves: two policies made from one source (two decodings of one
+    checkpoint, a search and its base) each get their own, over the one network loaded per process."""
+    from uamfleet.rl.idle_wait import IdleWait
+    from uamfleet.rl.loop_guard import LoopGuard
+
+    first, second = make("learned", source="berlin_fleet"), make("learned", source="berlin_fleet")
+    assert first is not second and first.net is second.net
+    assert isinstance(first.loop_guard, LoopGuard) and first.loop_guard is not second.loop_guard
+    assert make("learned", source="berlin_fleet", loop_guard=False).loop_guard is None
+    assert isinstance(make("learned", source="berlin_fleet", idle_wait=True).loop_guard, IdleWait)
+    claims = make("fleet_claims"), make("fleet_claims", hover_when_idle=True)
+    assert claims[0].policy.loop_guard is not claims[1].policy.loop_guard

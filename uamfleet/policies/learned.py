@@ -30,6 +30,7 @@ from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pr
 from uamfleet.rl.fleet_claims import ClaimsFleetPolicy, with_dispatch_claims
 from uamfleet.rl.idle_wait import IdleWait
 from uamfleet.rl.legacy import with_stored_spec
+from uamfleet.rl.loop_guard import LoopGuard
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 
 
@@ -144,8 +145,8 @@ def spec_of(policy: GreedyPolicy, options: LearnedOptions) -> ObserverSpec:
 
 
 def load(options: LearnedOptions) -> GreedyPolicy:
-    """The greedy policy ``options`` name, loaded once per process and source (a copy reading another spec when
-    the options resize its passenger axis, :func:`spec_of`)."""
+    """The greedy policy ``options`` name: a copy of the one load per process and source (reading another spec when
+    the options resize its passenger axis, :func:`spec_of`), with its own loop guard."""
     if options.source in PRETRAINED:
         policy = _shipped(options.source, options.device, options.traced)
     else:
@@ -159,10 +160,13 @@ def load(options: LearnedOptions) -> GreedyPolicy:
             "learned: passenger_slots='world' is read against a world; resolve it with "
             "uamfleet.policies.learned.for_world(options, taxis, requests) or give a number."
         )
-    policy = policy.reading(spec_of(policy, options))
-    if not options.loop_guard or options.idle_wait:
-        policy = copy.copy(policy)
-        policy.loop_guard = IdleWait(options.loop_guard) if options.idle_wait else None
+    # a copy of the process's one load, with its own loop guard: the guard keeps the episode's moves, so two
+    # policies of one source (two fleet_claims decodings, a search and its base) must not share one
+    policy = copy.copy(policy.reading(spec_of(policy, options)))
+    if options.idle_wait:
+        policy.loop_guard = IdleWait(options.loop_guard)
+    else:
+        policy.loop_guard = LoopGuard() if options.loop_guard else None
     return policy
 
 
