@@ -36,7 +36,7 @@ import torch
 
 import uamfleet
 from uamfleet import instances
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.cli._common import run
 from uamfleet.cli.fleet_benchmark import dispatcher, setting_size
 from uamfleet.env.protocol import observer_of

@@ -22,7 +22,7 @@ import time
 import numpy as np
 import torch
 
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.cli.fleet_benchmark import _learned, setting_size
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds

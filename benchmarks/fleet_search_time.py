@@ -23,7 +23,7 @@ import torch
 import tyro
 
 from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.config import EnvConfig
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic

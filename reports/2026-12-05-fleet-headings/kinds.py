@@ -15,7 +15,7 @@ import numpy as np
 
 from uamfleet.instances import make_fleet_instance
 from uamfleet.policies import make_flown
-from uamfleet.baselines.fleet_dispatch import fleet_action
+from uamfleet.baselines.fleet_steering import fleet_action
 from uamfleet.rl.fleet_claims import CLAIM_SCORE, MY_NEXT_STOP, ClaimsFleetPolicy
 from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy

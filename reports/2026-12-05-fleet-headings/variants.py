@@ -5,6 +5,8 @@ by its field; the table rule: any such move costs the move alone, so the lowest 
 
   heading_variant:rule=table_nearest   the table's distance, and within the radius the end nearest the stop
   heading_variant:rule=field_lowest    the field's distance, and within the radius the lowest heading
+  heading_variant:rule=field_following the field's distance, and within the radius the end nearest the stop after
+                                       this one on the taxi's schedule (by that stop's field; none: the field rule)
   heading_variant:rule=field / table   controls: the dispatcher's own rule and heading=table, through this wrapper
 
 usage: python reports/2026-12-05-fleet-headings/variants.py <fleet-bench arguments>, e.g.
@@ -21,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uamfleet.baselines.fleet_dispatch import make_way
+from uamfleet.baselines.fleet_steering import make_way
+from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.cli import fleet_benchmark
 from uamfleet.observe.moves import progress_heading
 from uamfleet.paths import table_for
@@ -31,7 +34,7 @@ from uamfleet.sim.core import Simulator
 from uamfleet.types import HOVER_ACTION
 
 CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
-RULES = ("table_nearest", "field_lowest", "field", "table")
+RULES = ("table_nearest", "field_lowest", "field_following", "field", "table")
 
 
 class HeadingVariant:
@@ -58,7 +61,12 @@ class HeadingVariant:
             ends = pos + world.moves_m  # [16, 2]
             gap = np.linalg.norm(ends - goal, axis=-1)
             within = allowed[: len(ends)] & (gap <= sim.cfg.radius_m)
-            if within.any() and self.rule != "table":
+            if within.any() and self.rule == "field_following":
+                after = following(d, a)
+                if after is not None:
+                    left = d.fields.remaining_m(after, ends)
+                    moves[0, a] = int(np.argmin(np.where(within, left, np.inf)))
+            elif within.any() and self.rule != "table":
                 moves[0, a] = (
                     int(np.argmin(np.where(within, gap, np.inf)))
                     if self.rule == "table_nearest"
@@ -73,6 +81,16 @@ class HeadingVariant:
             moves[0, idle] = np.where(sim.cfg.hover_action, HOVER_ACTION, moves[0, idle])
             make_way(sim, moves[0], idle, d._idle_at)
         return moves
+
+
+def following(d, taxi: int) -> np.ndarray | None:
+    """The point of the stop after the taxi's next stop on its schedule (None: the next stop is its last)."""
+    stop = d.next_stop(taxi)
+    route = d.routes[taxi]
+    if stop is None or stop not in route or route.index(stop) + 1 >= len(route):
+        return None
+    p, kind = route[route.index(stop) + 1]
+    return d.origin_m[p] if kind == PICKUP else d.dest_m[p]
 
 
 @dataclass(frozen=True)

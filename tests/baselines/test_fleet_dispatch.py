@@ -11,14 +11,15 @@ from conftest import small_config
 
 from uamfleet.baselines import POLICIES
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, assign_trips
-from uamfleet.baselines.fleet_dispatch import SCHEDULE_DISPATCHERS, DispatchOptions, fleet_action, split_options
+from uamfleet.baselines.fleet_dispatch import SCHEDULE_DISPATCHERS, DispatchOptions, split_options
+from uamfleet.baselines.fleet_steering import fleet_action
 from uamfleet.config import Request
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.policies import make_flown
 from uamfleet.presets import make_config
 from uamfleet.rollout import run_episode
-from uamfleet.types import DELIVERED
+from uamfleet.types import DELIVERED, WAITING
 
 OPEN_10 = "\n".join(["." * 10] * 10)
 WALLED_10 = "\n".join([".........."] * 4 + ["#######..."] + [".........."] * 5)  # a wall with a gap in the east
@@ -101,7 +102,9 @@ def _walled_scene(seats: int):
     )
 
 
-@pytest.mark.parametrize("name", [*SCHEDULE_DISPATCHERS, "insertion_heuristic"])
+@pytest.mark.parametrize(
+    "name", [*SCHEDULE_DISPATCHERS, "insertion_heuristic", "insertion:heading=table", "batch_assignment:heading=onward"]
+)
 @pytest.mark.parametrize("seats", [1, 2])
 def test_dispatchers_deliver_everyone_and_keep_capacity_and_precedence(name, seats):
     cfg = _walled_scene(seats)
@@ -504,3 +507,25 @@ def test_heading_table_flies_the_move_the_observation_marks_for_the_stop(cls) ->
     traj = run_episode(VectorEnv(cfg, num_envs=1, autoreset=False), Compared(), seed=3)
     assert traj.terminated  # everyone delivered
     assert checked["table"] > 50 and checked["field differs"] > 0, checked
+
+
+@pytest.mark.parametrize("cls", [InsertionPolicy, BatchAssignmentPolicy])
+def test_heading_onward_makes_the_stop_with_the_move_nearest_the_next_one(cls) -> None:
+    """``heading="onward"``, by hand on an open 1 km map (100 m moves, pick-up radius 100 m, headings 22.5° apart
+    counter-clockwise from east). The taxi at (400, 500), the rider's origin 80 m east at (480, 500), the
+    destination at (480, 100), south. Moves ending within 100 m of the origin: heading 14 (470.7, 429.3) 71 m
+    away, 15 (492.4, 461.7) 40 m, 0 (500, 500) 20 m, 1 40 m, 2 (470.7, 570.7) 71 m; heading 3 ends 101 m away.
+    Onward flies heading 14, whose end is nearest the destination (329 m; 362, 400, 438 and 471 for the others),
+    and the rider boards on that move. The field rule flies heading 2: the field reads the origin's 100 m raster
+    cell, whose centre (450, 550) that end is nearest, so it does not fly the end nearest the stop either."""
+    env = _env(starts_m=((400.0, 500.0),), requests=(Request(0, (480.0, 500.0), (480.0, 100.0)),))
+    assert env.cfg.radius_m == env.cfg.step_m == 100.0 and env.world.radio.resolution_m == 100.0
+    field, onward = cls(), cls(heading="onward")
+    for policy in (field, onward):
+        policy.reset(env.sim)
+    assert int(field.act(None)[0, 0]) == 2 and int(onward.act(None)[0, 0]) == 14
+    assert np.allclose(onward.stop_after(0), (480.0, 100.0))
+    env.step(np.array([[14]]))
+    assert env.state.pax_status[0, 0] != WAITING  # boarded on the onward move
+    assert onward.stop_after(0) is None  # the drop-off is its last stop: the field rule flies on
+    assert int(onward.act(None)[0, 0]) == int(field.act(None)[0, 0])

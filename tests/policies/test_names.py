@@ -125,10 +125,11 @@ RECORDED: dict[str, tuple[str, dict]] = {
                     "2026-12-04-fleet-finetune/ppoB_last")},
     "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt,hover_when_idle=true": (
         "fleet_claims", {"source": "reports/2026-12-04-fleet-val50/claims_hover01_r3.pt", "hover_when_idle": True}),
-    "batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000,unassigned_guard_s=600,"
-    "heading=table": ("batch_assignment_value", {"value_price_s": 100.0, "wait": 1.0, "release": True,
-                                                 "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0,
-                                                 "heading": "table"}),
+    **{"batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000,unassigned_guard_s=600,"
+       f"heading={rule}": ("batch_assignment_value", {"value_price_s": 100.0, "wait": 1.0, "release": True,
+                                                      "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0,
+                                                      "heading": rule})
+       for rule in ("table", "onward")},
     "learned:hover_ft+window24": ("learned", {"source": "runs/hover_ft/best.pt", "passenger_window": 24}),
     "learned:mix_ft+window24": ("learned", {"source": "runs/mix_ft/best.pt", "passenger_window": 24}),
     "learned:switched+window24": ("learned", {"source": "runs/switched/best.pt", "passenger_window": 24}),
@@ -143,7 +144,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 94
+    assert len(recorded) == 95
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))

@@ -2,8 +2,8 @@
 
 A schedule dispatcher keeps a stop schedule per taxi and flies it like
 :class:`~uamfleet.baselines.planner_policy.PlannerPolicy`: each taxi heads, along feasible paths
-(:class:`DistanceFields`), for the first stop of its schedule it can act on (a pick-up while it has a free seat, a
-drop-off of a passenger it carries). Schedules are sequenced exactly by
+(:class:`~uamfleet.paths.DistanceFields`), for the first stop of its schedule it can act on (a pick-up while it has
+a free seat, a drop-off of a passenger it carries). Schedules are sequenced exactly by
 :func:`~uamfleet.baselines.sequencing.solve_pdp` with the ``"ride"`` objective: the **total ride time** (drop-off −
 request, summed over the taxi's passengers, on board ones included) from the current step, over a stop distance
 matrix of feasible-path distances (the distance fields the taxis steer by) at the env's speed. A schedule's cost is
@@ -17,19 +17,8 @@ a schedule: :class:`~uamfleet.baselines.batch_assignment.InsertionPolicy` (``ins
 ``batch_assignment_value``) in :mod:`~uamfleet.baselines.batch_assignment`. Their names may carry options
 (:func:`split_options`).
 
-How a taxi heads for its stop (``heading``, a name's ``heading=<rule>``): ``"field"`` (the default, every recorded
-dispatcher's) flies the allowed move whose end is nearest the stop by the stop's distance field
-(:meth:`DistanceFields.heading`); ``"table"`` flies the move the observation's ``stop_heading_mask`` marks for it,
-the least move plus distance-table distance left, a move ending within the pick-up radius costing the move alone
-(:func:`uamfleet.observe.moves.progress_heading`). A fleet policy with a stop head steers by the latter, so a
-dispatcher flying ``"table"`` separates what such a policy decides from how it steers
-(reports/2026-12-05-fleet-headings/).
-
-A taxi with nothing to do hovers where the env has the hover action (``EnvConfig.hover_action``, on in the
-``*_fleet`` presets), else zig-zags about the point where it became idle (:func:`fleet_action`). Under the
-separation shield an idle taxi in the way of a busy taxi's next move steps aside (:func:`make_way`): the shield
-moves a hovering taxi only when it is already in conflict, so one idle taxi hovering in a narrow passage otherwise
-held a taxi with a rider back until the time limit (:func:`fleet_actions`).
+How each taxi flies toward its stop (the ``heading`` rule, a name's ``heading=<rule>``), idles and makes way for
+another: :mod:`~uamfleet.baselines.fleet_steering`.
 
 Boarding is automatic in the env: a taxi that passes a waiting passenger within the pick-up radius takes them
 even if another taxi was assigned; schedules are repaired every step (the other taxi drops the stops, the carrier
@@ -48,13 +37,11 @@ import numpy as np
 from uamfleet.baselines.assignment_value import MAX_SECONDS
 from uamfleet.baselines.sequencing import DROPOFF, MAX_PASSENGERS, PICKUP, Plan, solve_in_order, solve_pdp_each
 from uamfleet.checks import ConfigError, check_integer, check_number
-from uamfleet.config import heading_vectors
 from uamfleet.env.protocol import PolicyBase
-from uamfleet.observe.moves import progress_heading
-from uamfleet.paths import DistanceFields, DistanceTable, table_for
+from uamfleet.baselines.fleet_steering import check_heading, fleet_actions, shared_fields
+from uamfleet.paths import table_for
 from uamfleet.sim.core import Simulator
-from uamfleet.sim.motion import passes_within_each
-from uamfleet.types import DELIVERED, HIDDEN, HOVER_ACTION, NUM_HEADINGS, ON_BOARD, WAITING
+from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, WAITING
 
 SCHEDULE_DISPATCHERS: tuple[str, ...] = ("insertion", "batch_assignment")
 """The schedule dispatchers (:mod:`~uamfleet.baselines.batch_assignment`), whose names take the options of
@@ -146,115 +133,6 @@ def split_options(name: str) -> tuple[str, DispatchOptions]:
             f"{base}+price=1000+guard=600), or neither (every request left out then costs 10^6 s)"
         )
     return base, DispatchOptions(wait_weight, on_release, price, guard)
-
-
-# The distance fields of the last instance flown: dispatchers flown one after another on the same instance (the
-# fleet benchmark) share its per-stop Dijkstra fields instead of recomputing them. One entry, so memory stays flat.
-_LAST_FIELDS: dict[tuple[int, bytes], DistanceFields] = {}
-
-
-def shared_fields(sim: Simulator, warm: bool = False) -> DistanceFields:
-    """The :class:`DistanceFields` of the simulator's world, shared with the previous dispatcher on the same instance;
-    ``warm`` computes the field of every stop now (so that policies' decision times leave it out)."""
-    s = sim.state
-    fields = DistanceFields(sim.world)
-    stops = np.concatenate([s.pos_m[0], s.pax_origin_m[0], s.pax_dest_m[0]])
-    key = (id(fields.graph), stops.tobytes())
-    if key not in _LAST_FIELDS:
-        _LAST_FIELDS.clear()
-        _LAST_FIELDS[key] = fields
-    fields = _LAST_FIELDS[key]
-    if warm:
-        for stop in stops[sim.num_taxis :]:
-            fields.remaining_m(stop, stop[None])
-    return fields
-
-
-HEADING_RULES = ("field", "table")
-"""How a dispatcher's taxi heads for its stop (module docstring): by the stop's distance field or as the
-observation's ``stop_heading_mask`` marks it."""
-
-
-def check_heading(value: object) -> str:
-    """``value`` if it is one of :data:`HEADING_RULES`; ConfigError naming it otherwise."""
-    if value not in HEADING_RULES:
-        raise ConfigError(f"heading={value!r}: choose one of {', '.join(HEADING_RULES)} (module docstring).")
-    return str(value)
-
-
-def fleet_action(
-    env: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], taxi: int, target: np.ndarray | None,
-    table: DistanceTable | None = None,
-) -> int:  # fmt: skip
-    """Taxi ``taxi``'s action in env 0: the heading toward ``target`` along feasible paths (by ``fields``, or with
-    a ``table`` the move ``stop_heading_mask`` would mark: module docstring); with nothing to do, the hover
-    (:data:`~uamfleet.types.HOVER_ACTION`: no distance flown) where the env has it (``hover_action``), else the
-    heading back toward the point where it became idle, so it zig-zags about that point (``idle_at`` keeps those
-    points per taxi)."""
-    s = env.state
-    pos = s.pos_m[0, taxi]
-    if target is not None:
-        idle_at[taxi] = None
-        goal = target
-        if table is not None:
-            heading = progress_heading(table, env.world.arrays, s.action_mask[0, taxi], pos, goal)
-            if heading >= 0:  # -1: no allowed move reaches the stop by the table; the field's heading flies
-                return heading
-    elif env.cfg.hover_action:
-        return HOVER_ACTION
-    else:
-        idle = idle_at[taxi]
-        if idle is None:
-            idle = idle_at[taxi] = pos.copy()
-        goal = idle
-    return fields.heading(pos, s.action_mask[0, taxi], goal)
-
-
-def fleet_actions(
-    sim: Simulator, fields: DistanceFields, idle_at: list[np.ndarray | None], targets: Sequence[np.ndarray | None],
-    table: DistanceTable | None = None,
-) -> np.ndarray:  # fmt: skip
-    """[1, A] every taxi's action in env 0: :func:`fleet_action` toward its target (None: nothing to do; ``table``
-    as there), then, under the separation shield, the idle taxis in the way of a busy taxi's next move step aside
-    (:func:`make_way`)."""
-    actions = np.array(
-        [[fleet_action(sim, fields, idle_at, a, t, table) for a, t in enumerate(targets)]], dtype=np.int64
-    )
-    if sim.cfg.separation == "shield":
-        make_way(sim, actions[0], [t is None for t in targets], idle_at)
-    return actions
-
-
-def make_way(sim: Simulator, actions: np.ndarray, idle: Sequence[bool], idle_at: list[np.ndarray | None]) -> None:
-    """Idle taxis step out of the way of busy ones (env 0, ``actions`` [A] changed in place).
-
-    The shield keeps a hover and turns the other taxi aside (docs/rules.md "Separation shield"), so an idle taxi
-    hovering in a passage a taxi with a rider must fly through held that taxi back until the time limit (Berlin
-    8 x 96: ``batch_assignment`` test seeds 2000056 and 2000088, ``greedy`` 2000049, each one rider short). An
-    idle taxi that the next move of a busy taxi would come within ``min_separation_m`` of, with the shield's own
-    test (:func:`uamfleet.sim.motion.passes_within`), instead flies the allowed heading that ends farthest from
-    where those busy taxis are headed (ties: the lowest heading), and, without the hover action, zig-zags about
-    where it ends up.
-    Only a move the shield would turn aside (or hold) triggers it, so with the hover action an episode without
-    shield interventions flies as before."""
-    s = sim.state
-    pos, allowed = s.pos_m[0], s.action_mask[0]
-    moves = sim.cfg.step_m * heading_vectors()
-    radius = sim.cfg.min_separation_m
-    busy = [b for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]]
-    idle_taxis = np.flatnonzero(idle)
-    if not busy or not idle_taxis.size:
-        return
-    busy_ends = pos[busy] + moves[actions[busy]]  # [B, 2] where each busy taxi's move ends
-    near = passes_within_each(pos[busy], busy_ends, pos[idle_taxis], radius)  # [I, B], one compiled pass
-    for i, a in enumerate(idle_taxis):
-        headings = np.flatnonzero(allowed[a, :NUM_HEADINGS])
-        if not near[i].any() or not headings.size:
-            continue
-        ends = pos[a] + moves[headings]  # [H, 2]
-        clearance = np.linalg.norm(ends[:, None] - busy_ends[near[i]][None], axis=-1).min(axis=1)
-        actions[a] = headings[int(np.argmax(clearance))]
-        idle_at[a] = None
 
 
 _SetKey = tuple[int, tuple[int, ...]]  # (taxi, waiting passengers): one set of ScheduleFleetPolicy.sequence_each
@@ -541,7 +419,8 @@ class ScheduleFleetPolicy(PolicyBase):
         self._repair()
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
         targets = [self.target(a) for a in range(self.num_taxis)]
-        return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table)
+        onwards = [self.stop_after(a) for a in range(self.num_taxis)] if self.heading == "onward" else None
+        return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table, onwards)
 
     def target(self, taxi: int) -> np.ndarray | None:
         """The point of the first stop of the taxi's schedule it can act on now (:meth:`next_stop`)."""
@@ -549,6 +428,19 @@ class ScheduleFleetPolicy(PolicyBase):
         if stop is None:
             return None
         return self.origin_m[stop[0]] if stop[1] == PICKUP else self.dest_m[stop[0]]
+
+    def stop_after(self, taxi: int) -> np.ndarray | None:
+        """The point of the stop after :meth:`next_stop` on the taxi's schedule; None when that is its last (or it
+        has none)."""
+        stop = self.next_stop(taxi)
+        route = self.routes[taxi]
+        if stop is None:
+            return None
+        following = route.index(stop) + 1
+        if following >= len(route):
+            return None
+        p, kind = route[following]
+        return self.origin_m[p] if kind == PICKUP else self.dest_m[p]
 
     def next_stop(self, taxi: int) -> Stop | None:
         """The first stop of the taxi's schedule it can act on now: a pick-up while it has a free seat, a drop-off
@@ -582,16 +474,10 @@ class ScheduleFleetPolicy(PolicyBase):
 
 
 __all__ = [
-    "HEADING_RULES",
     "OPTION_SEPARATOR",
     "SCHEDULE_DISPATCHERS",
     "DispatchOptions",
     "ScheduleFleetPolicy",
-    "check_heading",
     "check_wait_weight",
-    "fleet_action",
-    "fleet_actions",
-    "make_way",
-    "shared_fields",
     "split_options",
 ]

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uamfleet.baselines import fleet_dispatch
+from uamfleet.baselines import fleet_steering
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy
 from uamfleet.baselines.demand_models import world_family
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy, check_wait_weight
@@ -356,11 +356,11 @@ class FleetSearch(PolicyBase):
     def start_roller(self, roller: ScheduleFleetPolicy) -> None:
         """Reset ``roller`` on the scratch core, steering by the episode's fields and holding the base's schedules
         as they stand (its routes, the requests it has seen, where its idle taxis zig-zag)."""
-        shared = dict(fleet_dispatch._LAST_FIELDS)  # reset() shares fields by instance: keep the real episode's
+        shared = dict(fleet_steering._LAST_FIELDS)  # reset() shares fields by instance: keep the real episode's
         # the schedules' reset alone: a valued batch's site remoteness (79 ms to make) is the base's, its sites fixed
         ScheduleFleetPolicy.reset(roller, self.scratch)
-        fleet_dispatch._LAST_FIELDS.clear()
-        fleet_dispatch._LAST_FIELDS.update(shared)
+        fleet_steering._LAST_FIELDS.clear()
+        fleet_steering._LAST_FIELDS.update(shared)
         roller.fields = self.fields
         if isinstance(roller, BatchAssignmentPolicy) and roller.value is not None:
             assert isinstance(self.base, BatchAssignmentPolicy)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uamfleet.baselines.fleet_dispatch import fleet_actions, shared_fields
+from uamfleet.baselines.fleet_steering import fleet_actions, shared_fields
 from uamfleet.env.protocol import PolicyBase
 from uamfleet.sim.core import Simulator
 from uamfleet.types import ON_BOARD, WAITING
@@ -18,7 +18,7 @@ class GreedyFleetPolicy(PolicyBase):
     first). It steers along feasible paths (:class:`~uamfleet.paths.DistanceFields`), so taxis go round no-fly
     areas instead of getting stuck at their edges. A taxi with nothing to do hovers (the hover action, where the env
     has it) or zig-zags about the point where it became idle (as the other fleet dispatchers do:
-    :func:`~uamfleet.baselines.fleet_dispatch.fleet_actions`, which also makes an idle taxi step out of a busy
+    :func:`~uamfleet.baselines.fleet_steering.fleet_actions`, which also makes an idle taxi step out of a busy
     one's way under the shield), instead of chasing its own position.
     """
 

@@ -37,7 +37,8 @@ from uamfleet.baselines.assignment_value import (
     save_value,
 )
 from uamfleet.baselines.batch_assignment import RecordingAssignment
-from uamfleet.baselines.fleet_dispatch import DispatchOptions, shared_fields, split_options
+from uamfleet.baselines.fleet_dispatch import DispatchOptions, split_options
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_outputs, output_paths, run
 from uamfleet.cli.fleet_benchmark import setting_size

@@ -42,7 +42,7 @@ import numpy as np
 
 from uamfleet.baselines import FLEET_DISPATCHERS
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, shipped_value_path
-from uamfleet.baselines.fleet_dispatch import shared_fields
+from uamfleet.baselines.fleet_steering import shared_fields
 from uamfleet.checks import ConfigError, check_integer, check_number
 from uamfleet.cli._common import (
     MapName,

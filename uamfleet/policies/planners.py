@@ -24,7 +24,8 @@ from uamfleet.baselines import (
 from uamfleet.baselines.anticipation import AnticipatingReplan, DemandPrior, world_family
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER, value_for_dispatcher
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy, InsertionPolicy, check_seconds
-from uamfleet.baselines.fleet_dispatch import check_heading, check_wait_weight
+from uamfleet.baselines.fleet_dispatch import check_wait_weight
+from uamfleet.baselines.fleet_steering import check_heading
 from uamfleet.baselines.random_policy import RandomPolicy
 from uamfleet.baselines.step_planner import SearchSettings, StepPlannerPolicy
 from uamfleet.checks import MAX_SEED, MAX_TAXIS, ConfigError, check_integer, check_number
@@ -82,7 +83,8 @@ class RandomOptions:
 @dataclass(frozen=True)
 class InsertionOptions:
     """``insertion``: schedules cost their total ride time plus ``wait`` (β) times their total wait; ``heading``: how
-    a taxi heads for its stop, ``field`` or ``table`` (:data:`~uamfleet.baselines.fleet_dispatch.HEADING_RULES`)."""
+    a taxi heads for its stop, ``field``, ``table`` or ``onward``
+    (:data:`~uamfleet.baselines.fleet_steering.HEADING_RULES`)."""
 
     wait: float = 0.0
     heading: str = "field"

@@ -97,7 +97,7 @@ def _separating(sx: float, sy: float, vx: float, vy: float, min_separation_m: fl
 def passes_within(start: np.ndarray, end: np.ndarray, point: np.ndarray, min_separation_m: float) -> bool:
     """The shield's own conflict test (:func:`_conflict`) of one straight move ``start`` -> ``end`` against a taxi
     staying at ``point``: the end closer than ``min_separation_m``, or, when the move starts at least that far
-    away, its closest approach. For planners that keep out of the shield's way (``fleet_dispatch.make_way``)."""
+    away, its closest approach. For planners that keep out of the shield's way (``fleet_steering.make_way``)."""
     pos, ends = np.empty((2, 2)), np.empty((2, 2))
     pos[0], pos[1], ends[1] = start, point, point
     none = np.zeros(2, np.bool_)
