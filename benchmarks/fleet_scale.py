@@ -33,6 +33,8 @@ from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
 from uamfleet.cli.fleet_benchmark import limit_threads, run_episode_set, setting_size
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
+from uamfleet.policies import available, make, parse
+from uamfleet.policies.registry import PolicyNameError
 from uamfleet.zoo import pretrained_path
 
 METHODS = ("greedy", "insertion", "batch_assignment", CHOSEN_DISPATCHER, "learned")
@@ -41,6 +43,22 @@ COLUMNS = ("family", "setting", "taxis", "requests", "seed", "arrival_window_s",
            "delivered", "separation_violations", "shield_interventions", "wait_p50_s", "wait_p95_s",
            "td_per_delivered_m")  # fmt: skip
 Job = tuple[str, str, int, str, float, int]  # (family, setting, seed, method, arrival_window_s, passenger_window)
+
+
+def method_error(name: str) -> str | None:
+    """Why ``name`` is no method this benchmark flies (``learned``, or a fleet dispatcher of the registry with its
+    options checked), in the registry's words; None when it is one."""
+    if name == "learned":
+        return None
+    try:
+        call, options = parse(name)
+        if available()[call][0] != "dispatcher":
+            kind = available()[call][0]
+            return f"--methods {name!r} is a {kind}; name a fleet dispatcher (e.g. {METHODS}) or learned."
+        make(call, **options)
+    except (PolicyNameError, ValueError) as err:
+        return str(err)
+    return None
 
 
 def episode_job(family: str, setting: str, seed: int, method: str, arrival_s: float, window: int) -> tuple:
@@ -90,7 +108,9 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--family", nargs="+", default=["berlin"], help="families or packaged maps (munich)")
     parser.add_argument("--settings", nargs="+", default=["32x1000"], help="<taxis>x<requests>")
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), help=f"of {METHODS}")
+    parser.add_argument(
+        "--methods", nargs="+", default=list(METHODS), help=f"default {METHODS}; any fleet dispatcher name, or learned"
+    )
     parser.add_argument("--split", default="test")
     parser.add_argument("--count", type=int, default=1, help="episodes (seeds) per family and setting")
     parser.add_argument("--first", type=int, default=0, help="index of the first seed in the split")
@@ -98,9 +118,9 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--passenger-window", type=int, default=24, help="rows the learned policy reads")
     parser.add_argument("--out-csv", type=Path, required=True)
     args = parser.parse_args(argv)
-    unknown = [m for m in args.methods if m not in METHODS]
-    if unknown or args.count < 1:
-        parser.error(f"--methods {unknown} unknown (choose from {METHODS})" if unknown else "--count must be >= 1")
+    errors = [e for e in map(method_error, args.methods) if e is not None]
+    if errors or args.count < 1:
+        parser.error(errors[0] if errors else "--count must be >= 1")
     seeds = split_seeds(args.split, args.count, args.first)
     for family in args.family:  # a setting or family the instances refuse is refused before anything flies
         for setting in args.settings:

@@ -34,3 +34,20 @@ def test_one_episode_per_method_and_its_figures_add_up(tmp_path: Path) -> None:
     assert float(row["wall_s"]) == pytest.approx(float(row["fields_s"]) + float(row["fly_s"]))
     assert float(row["s_per_step"]) == pytest.approx(float(row["fly_s"]) / float(row["steps"]))
     assert float(row["peak_rss_mb"]) > 50.0  # a Python process with numpy and the env: tens of MB at least
+
+
+@pytest.mark.parametrize(
+    ("method", "message"),
+    [
+        ("bogus", "unknown policy 'bogus'"),
+        ("batch_assignment:heading=sideways", "heading='sideways': choose one of field, table, onward"),
+        ("replan", "--methods 'replan' is a planner; name a fleet dispatcher"),
+    ],
+)
+def test_a_method_that_is_no_fleet_dispatcher_is_refused_in_the_registrys_words(
+    method: str, message: str, tmp_path: Path
+) -> None:
+    out = tmp_path / "never.csv"
+    done = _run("--settings", "2x4", "--methods", method, "--out-csv", str(out))
+    assert done.returncode != 0 and message in done.stderr
+    assert not out.exists()
