@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from uamfleet.baselines.fleet_steering import make_way
-from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.cli import fleet_benchmark
 from uamfleet.observe.moves import progress_heading
 from uamfleet.paths import table_for
@@ -62,7 +61,7 @@ class HeadingVariant:
             gap = np.linalg.norm(ends - goal, axis=-1)
             within = allowed[: len(ends)] & (gap <= sim.cfg.radius_m)
             if within.any() and self.rule == "field_following":
-                after = following(d, a)
+                after = d.stop_after(a)  # the package's heading=onward reads the same stop
                 if after is not None:
                     left = d.fields.remaining_m(after, ends)
                     moves[0, a] = int(np.argmin(np.where(within, left, np.inf)))
@@ -81,16 +80,6 @@ class HeadingVariant:
             moves[0, idle] = np.where(sim.cfg.hover_action, HOVER_ACTION, moves[0, idle])
             make_way(sim, moves[0], idle, d._idle_at)
         return moves
-
-
-def following(d, taxi: int) -> np.ndarray | None:
-    """The point of the stop after the taxi's next stop on its schedule (None: the next stop is its last)."""
-    stop = d.next_stop(taxi)
-    route = d.routes[taxi]
-    if stop is None or stop not in route or route.index(stop) + 1 >= len(route):
-        return None
-    p, kind = route[route.index(stop) + 1]
-    return d.origin_m[p] if kind == PICKUP else d.dest_m[p]
 
 
 @dataclass(frozen=True)

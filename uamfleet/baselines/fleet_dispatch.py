@@ -425,21 +425,20 @@ class ScheduleFleetPolicy(PolicyBase):
     def target(self, taxi: int) -> np.ndarray | None:
         """The point of the first stop of the taxi's schedule it can act on now (:meth:`next_stop`)."""
         stop = self.next_stop(taxi)
-        if stop is None:
-            return None
-        return self.origin_m[stop[0]] if stop[1] == PICKUP else self.dest_m[stop[0]]
+        return None if stop is None else self.stop_point(stop)
 
     def stop_after(self, taxi: int) -> np.ndarray | None:
         """The point of the stop after :meth:`next_stop` on the taxi's schedule; None when that is its last (or it
         has none)."""
-        stop = self.next_stop(taxi)
-        route = self.routes[taxi]
+        stop, route = self.next_stop(taxi), self.routes[taxi]
         if stop is None:
             return None
         following = route.index(stop) + 1
-        if following >= len(route):
-            return None
-        p, kind = route[following]
+        return self.stop_point(route[following]) if following < len(route) else None
+
+    def stop_point(self, stop: Stop) -> np.ndarray:
+        """Where ``stop`` is: its passenger's origin for a pick-up, destination for a drop-off."""
+        p, kind = stop
         return self.origin_m[p] if kind == PICKUP else self.dest_m[p]
 
     def next_stop(self, taxi: int) -> Stop | None:
