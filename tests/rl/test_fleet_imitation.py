@@ -15,6 +15,7 @@ from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
 from uamfleet.rl.fleet_imitation import (
     MASKED_LOG_PROB,
+    RESIDUAL_PARAMETERS,
     TEACHER,
     anchored_fit,
     FleetImitationArgs,
@@ -244,3 +245,58 @@ def test_the_kl_anchor_holds_the_network_nearer_its_start_than_the_plain_fit() -
             fit(policy.net, data, args.fit_args(), optimizer, np.random.default_rng(0))
         drift[anchor] = kl_from_start(policy.net)
     assert 0 < drift[10.0] < 0.5 * drift[0.0], drift
+
+
+ONWARD_TEACHER = (
+    "batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000,unassigned_guard_s=600,"
+    "heading=onward"
+)
+
+
+def test_the_heading_residual_flies_as_before_and_learns_a_heading_the_stop_head_rules_out() -> None:
+    # the onward teacher heads into a stop's pick-up radius on the side of its next stop, a heading the stop head
+    # (which marks one heading per stop) rules out; converted with --heading-residual the policy first flies exactly
+    # as before, then a fit at the residual's learning rate makes most such labels its likeliest heading (none were)
+    torch.manual_seed(0)
+    start = fleet_policy("berlin_fleet", 24)
+    policy = fleet_policy("berlin_fleet", 24, heading_residual=True)
+    episode = label_episode(small_scene(4, 12, seed_index=3), policy, make_teacher(ONWARD_TEACHER, 4), 1.0,
+                            np.random.default_rng(0), fit_floor=MASKED_LOG_PROB)  # fmt: skip
+    args = FleetImitationArgs(heading_residual=True, fit_improbable=True, epochs=40, minibatch=16)
+    batch = obs_to_torch(episode.obs, "cpu")
+
+    def log_probs(net) -> torch.Tensor:
+        with torch.no_grad():
+            return torch.log_softmax(net.masked_logits(batch), -1)
+
+    before = log_probs(policy.net)
+    assert torch.equal(before.argmax(-1), log_probs(start.net).argmax(-1))  # the zero residual changes no move
+    labels = torch.as_tensor(episode.labels)
+    ruled_out = (before[torch.arange(len(labels)), labels] <= PRIOR_FLOOR + 0.5).numpy()  # at the floor
+    assert ruled_out.sum() >= 8, ruled_out.sum()
+    data = Dataset()
+    data.add(
+        {k: v[ruled_out] for k, v in episode.obs.items()}, episode.labels[ruled_out], np.ones(ruled_out.sum(), bool)
+    )
+    groups = parameter_groups(policy.net, args)
+    assert [g["lr"] for g in groups] == [args.learning_rate, args.residual_learning_rate]
+    assert all(name.startswith(RESIDUAL_PARAMETERS) == any(p is q for q in groups[1]["params"])
+               for name, p in policy.net.named_parameters())  # fmt: skip
+    fit(policy.net, data, args.fit_args(), torch.optim.Adam(groups), np.random.default_rng(0))
+    after = log_probs(policy.net).argmax(-1).numpy()[ruled_out]
+    assert (before.argmax(-1).numpy()[ruled_out] != episode.labels[ruled_out]).all()
+    assert (after == episode.labels[ruled_out]).mean() > 0.6  # 0.75 when written
+    with pytest.raises(ConfigError, match="already has heading_residual: leave out --heading-residual"):
+        fleet_policy(str(_saved_with_residual(policy)), 24, heading_residual=True)
+
+
+def _saved_with_residual(policy) -> Path:
+    import tempfile
+
+    from uamfleet.rl.fleet_imitation import save_fleet_checkpoint
+
+    path = Path(tempfile.mkdtemp()) / "residual.pt"
+    save_fleet_checkpoint(path, Checkpoint.load(pretrained_path("berlin_fleet")), policy.net,
+                          FleetImitationArgs(heading_residual=True), {"round": 0})  # fmt: skip
+    assert load_policy(path)[0].net.cfg.heading_residual
+    return path

@@ -58,10 +58,12 @@ HEADING_RULES = ("field", "table", "onward")
 observation's ``stop_heading_mask`` marks it, or by the field with the move that makes the stop aimed at the next."""
 
 
-def check_heading(value: object) -> str:
-    """``value`` if it is one of :data:`HEADING_RULES`; ConfigError naming it otherwise."""
+def check_heading(value: object, option: str = "heading") -> str:
+    """``value`` if it is one of :data:`HEADING_RULES`; ConfigError naming it (as ``option``) otherwise."""
     if value not in HEADING_RULES:
-        raise ConfigError(f"heading={value!r}: choose one of {', '.join(HEADING_RULES)} (module docstring).")
+        raise ConfigError(
+            f"{option}={value!r}: choose one of {', '.join(HEADING_RULES)} (uamfleet.baselines.fleet_steering)."
+        )
     return str(value)
 
 

@@ -55,7 +55,7 @@ from uamfleet.rl.expert_iteration import fit as exit_fit
 from uamfleet.rl.fleet_claims import CLAIM_SCORE, dispatch_claims, with_claims, with_dispatch_claims
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
-from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit
+from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit, with_heading_residual
 from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
@@ -69,8 +69,11 @@ MASKED_LOG_PROB = NOT_THIS / 2
 """A label the network gives a log-probability at or below this is masked (a heading toward no stop it reads, the
 hover while a stop is open without ``hover_anytime``): no gradient reaches it, so it can never be fitted."""
 
-CONVERSIONS: tuple[str, ...] = ("hover_anytime", "dispatch_claim_inputs")
+CONVERSIONS: tuple[str, ...] = ("hover_anytime", "dispatch_claim_inputs", "heading_residual")
 """The ``NetConfig`` flags a conversion of the start may set (:func:`fleet_policy`): a saved round records them."""
+
+RESIDUAL_PARAMETERS = ("stop_head.residual_per_stop.", "stop_head.residual_free.")
+"""Names of the heading residual's parameters (:func:`~uamfleet.rl.imitation.with_heading_residual`)."""
 
 MIXTURE: tuple[str, ...] = ("2x12", "2x24", "4x24", "4x48", "8x48", "8x96")
 """The fleet settings (taxis x requests) of the training episodes: 2 to 8 taxis, light and loaded, as the shipped
@@ -112,6 +115,13 @@ class FleetImitationArgs:
     claims_learning_rate: float = 0.03
     """with --dispatch-claims: learning rate of the claims' term in each stop's score (from zero; at 1e-4 it would
     move about 0.01 logits per round)"""
+    heading_residual: bool = False
+    """start from the policy with a zero heading residual on its stop head
+    (:func:`uamfleet.rl.imitation.with_heading_residual`): the teacher's heading toward a stop where the stop head
+    would fly another becomes a label the network can take (with --labels heading and --fit-improbable)"""
+    residual_learning_rate: float = 0.01
+    """with --heading-residual: learning rate of the residual's layers (from zero; a heading the stop head rules out
+    needs a dozen logits, out of reach at 1e-4)"""
     kl_anchor: float = 0.0
     """weight of the KL divergence from the round's start network over the headings in each round's fit (the fit of
     :func:`uamfleet.rl.expert_iteration.fit`); 0: the plain cross-entropy of :func:`uamfleet.rl.imitation.fit`"""
@@ -137,6 +147,7 @@ class FleetImitationArgs:
         check_number("--learning-rate", self.learning_rate, positive=True)
         check_number("--hover-learning-rate", self.hover_learning_rate, positive=True)
         check_number("--claims-learning-rate", self.claims_learning_rate, positive=True)
+        check_number("--residual-learning-rate", self.residual_learning_rate, positive=True)
         check_number("--kl-anchor", self.kl_anchor, minimum=0.0)
         if self.labels not in ("heading", "stop"):
             raise ConfigError(f"--labels={self.labels!r} is unknown; use 'heading' or 'stop'.")
@@ -175,18 +186,27 @@ def setting_size(setting: str) -> tuple[int, int]:
 
 
 def fleet_policy(
-    init: str, passenger_window: int, hover_anytime: bool = False, dispatch_claims: bool = False
-) -> GreedyPolicy:
+    init: str, passenger_window: int, hover_anytime: bool = False, dispatch_claims: bool = False,
+    heading_residual: bool = False,
+) -> GreedyPolicy:  # fmt: skip
     """A fresh copy of the greedy policy ``init`` (a shipped name or a file) reading ``passenger_window`` rows per
     taxi: one network for every fleet size (fitted to each world at reset); with ``hover_anytime``, converted by
     :func:`~uamfleet.rl.hover.with_hover_anytime`, with ``dispatch_claims`` by
-    :func:`~uamfleet.rl.fleet_claims.with_dispatch_claims`. Fresh, so that fitting it never changes the process's
-    cached shipped policy."""
+    :func:`~uamfleet.rl.fleet_claims.with_dispatch_claims`, with ``heading_residual`` by
+    :func:`~uamfleet.rl.imitation.with_heading_residual`. Fresh, so that fitting it never changes the process's
+    cached shipped policy. A conversion the start already has is refused in one line."""
     policy = load_policy(checkpoint_source(init))[0]
+    for flag, wanted in (("hover_anytime", hover_anytime), ("dispatch_claim_inputs", dispatch_claims),
+                         ("heading_residual", heading_residual)):  # fmt: skip
+        if wanted and getattr(policy.net.cfg, flag):
+            option = {"dispatch_claim_inputs": "dispatch_claims"}.get(flag, flag).replace("_", "-")
+            raise ConfigError(f"--init {init} already has {flag}: leave out --{option}.")
     if hover_anytime:
         policy = with_hover_anytime(policy)
     if dispatch_claims:
         policy = with_dispatch_claims(policy)
+    if heading_residual:
+        policy = with_heading_residual(policy)
     return policy.reading(spec_of(policy, LearnedOptions(passenger_window=passenger_window)))
 
 
@@ -344,7 +364,7 @@ def _fleet_imitate(args: FleetImitationArgs, claim: RunClaim) -> list[dict[str, 
     start = time.time()
     initial = Checkpoint.load(checkpoint_source(args.init))  # what every saved round keeps but its weights
     policy = fleet_policy(
-        args.init, args.passenger_window, args.hover_anytime, args.dispatch_claims
+        args.init, args.passenger_window, args.hover_anytime, args.dispatch_claims, args.heading_residual
     )  # one set of weights, any fleet size
     net = policy.net
     optimizer = torch.optim.Adam(parameter_groups(net, args))
@@ -407,17 +427,22 @@ def anchored_fit(
 def parameter_groups(net: torch.nn.Module, args: FleetImitationArgs) -> list[dict[str, Any]]:
     """The optimiser's parameter groups: every parameter at ``learning_rate``, the hover logit that
     ``--hover-anytime`` adds at ``hover_learning_rate``, the claims' score term of ``--dispatch-claims`` at
-    ``claims_learning_rate``."""
-    named = list(net.named_parameters())
-    hover = [p for name, p in named if name.startswith(NEW_PARAMETERS)]
-    claims = [p for name, p in named if name == CLAIM_SCORE]
-    rest = [p for name, p in named if not name.startswith(NEW_PARAMETERS) and name != CLAIM_SCORE]
-    groups: list[dict[str, Any]] = [{"params": rest, "lr": args.learning_rate}]
-    if hover:
-        groups.append({"params": hover, "lr": args.hover_learning_rate})
-    if claims:
-        groups.append({"params": claims, "lr": args.claims_learning_rate})
-    return groups
+    ``claims_learning_rate``, the heading residual of ``--heading-residual`` at ``residual_learning_rate`` (each
+    wherever the network has it, converted by this run or by the one that wrote ``--init``)."""
+
+    def group_of(name: str) -> str:
+        if name.startswith(NEW_PARAMETERS):
+            return "hover"
+        if name == CLAIM_SCORE:
+            return "claims"
+        return "residual" if name.startswith(RESIDUAL_PARAMETERS) else "rest"
+
+    rates = {"rest": args.learning_rate, "hover": args.hover_learning_rate, "claims": args.claims_learning_rate,
+             "residual": args.residual_learning_rate}  # fmt: skip
+    params: dict[str, list[torch.nn.Parameter]] = {group: [] for group in rates}
+    for name, p in net.named_parameters():
+        params[group_of(name)].append(p)
+    return [{"params": params[g], "lr": rates[g]} for g in rates if params[g] or g == "rest"]
 
 
 def make_teacher(name: str, taxis: int) -> PolicyBase:
