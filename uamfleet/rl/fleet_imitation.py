@@ -194,13 +194,8 @@ def fleet_policy(
     :func:`~uamfleet.rl.hover.with_hover_anytime`, with ``dispatch_claims`` by
     :func:`~uamfleet.rl.fleet_claims.with_dispatch_claims`, with ``heading_residual`` by
     :func:`~uamfleet.rl.imitation.with_heading_residual`. Fresh, so that fitting it never changes the process's
-    cached shipped policy. A conversion the start already has is refused in one line."""
+    cached shipped policy. Each conversion leaves a start that already has it as it is (its trained weights kept)."""
     policy = load_policy(checkpoint_source(init))[0]
-    for flag, wanted in (("hover_anytime", hover_anytime), ("dispatch_claim_inputs", dispatch_claims),
-                         ("heading_residual", heading_residual)):  # fmt: skip
-        if wanted and getattr(policy.net.cfg, flag):
-            option = {"dispatch_claim_inputs": "dispatch_claims"}.get(flag, flag).replace("_", "-")
-            raise ConfigError(f"--init {init} already has {flag}: leave out --{option}.")
     if hover_anytime:
         policy = with_hover_anytime(policy)
     if dispatch_claims:
