@@ -18,49 +18,34 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uamfleet.baselines.fleet_steering import make_way
+from uamfleet.baselines.fleet_steering import fleet_actions
 from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.cli import fleet_benchmark
 from uamfleet.policies import make_flown
 from uamfleet.policies.registry import register
 from uamfleet.sim.core import Simulator
-from uamfleet.types import HOVER_ACTION
 
 CHOSEN = "batch_assignment_value:100+wait=1+release+price=1000+guard=600"
 
 
 class DestinationHeading:
-    """The chosen dispatcher, the move that makes a pick-up aimed at that rider's destination (module docstring)."""
+    """The chosen dispatcher, the move that makes a pick-up aimed at that rider's destination (module docstring):
+    the package's onward steering (``fleet_actions``) with the rider's destination as the point after a pick-up and
+    none after a drop-off."""
 
     def __init__(self) -> None:
         self.dispatcher = make_flown(CHOSEN)
-        self.aimed = 0  # pick-up moves this rule changed, for the record
 
     def reset(self, sim: Simulator) -> None:
         self.dispatcher.reset(sim)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         d = self.dispatcher
-        moves = d.act(obs).copy()  # its schedules advance; idle taxis hover or step aside as it flies them
-        sim = d.sim
-        s, world = sim.state, sim.world
-        targets = [d.target(a) for a in range(d.num_taxis)]
-        for a, goal in enumerate(targets):
-            stop = d.next_stop(a)
-            if goal is None or stop is None or stop[1] != PICKUP:
-                continue
-            ends = s.pos_m[0, a] + world.moves_m  # [16, 2]
-            within = s.action_mask[0, a][: len(ends)] & (np.linalg.norm(ends - goal, axis=-1) <= sim.cfg.radius_m)
-            if within.any():
-                left = d.fields.remaining_m(d.dest_m[stop[0]], ends)
-                choice = int(np.argmin(np.where(within, left, np.inf)))
-                self.aimed += choice != moves[0, a]
-                moves[0, a] = choice
-        if sim.cfg.separation == "shield":  # idle taxis step aside from the busy taxis' moves as flown now
-            idle = [t is None for t in targets]
-            moves[0, idle] = np.where(sim.cfg.hover_action, HOVER_ACTION, moves[0, idle])
-            make_way(sim, moves[0], idle, d._idle_at)
-        return moves
+        d.act(obs)  # its schedules advance by this step; its own moves are replaced below
+        stops = [d.next_stop(a) for a in range(d.num_taxis)]
+        targets = [None if stop is None else d.stop_point(stop) for stop in stops]
+        onwards = [d.dest_m[stop[0]] if stop is not None and stop[1] == PICKUP else None for stop in stops]
+        return fleet_actions(d.sim, d.fields, d._idle_at, targets, None, onwards)
 
 
 @dataclass(frozen=True)
