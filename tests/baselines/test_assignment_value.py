@@ -24,8 +24,10 @@ from uamfleet.baselines.assignment_value import (
     value_for_dispatcher,
 )
 from uamfleet.baselines.batch_assignment import BatchAssignmentPolicy
+from uamfleet.checks import ConfigError
 from uamfleet.config import Request
 from uamfleet.env.vector_env import VectorEnv
+from uamfleet.instances import split_seeds
 from uamfleet.policies import make_flown
 from uamfleet.rollout import run_episode
 
@@ -295,6 +297,17 @@ def test_the_fit_records_its_options_and_both_families_in_its_meta(tmp_path):
     assert meta["options"] == {"wait_weight": 1.0, "assign_on_release": True}
     assert meta["settings"] == ["1x2", "detroit3gpp:1x2"] and meta["episodes"] == 2
     assert load_value(out).meta["options"] == meta["options"]
+    steered = main(Args(settings=("2x4",), count=1, options="+wait=1+release", heading="onward", out=out,
+                        overwrite=True))  # fmt: skip
+    assert steered["options"] == {"wait_weight": 1.0, "assign_on_release": True, "heading": "onward"}
+    with pytest.raises(ConfigError, match="--heading='sideways'"):
+        main(Args(settings=("1x2",), count=1, heading="sideways", out=tmp_path / "w.json"))
+
+
+def test_the_recorder_flies_the_heading_it_is_given():
+    from uamfleet.cli.assignment_value import fly_recorded
+
+    assert fly_recorded("berlin", "2x4", split_seeds("train", 1)[0], None, heading="onward").heading == "onward"
 
 
 def test_a_value_file_other_than_the_shipped_one_names_its_rows():

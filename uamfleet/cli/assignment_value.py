@@ -4,7 +4,8 @@
         --out uamfleet/data/pretrained/assignment_value.json
 
 Flies ``batch_assignment`` (or, with ``--fly-value FILE``, the dispatcher with that value: one step of policy
-iteration; with ``--options``, e.g. ``+wait=1+release``, the options a dispatcher's name carries) on the first
+iteration; with ``--options``, e.g. ``+wait=1+release``, the options a dispatcher's name carries; with
+``--heading onward``, its taxis steered as ``heading=onward`` steers them) on the first
 ``--count`` episodes of the **train** split of each setting (``4x48``, or ``detroit3gpp:4x24`` for another family:
 one fit over all), under the shield with the hover action as the loaded benchmark rows, and records at every batch
 that runs each taxi's post-decision state (when and where its route leaves it free) and who is on its plan, and
@@ -38,7 +39,7 @@ from uamfleet.baselines.assignment_value import (
 )
 from uamfleet.baselines.batch_assignment import RecordingAssignment
 from uamfleet.baselines.fleet_dispatch import DispatchOptions, split_options
-from uamfleet.baselines.fleet_steering import shared_fields
+from uamfleet.baselines.fleet_steering import check_heading, shared_fields
 from uamfleet.checks import check_number
 from uamfleet.cli._common import UsageError, check_outputs, output_paths, run
 from uamfleet.cli.fleet_benchmark import setting_size
@@ -68,6 +69,9 @@ class Args:
     options: str = ""
     """the flown dispatcher's options, as after a dispatcher's name (fleet_dispatch.split_options), e.g.
     "+wait=1+release": schedules cost ride time + 1 · wait, and a batch also runs at every release"""
+    heading: str = "field"
+    """how the flown dispatcher's taxis head for their stops (its heading option: field, table or onward;
+    uamfleet.baselines.fleet_steering)"""
     out: Path = Path("uamfleet/data/pretrained/assignment_value.json")
     overwrite: bool = False
     """replace an existing --out"""
@@ -109,6 +113,7 @@ def fly_recorded(
     seed: int,
     value: LinearValue | None,
     options: DispatchOptions = DispatchOptions(),  # noqa: B008 (frozen)
+    heading: str = "field",
 ) -> RecordingAssignment:
     """One train episode flown and recorded (shield and hover action, as the loaded benchmark rows)."""
     taxis, requests = setting_size(setting)
@@ -122,6 +127,7 @@ def fly_recorded(
         assign_on_release=options.assign_on_release,
         unassigned_price_s=options.unassigned_price_s,
         unassigned_guard_s=options.unassigned_guard_s,
+        heading=heading,
     )
     run_episode(env, policy, seed=0)
     return policy
@@ -130,6 +136,7 @@ def fly_recorded(
 def main(args: Args) -> dict[str, Any]:
     flown_settings = [family_setting(setting, args.family) for setting in args.settings]
     options = parse_options(args.options)
+    check_heading(args.heading, "--heading")
     seeds = split_seeds("train", args.count, args.first)
     check_number("--horizon-s", args.horizon_s, positive=True)
     check_number("--price-s", args.price_s, minimum=0.0)
@@ -143,7 +150,7 @@ def main(args: Args) -> dict[str, Any]:
     parts: list[tuple[np.ndarray, np.ndarray]] = []
     for seed in seeds:
         for family, setting in flown_settings:
-            policy = fly_recorded(family, setting, seed, flown, options)
+            policy = fly_recorded(family, setting, seed, flown, options, args.heading)
             parts.append(episode_samples(policy, args.horizon_s, FLEET_ARRIVAL_WINDOW_S))
             print(
                 f"{family} {setting} seed {seed}: {len(policy.decisions)} states, {len(policy.pickups)} pick-ups",
@@ -160,7 +167,8 @@ def main(args: Args) -> dict[str, Any]:
 "flown_with": str(args.fly_value) if args.fly_value else None,
         "options": {"wait_weight": options.wait_weight, "assign_on_release": options.assign_on_release}
         | ({} if options.unassigned_price_s is None else {"unassigned_price_s": options.unassigned_price_s})
-        | ({} if options.unassigned_guard_s is None else {"unassigned_guard_s": options.unassigned_guard_s}),
+        | ({} if options.unassigned_guard_s is None else {"unassigned_guard_s": options.unassigned_guard_s})
+        | ({} if args.heading == "field" else {"heading": args.heading}),
         "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }  # fmt: skip
