@@ -179,19 +179,3 @@ def test_hover_when_idle_keeps_a_taxi_with_an_open_stop_flying() -> None:
             if terminated[0] or truncated[0]:
                 break
     assert checked[True] > 0 and checked[False] > 0  # taxis with open stops were met, with and without the gate
-
-
-def test_the_dispatcher_alongside_flies_the_teacher_heading_the_name_gives() -> None:
-    """``teacher_heading`` names the heading rule of the dispatcher whose claims the network reads; left out, the
-    dispatcher is the chosen one under its recorded name, so every recorded ``fleet_claims`` name flies as before."""
-    from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
-    from uamfleet.policies.learned import claims_teacher
-
-    source = "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt"
-    assert claims_teacher() == CHOSEN_DISPATCHER
-    for heading in ("field", "table", "onward"):
-        name = source if heading == "field" else f"{source},teacher_heading={heading}"
-        policy = policies.make_named(name)
-        assert isinstance(policy, ClaimsFleetPolicy) and policy.dispatcher.heading == heading
-    with pytest.raises(ConfigError, match="teacher_heading='sideways': choose one of field, table, onward"):
-        policies.make_named(f"{source},teacher_heading=sideways")

@@ -22,11 +22,9 @@ from pathlib import Path
 from typing import Any, Literal
 
 from uamfleet.baselines.assignment_value import CHOSEN_DISPATCHER
-from uamfleet.baselines.fleet_steering import check_heading
 from uamfleet.checks import MAX_PASSENGERS, MAX_TAXIS, check_integer, check_number
 from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
 from uamfleet.observe.spec import ObserverSpec
-from uamfleet.policies.names import format as format_name, parse
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
 from uamfleet.rl.fleet_claims import ClaimsFleetPolicy, with_dispatch_claims
@@ -184,31 +182,16 @@ class FleetClaimsOptions:
     the fleet benchmark flies like a dispatcher (``--dispatchers fleet_claims:source=<file>``). A source that reads
     no claims (the default, the shipped ``berlin_fleet``) is converted with them at zero weight: it flies as
     itself. ``hover_when_idle``: a taxi with an open stop on the dispatcher's schedule never hovers (a decoding rule
-    for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`).
-    ``teacher_heading``: the heading rule of the dispatcher alongside (its ``heading`` option,
-    :data:`~uamfleet.baselines.fleet_steering.HEADING_RULES`); give the rule of the teacher the checkpoint was
-    trained with (``uamfleet fleet-imitate --teacher``), so that it reads the claims it learnt from."""
+    for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`)."""
 
     source: str = "berlin_fleet"
     passenger_window: int = 24
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     hover_when_idle: bool = False
-    teacher_heading: str = "field"
 
     def __post_init__(self) -> None:
         check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=" (e.g. 24)")
         check_number("arrival_window_s", self.arrival_window_s, positive=True)
-        check_heading(self.teacher_heading, "teacher_heading")
-
-
-def claims_teacher(heading: str = "field") -> str:
-    """The name of the dispatcher a ``fleet_claims`` policy reads: the chosen dispatcher
-    (:data:`~uamfleet.baselines.assignment_value.CHOSEN_DISPATCHER`, its recorded name when ``heading`` is its own
-    ``"field"``) with the heading rule ``heading``."""
-    if check_heading(heading) == "field":
-        return CHOSEN_DISPATCHER
-    name, options = parse(CHOSEN_DISPATCHER)
-    return format_name(name, {**options, "heading": heading})
 
 
 def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
@@ -217,7 +200,7 @@ def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
 
     policy = load(LearnedOptions(source=options.source, passenger_window=options.passenger_window))
     policy = with_dispatch_claims(policy)  # a copy reading claims at zero weight, unless it reads them already
-    teacher = make_flown(claims_teacher(options.teacher_heading), arrival_window_s=options.arrival_window_s)
+    teacher = make_flown(CHOSEN_DISPATCHER, arrival_window_s=options.arrival_window_s)
     return ClaimsFleetPolicy(policy, teacher, hover_when_idle=options.hover_when_idle)
 
 
@@ -227,7 +210,6 @@ __all__ = [
     "PRETRAINED",
     "FleetClaimsOptions",
     "LearnedOptions",
-    "claims_teacher",
     "export_policy",
     "fleet_claims",
     "for_world",
