@@ -15,7 +15,6 @@ from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.rl.checkpoint import Checkpoint, pretrained_path
 from uamfleet.rl.fleet_imitation import (
     MASKED_LOG_PROB,
-    RESIDUAL_PARAMETERS,
     TEACHER,
     anchored_fit,
     FleetImitationArgs,
@@ -28,7 +27,7 @@ from uamfleet.rl.fleet_imitation import (
 )
 from uamfleet.rl.heads import HOVER_START, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS
-from uamfleet.rl.imitation import Dataset, fit
+from uamfleet.rl.imitation import RESIDUAL_PREFIX, Dataset, fit
 from uamfleet.rl.networks import obs_to_torch
 from uamfleet.rl.policy import load_policy
 from uamfleet.rollout import fly
@@ -280,7 +279,7 @@ def test_the_heading_residual_flies_as_before_and_learns_a_heading_the_stop_head
     )
     groups = parameter_groups(policy.net, args)
     assert [g["lr"] for g in groups] == [args.learning_rate, args.residual_learning_rate]
-    assert all(name.startswith(RESIDUAL_PARAMETERS) == any(p is q for q in groups[1]["params"])
+    assert all(name.startswith(RESIDUAL_PREFIX) == any(p is q for q in groups[1]["params"])
                for name, p in policy.net.named_parameters())  # fmt: skip
     fit(policy.net, data, args.fit_args(), torch.optim.Adam(groups), np.random.default_rng(0))
     after = log_probs(policy.net).argmax(-1).numpy()[ruled_out]

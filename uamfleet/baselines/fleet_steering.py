@@ -24,7 +24,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from uamfleet.checks import ConfigError
-from uamfleet.config import heading_vectors
 from uamfleet.observe.moves import progress_heading
 from uamfleet.paths import DistanceFields, DistanceTable
 from uamfleet.sim.core import Simulator
@@ -145,7 +144,7 @@ def make_way(sim: Simulator, actions: np.ndarray, idle: Sequence[bool], idle_at:
     shield interventions flies as before."""
     s = sim.state
     pos, allowed = s.pos_m[0], s.action_mask[0]
-    moves = sim.cfg.step_m * heading_vectors()
+    moves = sim.world.moves_m
     radius = sim.cfg.min_separation_m
     busy = [b for b, k in enumerate(actions) if not idle[b] and k < NUM_HEADINGS and allowed[b, k]]
     idle_taxis = np.flatnonzero(idle)

@@ -55,7 +55,7 @@ from uamfleet.rl.expert_iteration import fit as exit_fit
 from uamfleet.rl.fleet_claims import CLAIM_SCORE, dispatch_claims, with_claims, with_dispatch_claims
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
-from uamfleet.rl.imitation import Dataset, FitOptions, ImitationArgs, fit, with_heading_residual
+from uamfleet.rl.imitation import RESIDUAL_PREFIX, Dataset, FitOptions, ImitationArgs, fit, with_heading_residual
 from uamfleet.rl.networks import MSHAActorCritic
 from uamfleet.rl.policy import GreedyPolicy, load_policy
 from uamfleet.rl.runs import RunClaim, check_run_name, claim_run
@@ -71,9 +71,6 @@ hover while a stop is open without ``hover_anytime``): no gradient reaches it, s
 
 CONVERSIONS: tuple[str, ...] = ("hover_anytime", "dispatch_claim_inputs", "heading_residual")
 """The ``NetConfig`` flags a conversion of the start may set (:func:`fleet_policy`): a saved round records them."""
-
-RESIDUAL_PARAMETERS = ("stop_head.residual_per_stop.", "stop_head.residual_free.")
-"""Names of the heading residual's parameters (:func:`~uamfleet.rl.imitation.with_heading_residual`)."""
 
 MIXTURE: tuple[str, ...] = ("2x12", "2x24", "4x24", "4x48", "8x48", "8x96")
 """The fleet settings (taxis x requests) of the training episodes: 2 to 8 taxis, light and loaded, as the shipped
@@ -430,7 +427,7 @@ def parameter_groups(net: torch.nn.Module, args: FleetImitationArgs) -> list[dic
             return "hover"
         if name == CLAIM_SCORE:
             return "claims"
-        return "residual" if name.startswith(RESIDUAL_PARAMETERS) else "rest"
+        return "residual" if name.startswith(RESIDUAL_PREFIX) else "rest"
 
     rates = {"rest": args.learning_rate, "hover": args.hover_learning_rate, "claims": args.claims_learning_rate,
              "residual": args.residual_learning_rate}  # fmt: skip

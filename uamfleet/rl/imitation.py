@@ -295,6 +295,11 @@ class Dataset:
         return obs, np.concatenate(self.labels), np.concatenate(self.corrected)
 
 
+RESIDUAL_PREFIX = "stop_head.residual_"
+"""Names of the heading residual's parameters (and of its look-ahead correction's): what
+:func:`with_heading_residual` adds, all zero at first."""
+
+
 def with_heading_residual(
     policy: GreedyPolicy, lookahead: bool = False, lookahead_rule: float = 0.0, lookahead_depth: int = 1
 ) -> GreedyPolicy:
@@ -310,7 +315,7 @@ def with_heading_residual(
     cfg = dataclasses.replace(net.cfg, heading_residual=True, lookahead_inputs=lookahead, lookahead_rule=lookahead_rule)
     new = MSHAActorCritic(space, cfg)
     missing, unexpected = new.load_state_dict(net.state_dict(), strict=False)
-    if unexpected or any(not k.startswith("stop_head.residual_") for k in missing):
+    if unexpected or any(not k.startswith(RESIDUAL_PREFIX) for k in missing):
         raise ValueError(f"the initial network does not carry over: missing {missing}, unexpected {unexpected}.")
     new.eval()
     trained_on, spec = policy.trained_on, policy.spec
@@ -364,7 +369,7 @@ def fitted_parameters(net: MSHAActorCritic, which: str) -> list[torch.nn.Paramet
     """The parameters DAgger fits: the stop head's heading residual, its look-ahead correction, or all of them."""
     if which == "all":
         return list(net.parameters())
-    prefix = {"residual": "stop_head.residual_", "lookahead": "stop_head.residual_lookahead."}.get(which)
+    prefix = {"residual": RESIDUAL_PREFIX, "lookahead": RESIDUAL_PREFIX + "lookahead."}.get(which)
     if prefix is None:
         raise ValueError(f"train={which!r} is unknown; use 'residual', 'lookahead' or 'all'.")
     return [p for name, p in net.named_parameters() if name.startswith(prefix)]
@@ -581,4 +586,4 @@ def _write_progress(folder: Path, rows: list[dict[str, float]]) -> None:
     write_csv_atomic(folder / "progress.csv", rows, list(dict.fromkeys(k for r in rows for k in r)))
 
 
-__all__ = ["ImitationArgs", "collect", "fit", "imitate", "with_heading_residual"]
+__all__ = ["RESIDUAL_PREFIX", "ImitationArgs", "collect", "fit", "imitate", "with_heading_residual"]
