@@ -15,11 +15,10 @@ import sys
 
 import numpy as np
 
-from uamfleet.baselines.assignment_value import (
-    discounted_future_pickups, fit_linear_value, load_value, post_state_features, shipped_value_path,
-)  # fmt: skip
+from uamfleet.baselines.assignment_value import fit_linear_value, load_value, shipped_value_path
 from uamfleet.baselines.batch_assignment import RecordingAssignment
 from uamfleet.baselines.fleet_steering import shared_fields
+from uamfleet.cli.assignment_value import episode_samples
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, make_fleet_instance, split_seeds
 from uamfleet.rollout import run_episode
@@ -54,13 +53,7 @@ def episode_rows(taxis: int, requests: int, seed: int) -> tuple[np.ndarray, np.n
     policy = ContextRecording(value=load_value(shipped_value_path()), wait_weight=1.0, assign_on_release=True,
                               unassigned_price_s=1000.0, unassigned_guard_s=600.0, heading="onward")  # fmt: skip
     run_episode(env, policy, seed=0)
-    rows = policy.decisions
-    base = post_state_features(np.array([r[2] for r in rows]), np.array([r[3] for r in rows]), FLEET_ARRIVAL_WINDOW_S)
-    by_taxi: dict[int, list[tuple[int, float]]] = {}
-    for p, taxi, t in policy.pickups:
-        by_taxi.setdefault(taxi, []).append((p, t))
-    returns = np.array([discounted_future_pickups(now, plan, by_taxi.get(a, []), HORIZON_S)
-                        for a, now, _, _, plan in rows])  # fmt: skip
+    base, returns = episode_samples(policy, HORIZON_S, FLEET_ARRIVAL_WINDOW_S)  # as the value fit reads them
     unit = policy._remoteness.scale_m
     context = []
     for ends, free in policy.ends:
