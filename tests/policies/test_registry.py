@@ -47,6 +47,17 @@ def test_available_lists_every_kind_and_the_benchmarks_policies() -> None:
 V = "batch_assignment_value"
 
 
+def test_kind_of_a_name_in_the_string_form() -> None:
+    assert policies.kind_of("replan:beam=4") == "planner"
+    assert policies.kind_of("batch_assignment_value:100+wait=1+release+price=1000+guard=600") == "dispatcher"
+    assert policies.kind_of("fleet_search(batch_assignment)") == "search"
+    assert policies.kind_of("learned:source=berlin_fleet") == "learned"
+    assert policies.kind_of("no_such_policy") is None
+    assert policies.kind_of("CPTSP") is None  # a published figure's label names no policy
+    with pytest.raises(PolicyNameError, match="beam"):
+        policies.kind_of("replan:beam=many")
+
+
 def test_planners_carry_the_benchmarks_search_settings() -> None:
     assert isinstance(make("straight"), PlannerPolicy) and make("straight").planner == "straight"
     replan = make("replan")

@@ -418,8 +418,11 @@ class ScheduleFleetPolicy(PolicyBase):
         self._seen |= newly
         self._repair()
         self.dispatch([int(p) for p in np.flatnonzero(newly)])
-        targets = [self.target(a) for a in range(self.num_taxis)]
-        onwards = [self.stop_after(a) for a in range(self.num_taxis)] if self.heading == "onward" else None
+        if self.heading != "onward":
+            targets = [self.target(a) for a in range(self.num_taxis)]
+            return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table)
+        pairs = [self._target_and_after(a) for a in range(self.num_taxis)]  # the schedule walked once per taxi
+        targets, onwards = [target for target, _ in pairs], [after for _, after in pairs]
         return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table, onwards)
 
     def target(self, taxi: int) -> np.ndarray | None:
@@ -430,11 +433,15 @@ class ScheduleFleetPolicy(PolicyBase):
     def stop_after(self, taxi: int) -> np.ndarray | None:
         """The point of the stop after :meth:`next_stop` on the taxi's schedule; None when that is its last (or it
         has none)."""
+        return self._target_and_after(taxi)[1]
+
+    def _target_and_after(self, taxi: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(:meth:`target`, :meth:`stop_after`) from one walk of the taxi's schedule."""
         stop, route = self.next_stop(taxi), self.routes[taxi]
         if stop is None:
-            return None
+            return None, None
         following = route.index(stop) + 1
-        return self.stop_point(route[following]) if following < len(route) else None
+        return self.stop_point(stop), (self.stop_point(route[following]) if following < len(route) else None)
 
     def stop_point(self, stop: Stop) -> np.ndarray:
         """Where ``stop`` is: its passenger's origin for a pick-up, destination for a drop-off."""

@@ -63,7 +63,7 @@ from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import FLEET_ARRIVAL_WINDOW_S, FLEET_SETTINGS, fleet_setting, make_fleet_instance, split_seeds
 from uamfleet.io import partial_path, replace_section, write_csv_atomic
 from uamfleet.metrics import episode_metrics
-from uamfleet.policies import PolicyNameError, available, make, make_flown, parse
+from uamfleet.policies import PolicyNameError, available, kind_of, make, make_flown, parse
 from uamfleet.policies.registry import BASE
 from uamfleet.policies.search import FLEET_SEARCH
 from uamfleet.rollout import fly
@@ -400,7 +400,7 @@ def _check_names(args: Args) -> None:
     repeated = sorted({d for d in args.dispatchers if list(args.dispatchers).count(d) > 1})
     if repeated:
         raise UsageError(f"--dispatchers names {', '.join(repeated)} more than once; name each dispatcher once.")
-    unknown = [d for d in args.dispatchers if _kind(d) not in ("planner", "dispatcher") and not _searches_fleet(d)]
+    unknown = [d for d in args.dispatchers if kind_of(d) not in ("planner", "dispatcher") and not _searches_fleet(d)]
     if unknown:
         raise ValueError(
             f"unknown --dispatchers {unknown}; choose from {(*FLEET_DISPATCHERS, VALUE_DISPATCHER)} (the schedule "
@@ -421,16 +421,6 @@ def _searches_fleet(name: str) -> bool:
     except PolicyNameError:
         return False
     return call == FLEET_SEARCH and available()[options[BASE][0]][0] == "dispatcher"
-
-
-def _kind(name: str) -> str | None:
-    """The registry's kind of a dispatcher name; None for a name of no policy (an option's error is raised)."""
-    try:
-        return available()[parse(name)[0]][0]
-    except PolicyNameError as err:
-        if str(err).startswith("unknown policy") or "published figure" in str(err):
-            return None
-        raise
 
 
 def _check_checkpoint_flies(checkpoint: Path, args: Args) -> None:

@@ -27,6 +27,18 @@ def make_named(text: str, **overrides: Any) -> Any:
     return make(name, **{**options, **overrides})
 
 
+def kind_of(text: str) -> str | None:
+    """The registry's kind (:data:`KINDS`) of the policy a name in the string form names; None for a name of no
+    policy (unknown, or a published figure's label). A known policy with a bad option raises
+    :class:`PolicyNameError` naming it."""
+    try:
+        return available()[parse(text)[0]][0]
+    except PolicyNameError as err:
+        if str(err).startswith("unknown policy") or "published figure" in str(err):
+            return None
+        raise
+
+
 _REGISTERED = (_learned, _planners, _search)  # importing them registers their policies
 
 __all__ = [
@@ -36,6 +48,7 @@ __all__ = [
     "available",
     "format",
     "is_recorded",
+    "kind_of",
     "make",
     "make_flown",
     "make_named",

@@ -47,7 +47,7 @@ from uamfleet.env.protocol import PolicyBase
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import fleet_setting, make_fleet_instance, split_seeds
 from uamfleet.io import write_csv_atomic
-from uamfleet.policies import PolicyNameError, available, make_flown, parse
+from uamfleet.policies import kind_of, make_flown
 from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
@@ -441,11 +441,7 @@ def make_teacher(name: str, taxis: int) -> PolicyBase:
     """The fleet dispatcher ``name`` (uamfleet.policies' grammar, e.g. :data:`TEACHER`) for ``taxis`` taxis, built
     as the fleet benchmark flies it (a valued one for the benchmark's arrival window); another kind of policy is
     refused in one line."""
-    try:
-        kind = available()[parse(name)[0]][0]
-    except PolicyNameError:
-        kind = None
-    if kind != "dispatcher":
+    if kind_of(name) != "dispatcher":
         raise ConfigError(f"--teacher={name!r} is not a fleet dispatcher; give one such as {TEACHER!r}.")
     return make_flown(name, num_taxis=taxis, arrival_window_s=FLEET_ARRIVAL_WINDOW_S)
 
