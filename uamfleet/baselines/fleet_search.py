@@ -312,9 +312,7 @@ class FleetSearch(PolicyBase):
         assert self.sim is not None, "call reset(sim) first"
         start, cpu = time.perf_counter(), time.thread_time()
         t = int(self.sim.state.t[0])
-        rng = np.random.default_rng([self.seed, t])
-        known = known_state(self.sim.state)
-        futures = [self.demand.sample(known, rng) for _ in range(self.futures)]
+        futures = self.sample_futures(np.random.default_rng([self.seed, t]))
         costs = []  # [futures flown, candidates]: every candidate in the same futures (common random numbers)
         for future in futures:
             costs.append([self.rollout(c, future) for c in range(len(self.rollers))])
@@ -328,6 +326,13 @@ class FleetSearch(PolicyBase):
                             time.thread_time() - cpu)  # fmt: skip
         self.decisions.append(decision)
         return decision
+
+    def sample_futures(self, rng: np.random.Generator) -> list[FleetState]:
+        """The futures every candidate is rolled in: ``futures`` draws of the demand model given the released
+        requests alone (:func:`known_state`)."""
+        assert self.sim is not None
+        known = known_state(self.sim.state)
+        return [self.demand.sample(known, rng) for _ in range(self.futures)]
 
     def rollout(self, candidate: int, future: FleetState) -> float:
         """Cost (s) of candidate ``candidate`` flown from the base's schedules in ``future`` for ``horizon`` steps:
