@@ -168,10 +168,10 @@ class OracleOptions:
 def _make(o: OracleOptions) -> OracleFleetSearch:
     kw = {
         "futures": 1 if o.truth else o.futures,
-        "horizon": o.horizon or None,
+        "horizon": o.horizon or None,  # 0: to the episode's end
         "every": o.every,
         "wait_cost": o.wait_cost,
-    }  # fmt: skip  (horizon 0: to the end)
+    }
     if o.pins:
         return OracleAssignmentSearch(make_flown(BASES[o.over]), **kw)
     if o.prices:

@@ -18,7 +18,7 @@ from uamfleet.policies import planners as _planners
 from uamfleet.policies import search as _search
 from uamfleet.policies.names import format, is_recorded, parse
 from uamfleet.policies.planners import ONE_FLIGHT_OPTIONS, make_flown
-from uamfleet.policies.registry import KINDS, PolicyNameError, available, make, register
+from uamfleet.policies.registry import KINDS, NoSuchPolicy, PolicyNameError, available, make, register
 
 
 def make_named(text: str, **overrides: Any) -> Any:
@@ -33,10 +33,8 @@ def kind_of(text: str) -> str | None:
     :class:`PolicyNameError` naming it."""
     try:
         return available()[parse(text)[0]][0]
-    except PolicyNameError as err:
-        if str(err).startswith("unknown policy") or "published figure" in str(err):
-            return None
-        raise
+    except NoSuchPolicy:
+        return None
 
 
 _REGISTERED = (_learned, _planners, _search)  # importing them registers their policies

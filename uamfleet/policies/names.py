@@ -28,7 +28,7 @@ from typing import Any
 
 from uamfleet.baselines.assignment_value import VALUE_DISPATCHER
 from uamfleet.baselines.fleet_dispatch import OPTION_SEPARATOR, DispatchOptions, split_options
-from uamfleet.policies.registry import BASE, PolicyNameError, entry, format_value, options_of
+from uamfleet.policies.registry import BASE, NoSuchPolicy, PolicyNameError, entry, format_value, options_of
 
 Call = tuple[str, dict[str, Any]]
 """A policy's name and options, as :func:`uamfleet.policies.make` takes them."""
@@ -169,7 +169,8 @@ def parse(text: str) -> Call:
     if not isinstance(text, str) or not text.strip():
         raise _fail(text, "name a policy, e.g. replan or guided(learned:source=berlin).")
     if text in LABELS:
-        raise _fail(text, f"a published figure's label ({', '.join(LABELS)}), not a policy; name a policy instead.")
+        raise NoSuchPolicy(f"policy name {text!r}: a published figure's label ({', '.join(LABELS)}), not a policy; "
+                           "name a policy instead.")  # fmt: skip
     if is_recorded(text):
         return _recorded(text)
     head, base = _split_base(text)

@@ -34,6 +34,10 @@ class PolicyNameError(ConfigError):
     """An unknown policy name or option, or an option value of the wrong type or range (a ``ValueError``)."""
 
 
+class NoSuchPolicy(PolicyNameError):
+    """A name of no policy: unknown to the registry, or a published figure's label."""
+
+
 @dataclasses.dataclass(frozen=True)
 class NoOptions:
     """A policy without options."""
@@ -78,7 +82,7 @@ def available(kind: str | None = None) -> dict[str, tuple[str, type]]:
 def entry(name: str) -> Entry:
     """The registration of ``name``; PolicyNameError listing the registered names when there is none."""
     if not isinstance(name, str) or name not in _REGISTRY:
-        raise PolicyNameError(f"unknown policy {name!r}; the registered policies are {', '.join(_REGISTRY)}.")
+        raise NoSuchPolicy(f"unknown policy {name!r}; the registered policies are {', '.join(_REGISTRY)}.")
     return _REGISTRY[name]
 
 
@@ -237,6 +241,7 @@ __all__ = [
     "Entry",
     "Kind",
     "NoOptions",
+    "NoSuchPolicy",
     "PolicyNameError",
     "available",
     "coerce",
