@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.types import DELIVERED, HIDDEN, ON_BOARD, WAITING
 
 NAMES = (
@@ -27,7 +28,7 @@ NAMES = (
 
 
 def features(state: dict, routes: list[list[tuple[int, object]]], time_limit_steps: int, slot_s: float,
-             side_m: float, arrival_steps: float) -> np.ndarray:  # fmt: skip
+             side_m: float) -> np.ndarray:  # fmt: skip
     """[len(NAMES)] float64 from one env's state arrays (``state``: FleetState field -> array of env 0)."""
     t = float(state["t"])
     status, exists = state["pax_status"], state["pax_exists"]
@@ -43,7 +44,7 @@ def features(state: dict, routes: list[list[tuple[int, object]]], time_limit_ste
     for a, route in enumerate(routes):
         here, length = pos[a], 0.0
         for p, kind in route:
-            stop = state["pax_origin_m"][p] if str(kind) == "pickup" else state["pax_dest_m"][p]
+            stop = state["pax_origin_m"][p] if kind == PICKUP else state["pax_dest_m"][p]
             length += float(np.linalg.norm(stop - here))
             here = stop
         lengths.append(length / side_m)

@@ -19,9 +19,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from features import NAMES, features
 from label import read_records
 
-ARRIVAL_S = 600.0
-
-
 COST_COLUMNS = [f"cost_s_{k}" for k in range(5)]
 WAIT_COLUMNS = [f"wait_s_{k}" for k in range(5)]  # empty in the first run's rows (distance alone recorded)
 
@@ -33,7 +30,7 @@ def export(paths: list[str], out: str) -> None:
         w.writerow(["map", "episode", "t", *NAMES, *COST_COLUMNS, *WAIT_COLUMNS])
         for path in paths:
             for r in read_records(path):
-                x = features(r["state"], r["routes"], r["time_limit_steps"], r["slot_s"], r["side_m"], 0.0)
+                x = features(r["state"], r["routes"], r["time_limit_steps"], r["slot_s"], r["side_m"])
                 waits = r.get("waits_s", ("",) * len(WAIT_COLUMNS))
                 w.writerow([Path(path).stem.rstrip("0123456789"), r["episode"], r["t"], *(f"{v:.6g}" for v in x),
                             *r["costs_s"], *waits])  # fmt: skip
@@ -60,8 +57,7 @@ def table(
                 M.append(row["map"])
             continue
         for r in read_records(path):
-            X.append(features(r["state"], r["routes"], r["time_limit_steps"], r["slot_s"], r["side_m"],
-                              ARRIVAL_S / r["slot_s"]))  # fmt: skip
+            X.append(features(r["state"], r["routes"], r["time_limit_steps"], r["slot_s"], r["side_m"]))
             c = np.array(r["costs_s"])
             D.append(c - c[0])
             G.append(f"{path}:{r['episode']}")
@@ -78,6 +74,14 @@ def fit_ridge(X: np.ndarray, D: np.ndarray, lam: float) -> tuple[np.ndarray, np.
     reg[0, 0] = 0.0
     W = np.linalg.solve(Z.T @ Z + reg, Z.T @ D)
     return W, mu, sd
+
+
+def expand(X: np.ndarray, interact: bool) -> np.ndarray:
+    """[N, F] features, with ``interact`` also every one but the bias times the map flag (one model per map, in
+    one weight matrix): [N, 2F - 1]."""
+    if not interact:
+        return X
+    return np.concatenate([X, X[:, 1:] * X[:, [NAMES.index("detroit")]]], axis=1)
 
 
 def predict(model: tuple[np.ndarray, np.ndarray, np.ndarray], X: np.ndarray) -> np.ndarray:
@@ -114,8 +118,7 @@ def main() -> None:
         return
     X, D, G, M = table(a.labels, a.wait_cost, a.first_run)
     M = np.array(M)
-    if a.interact:  # every feature also times the map flag: one model per map, in one weight matrix
-        X = np.concatenate([X, X[:, 1:] * X[:, [NAMES.index("detroit")]]], axis=1)
+    X = expand(X, a.interact)
     episodes = np.unique(G)
     rng = np.random.default_rng(0)
     fold_of = dict(zip(rng.permutation(episodes), np.arange(len(episodes)) % a.folds, strict=True))

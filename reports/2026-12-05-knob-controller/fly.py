@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "2026-12-05-fleet-foresight"))
 
 from features import features
-from fit import choose
+from fit import choose, expand, predict
 from oracle_search import BASES
 
 from uamfleet.cli import fleet_benchmark
@@ -34,11 +34,10 @@ class KnobController(PolicyBase):
     def __init__(self, base, model_path: str, every: int, margin: float | None) -> None:
         self.base, self.every = base, every
         m = np.load(model_path)
-        self.W, self.mu, self.sd = m["W"], m["mu"], m["sd"]
+        self.model = m["W"], m["mu"], m["sd"]
         self.margin = float(m["margin"]) if margin is None else margin
         self.interact = bool(m["interact"]) if "interact" in m else False
         self.base_value = base.value
-        self.choices: list[int] = []
 
     def reset(self, sim) -> None:
         self.sim = sim
@@ -50,12 +49,8 @@ class KnobController(PolicyBase):
         if int(s.t[0]) % self.every == 0:
             state = {name: getattr(s, name)[0] for name in s._fields}
             x = features(state, self.base.routes, self.sim.cfg.time_limit_steps, self.sim.cfg.slot_s,
-                         float(self.sim.world.arrays.side_m), 0.0)  # fmt: skip
-            if self.interact:
-                x = np.concatenate([x, x[1:] * x[-1]])
-            pred = ((x - self.mu) / self.sd) @ self.W
-            k = int(choose(pred[None], self.margin)[0])
-            self.choices.append(k)
+                         float(self.sim.world.arrays.side_m))  # fmt: skip
+            k = int(choose(predict(self.model, expand(x[None], self.interact)), self.margin)[0])
             weight, price = KNOBS[k]
             self.base.wait_weight, self.base.value = weight, self.base_value.with_price(price)
         return self.base.act(obs)

@@ -19,8 +19,9 @@ import pickle
 import sys
 from dataclasses import dataclass
 
-import numpy as np
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "2026-12-05-fleet-foresight"))
 
@@ -86,7 +87,7 @@ class LabelKnobSearch(OracleKnobSearch):
                 "time_limit_steps": self.sim.cfg.time_limit_steps,
                 "slot_s": self.sim.cfg.slot_s,
                 "step_m": self.sim.cfg.step_m,
-                "side_m": float(self.sim.world.arrays.side_m) if hasattr(self.sim.world.arrays, "side_m") else None,
+                "side_m": float(self.sim.world.arrays.side_m),
             }
         )
         return decision
