@@ -16,7 +16,7 @@ from uamfleet.checks import ConfigError
 from uamfleet.env.vector_env import VectorEnv
 from uamfleet.instances import make_fleet_instance, split_seeds
 from uamfleet.rl.fleet_claims import (
-    CLAIM_SCORE, ClaimsFleetPolicy, dispatch_claims, open_stops, with_claims, with_dispatch_claims,
+    CLAIM_SCORE, ClaimsFleetPolicy, dispatch_claims, onward_marks, open_stops, with_claims, with_dispatch_claims,
 )  # fmt: skip
 from uamfleet.rl.fleet_imitation import TEACHER, FleetImitationArgs, fleet_imitate, fleet_policy, make_teacher
 from uamfleet.rollout import fly, observer_of
@@ -179,3 +179,120 @@ def test_hover_when_idle_keeps_a_taxi_with_an_open_stop_flying() -> None:
             if terminated[0] or truncated[0]:
                 break
     assert checked[True] > 0 and checked[False] > 0  # taxis with open stops were met, with and without the gate
+
+
+ONWARD = ("batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000,"
+          "unassigned_guard_s=600,heading=onward")  # fmt: skip
+"""The chosen dispatcher (:data:`TEACHER`) flying ``heading=onward``, in the full form that takes the option."""
+
+
+def test_onward_marks_are_the_onward_dispatchers_move_where_it_makes_a_stop_and_leave_every_other_row() -> None:
+    """Fly the dispatcher with ``heading=onward`` on a small scene: wherever a taxi's move makes the stop it heads
+    for and a stop follows it on its schedule, the mark :func:`onward_marks` sets on that stop's row is the move the
+    dispatcher flies (the move, judged here by hand, ends within the pick-up radius of the stop, and of such moves
+    ends nearest the stop after it); every other row keeps the env's mark. The rule marks another heading than the
+    env's table somewhere, so the option changes what the network reads."""
+    cfg = scene(taxis=3, requests=10)
+    reader = claims_policy(3)
+    env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(reader))
+    obs, _ = env.reset(seed=0)
+    reader.reset(env.sim)
+    dispatcher = make_teacher(ONWARD, 3)
+    dispatcher.reset(env.sim)
+    radius = env.sim.cfg.radius_m
+    marked = differs = 0
+    for _ in range(400):
+        actions = dispatcher.act(obs)[0]
+        claims = dispatch_claims(reader._observer.window_rows(env.sim.state)[0], dispatcher)
+        marks = onward_marks(obs["stop_heading_mask"], claims, dispatcher)
+        changed = (marks != obs["stop_heading_mask"]).any(-1)[0]  # [A, K]
+        for a in range(3):
+            target, after = dispatcher.target_and_after(a)
+            rows = np.flatnonzero(claims[a, :, 2])  # my next stop
+            if target is None or after is None or not rows.size or not obs["stop_heading_mask"][0, a, rows[0]].any():
+                assert not changed[a].any()
+                continue
+            ends = env.sim.state.pos_m[0, a] + env.sim.world.moves_m
+            makes = env.sim.state.action_mask[0, a, :16] & (((ends - target) ** 2).sum(-1) <= radius**2)
+            if not makes.any():  # the stop is more than a move away: the env's mark stays
+                assert not changed[a].any()
+                continue
+            k = rows[0]
+            assert not np.delete(changed[a], k).any()
+            assert marks[0, a, k].sum() == 1 and marks[0, a, k, actions[a]] == 1, (a, actions[a])
+            assert makes[actions[a]]
+            far = dispatcher.fields.remaining_m(after, ends)
+            assert far[actions[a]] == far[makes].min()
+            marked += 1
+            differs += bool(changed[a, k])
+        obs, _, terminated, truncated, _ = env.step(actions[None])
+        if terminated[0] or truncated[0]:
+            break
+    assert marked >= 5 and differs >= 1, (marked, differs)
+
+
+def test_a_claims_policy_with_onward_marks_flies_by_its_registry_name_and_a_bad_heading_is_named() -> None:
+    name = "fleet_claims:heading=onward"
+    policy = policies.make_named(name)
+    assert policy.heading == "onward"
+    traj = fly(scene(taxis=2, requests=6, split="validation"), policy)
+    assert traj.terminated
+    with pytest.raises(policies.PolicyNameError, match="heading='sideways'"):
+        policies.make_named("fleet_claims:heading=sideways")
+
+
+def test_training_on_onward_marks_labels_the_onward_teachers_moves_and_needs_the_claims() -> None:
+    """Labelled at the stop head's level on the teacher's own episode (beta 1: the same flight either way), the
+    onward teacher's moves that make a stop become labels the network flies to that stop only when it reads the
+    onward marks: with them more labels are the teacher's own moves than with the env's table marks."""
+    from uamfleet.rl.fleet_imitation import label_episode
+
+    cfg = scene(taxis=3, requests=10)
+    agree = {}
+    for heading in ("table", "onward"):
+        policy = with_dispatch_claims(fleet_policy("berlin_fleet", 24))
+        episode = label_episode(cfg, policy, make_teacher(ONWARD, 3), 1.0, np.random.default_rng(0), "stop",
+                                -np.inf, claims_heading=heading)  # fmt: skip
+        agree[heading] = int((episode.labels == episode.teacher_actions.reshape(-1)).sum())
+    assert agree["onward"] > agree["table"], agree
+    with pytest.raises(ConfigError, match="add --dispatch-claims"):
+        FleetImitationArgs(claims_heading="onward")
+
+
+def test_make_way_moves_a_hovering_taxi_out_of_the_path_of_a_taxi_with_a_stop() -> None:
+    """A taxi hovers right where another taxi's next move ends (the network's logits are set by hand: the taxi with
+    an open stop flies heading ``h``, the other hovers). Without ``make_way`` it keeps hovering (the shield would
+    then turn the moving taxi aside); with it, it flies the allowed heading whose end is farthest from that move's
+    end (judged here by hand), and the moving taxi keeps its heading."""
+    cfg = scene(taxis=2, requests=8)
+    first = [r for r in cfg.requests if r.release_step == 0]
+    later = [dataclasses.replace(r, release_step=0) for r in cfg.requests[len(first) : 3]]
+    cfg = cfg.replace(requests=tuple(first + later) + cfg.requests[3:])  # requests 0, 1, 2 released at step 0
+    chosen = {}
+    for way in (False, True):
+        policy = claims_policy(2)
+        policy.make_way = way
+        env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
+        obs, _ = env.reset(seed=0)
+        policy.reset(env.sim)
+        policy.dispatcher.act(obs)  # its first assignment: the three requests released at step 0
+        busy = next(a for a in range(2) if open_stops(policy.dispatcher, a))
+        other = 1 - busy
+        s = env.sim.state
+        h = int(np.flatnonzero(s.action_mask[0, busy, :16])[0])
+        s.pos_m[0, other] = s.pos_m[0, busy] + env.sim.world.moves_m[h]  # hovering where the busy taxi's move ends
+
+        def by_hand(inputs, busy=busy, h=h):
+            logits = torch.full((2, 17), -50.0)
+            logits[:, 16] = 0.0  # every taxi hovers ...
+            logits[busy, 16], logits[busy, h] = -50.0, 0.0  # ... but the one with a stop, which flies h
+            return logits
+
+        policy.policy.logits_of = by_hand
+        chosen[way] = policy.act(obs)[0]
+    assert chosen[False][other] == 16 and chosen[False][busy] == h
+    assert chosen[True][busy] == h and chosen[True][other] < 16
+    move_end = s.pos_m[0, busy] + env.sim.world.moves_m[h]
+    headings = np.flatnonzero(s.action_mask[0, other, :16])
+    clearance = np.linalg.norm(s.pos_m[0, other] + env.sim.world.moves_m[headings] - move_end, axis=-1)
+    assert chosen[True][other] == headings[int(np.argmax(clearance))]

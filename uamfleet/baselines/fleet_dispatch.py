@@ -421,7 +421,7 @@ class ScheduleFleetPolicy(PolicyBase):
         if self.heading != "onward":
             targets = [self.target(a) for a in range(self.num_taxis)]
             return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table)
-        pairs = [self._target_and_after(a) for a in range(self.num_taxis)]  # the schedule walked once per taxi
+        pairs = [self.target_and_after(a) for a in range(self.num_taxis)]  # the schedule walked once per taxi
         targets, onwards = [target for target, _ in pairs], [after for _, after in pairs]
         return fleet_actions(self.sim, self.fields, self._idle_at, targets, self._table, onwards)
 
@@ -433,9 +433,9 @@ class ScheduleFleetPolicy(PolicyBase):
     def stop_after(self, taxi: int) -> np.ndarray | None:
         """The point of the stop after :meth:`next_stop` on the taxi's schedule; None when that is its last (or it
         has none)."""
-        return self._target_and_after(taxi)[1]
+        return self.target_and_after(taxi)[1]
 
-    def _target_and_after(self, taxi: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    def target_and_after(self, taxi: int) -> tuple[np.ndarray | None, np.ndarray | None]:
         """(:meth:`target`, :meth:`stop_after`) from one walk of the taxi's schedule."""
         stop, route = self.next_stop(taxi), self.routes[taxi]
         if stop is None:

@@ -27,7 +27,7 @@ from uamfleet.config import FLEET_ARRIVAL_WINDOW_S
 from uamfleet.observe.spec import ObserverSpec
 from uamfleet.policies.registry import PolicyNameError, register
 from uamfleet.rl.checkpoint import PRETRAINED, Checkpoint, checkpoint_source, pretrained_path
-from uamfleet.rl.fleet_claims import ClaimsFleetPolicy, with_dispatch_claims
+from uamfleet.rl.fleet_claims import ClaimsFleetPolicy, check_claims_heading, with_dispatch_claims
 from uamfleet.rl.idle_wait import IdleWait
 from uamfleet.rl.legacy import with_stored_spec
 from uamfleet.rl.loop_guard import LoopGuard
@@ -182,16 +182,24 @@ class FleetClaimsOptions:
     the fleet benchmark flies like a dispatcher (``--dispatchers fleet_claims:source=<file>``). A source that reads
     no claims (the default, the shipped ``berlin_fleet``) is converted with them at zero weight: it flies as
     itself. ``hover_when_idle``: a taxi with an open stop on the dispatcher's schedule never hovers (a decoding rule
-    for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`)."""
+    for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`). ``heading``:
+    ``table`` (the env's stop heading marks) or ``onward`` (each taxi's next stop marked, on the move that makes it,
+    with the move that ends nearest the stop after it on the dispatcher's schedule:
+    :func:`~uamfleet.rl.fleet_claims.onward_marks`). ``make_way``: under the separation shield a hovering or idle
+    taxi steps out of a moving taxi's way, as the dispatchers' do (:func:`uamfleet.baselines.fleet_steering.make_way`;
+    off by default, so the recorded names fly as they flew)."""
 
     source: str = "berlin_fleet"
     passenger_window: int = 24
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     hover_when_idle: bool = False
+    heading: str = "table"
+    make_way: bool = False
 
     def __post_init__(self) -> None:
         check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=" (e.g. 24)")
         check_number("arrival_window_s", self.arrival_window_s, positive=True)
+        check_claims_heading(self.heading)
 
 
 def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
@@ -201,7 +209,9 @@ def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
     policy = load(LearnedOptions(source=options.source, passenger_window=options.passenger_window))
     policy = with_dispatch_claims(policy)  # a copy reading claims at zero weight, unless it reads them already
     teacher = make_flown(CHOSEN_DISPATCHER, arrival_window_s=options.arrival_window_s)
-    return ClaimsFleetPolicy(policy, teacher, hover_when_idle=options.hover_when_idle)
+    return ClaimsFleetPolicy(
+        policy, teacher, hover_when_idle=options.hover_when_idle, heading=options.heading, make_way=options.make_way
+    )
 
 
 register("fleet_claims", "dispatcher", FleetClaimsOptions, lambda o, _b: fleet_claims(o))

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from uamfleet.baselines.fleet_dispatch import ScheduleFleetPolicy
+from uamfleet.baselines.fleet_steering import make_way, onward_heading
 from uamfleet.baselines.sequencing import PICKUP
 from uamfleet.checks import ConfigError
 from uamfleet.env.protocol import PolicyBase
@@ -79,6 +80,41 @@ def dispatch_claims(rows: np.ndarray, dispatcher: ScheduleFleetPolicy) -> np.nda
     return out
 
 
+CLAIMS_HEADINGS = ("table", "onward")
+"""Which heading a claims policy's stop head flies to its next stop (:func:`onward_marks`): the observation's
+``stop_heading_mask`` as the env writes it, or, on the move that makes the stop, the dispatcher's onward rule."""
+
+
+def check_claims_heading(value: object) -> str:
+    """``value`` if it is one of :data:`CLAIMS_HEADINGS`; ConfigError naming it otherwise."""
+    if value not in CLAIMS_HEADINGS:
+        raise ConfigError(f"heading={value!r}: choose one of {', '.join(CLAIMS_HEADINGS)} (uamfleet.rl.fleet_claims).")
+    return str(value)
+
+
+def onward_marks(heading_mask: np.ndarray, claims: np.ndarray, dispatcher: ScheduleFleetPolicy) -> np.ndarray:
+    """A copy of env 0's ``stop_heading_mask`` [1, A, K, 16] in which each taxi's next stop on ``dispatcher``'s
+    schedule (its row with :data:`MY_NEXT_STOP` in ``claims`` [A, K, 4]) marks, where one of the taxi's allowed moves
+    makes that stop (ends within the pick-up radius) and a stop follows it on the schedule, the move the dispatcher's
+    ``heading=onward`` flies there (:func:`~uamfleet.baselines.fleet_steering.onward_heading`: of the moves that make
+    the stop, the one ending nearest the stop after it). Every other row keeps the env's mark, so a stop head that
+    flies the marks flies onward's heading on exactly the moves where that rule differs from the table's. A row the
+    env marks nothing on (not actionable) stays unmarked."""
+    assert dispatcher.sim is not None, "the dispatcher watches the simulator: call its reset(sim) first"
+    marks = heading_mask.copy()
+    for a, k in zip(*np.nonzero(claims[:, :, MY_NEXT_STOP]), strict=True):
+        if not marks[0, a, k].any():
+            continue
+        target, after = dispatcher.target_and_after(int(a))
+        if target is None or after is None:
+            continue
+        heading = onward_heading(dispatcher.sim, dispatcher.fields, int(a), target, after)
+        if heading >= 0:
+            marks[0, a, k] = 0
+            marks[0, a, k, heading] = 1
+    return marks
+
+
 def with_dispatch_claims(policy: GreedyPolicy) -> GreedyPolicy:
     """A copy of ``policy`` whose network also reads a dispatcher's claims (``NetConfig.dispatch_claim_inputs``): the
     same weights and normaliser, the passenger rows' embedding widened by four zero columns and a zero linear term
@@ -118,9 +154,20 @@ class ClaimsFleetPolicy(PolicyBase):
 
     ``hover_when_idle`` (a decoding rule, for a network that may hover at any step, ``NetConfig.hover_anytime``):
     a taxi with an open stop on the dispatcher's schedule (:func:`open_stops`) does not hover; its most likely
-    heading flies instead. The dispatcher itself hovers only with an empty schedule."""
+    heading flies instead. The dispatcher itself hovers only with an empty schedule. ``heading="onward"``: the
+    network reads its next stop's heading mark as :func:`onward_marks` sets it (the mark it was trained on with
+    ``uamfleet fleet-imitate --claims-heading onward``). ``make_way`` (under the separation shield): a hovering taxi,
+    or one with no open stop on the dispatcher's schedule, steps out of the way of a taxi whose next move would pass
+    within the separation of it, by the dispatchers' own rule
+    (:func:`~uamfleet.baselines.fleet_steering.make_way`): the shield keeps a hover and turns the other taxi aside,
+    so a taxi hovering in a passage can hold a taxi with a rider back until the time limit, as it held the
+    dispatchers' before they stepped aside (reports/2026-12-05-fleet-onward-marks/: one rider short in 100 test
+    episodes of Berlin 8 x 96 without it)."""
 
-    def __init__(self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy, hover_when_idle: bool = False) -> None:
+    def __init__(
+        self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy, hover_when_idle: bool = False,
+        heading: str = "table", make_way: bool = False,
+    ) -> None:  # fmt: skip
         if not policy.net.cfg.dispatch_claim_inputs:
             raise ConfigError(
                 "this policy's network reads no dispatcher claims: convert it with with_dispatch_claims (and train "
@@ -130,6 +177,8 @@ class ClaimsFleetPolicy(PolicyBase):
             raise ConfigError(f"the claims are a schedule dispatcher's; {type(dispatcher).__name__} keeps none.")
         self.policy, self.dispatcher = policy, dispatcher
         self.hover_when_idle = hover_when_idle
+        self.heading = check_claims_heading(heading)
+        self.make_way = make_way
         self.spec = policy.spec
         self._observer: Observer | None = None
 
@@ -150,21 +199,33 @@ class ClaimsFleetPolicy(PolicyBase):
         if obs["action_mask"].shape[0] != 1:
             raise ConfigError("a ClaimsFleetPolicy flies one env at a time (its dispatcher watches env 0).")
         self.dispatcher.act(obs)  # its schedules advance by this step, as when it flies
-        inputs = with_claims(self.policy.network_input(obs), self.claims())
+        claims = self.claims()
+        if self.heading == "onward":
+            obs = {**obs, "stop_heading_mask": onward_marks(obs["stop_heading_mask"], claims, self.dispatcher)}
+        inputs = with_claims(self.policy.network_input(obs), claims)
         logits = self.policy.logits_of(inputs)
         if self.hover_when_idle and logits.shape[-1] > HOVER_ACTION:
             busy = [a for a in range(logits.shape[0]) if open_stops(self.dispatcher, a)]
             if busy:
                 logits = logits.clone()  # an inference tensor: a copy takes the change
                 logits[busy, HOVER_ACTION] = NOT_THIS
-        return self.policy.choose(obs, logits)
+        actions = np.array(self.policy.choose(obs, logits))  # a copy make_way may change
+        sim = self.dispatcher.sim
+        assert sim is not None  # reset(sim) gave it the simulator
+        if self.make_way and sim.cfg.separation == "shield":
+            idle = [bool(k == HOVER_ACTION or not open_stops(self.dispatcher, a)) for a, k in enumerate(actions[0])]
+            make_way(sim, actions[0], idle, [None] * len(idle))
+        return actions
 
 
 __all__ = [
+    "CLAIMS_HEADINGS",
     "CLAIM_SCORE",
     "PASSENGER_EMBED",
     "ClaimsFleetPolicy",
+    "check_claims_heading",
     "dispatch_claims",
+    "onward_marks",
     "open_stops",
     "with_claims",
     "with_dispatch_claims",

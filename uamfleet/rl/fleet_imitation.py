@@ -52,7 +52,9 @@ from uamfleet.policies.learned import LearnedOptions, spec_of
 from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
 from uamfleet.rl.expert_iteration import fit as exit_fit
-from uamfleet.rl.fleet_claims import CLAIM_SCORE, dispatch_claims, with_claims, with_dispatch_claims
+from uamfleet.rl.fleet_claims import (
+    CLAIM_SCORE, check_claims_heading, dispatch_claims, onward_marks, with_claims, with_dispatch_claims,
+)  # fmt: skip
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
 from uamfleet.rl.imitation import RESIDUAL_PREFIX, Dataset, FitOptions, ImitationArgs, fit, with_heading_residual
@@ -109,6 +111,10 @@ class FleetImitationArgs:
     """start from the policy converted to read the teacher's claims (:func:`uamfleet.rl.fleet_claims.
     with_dispatch_claims`: each passenger row's stop on my schedule, another taxi's, my next stop, my schedule's
     order; zero weights at first); flown with the dispatcher alongside (``fleet_claims`` in uamfleet.policies)"""
+    claims_heading: Literal["table", "onward"] = "table"
+    """with --dispatch-claims: the stop heading marks the network reads and is labelled by: the env's (``table``), or
+    with each taxi's next stop marked as the teacher's ``heading=onward`` makes it (``onward``,
+    :func:`uamfleet.rl.fleet_claims.onward_marks`; fly the result as ``fleet_claims:heading=onward``)"""
     claims_learning_rate: float = 0.03
     """with --dispatch-claims: learning rate of the claims' term in each stop's score (from zero; at 1e-4 it would
     move about 0.01 logits per round)"""
@@ -146,6 +152,11 @@ class FleetImitationArgs:
         check_number("--claims-learning-rate", self.claims_learning_rate, positive=True)
         check_number("--residual-learning-rate", self.residual_learning_rate, positive=True)
         check_number("--kl-anchor", self.kl_anchor, minimum=0.0)
+        check_claims_heading(self.claims_heading)
+        if self.claims_heading != "table" and not self.dispatch_claims:
+            raise ConfigError(
+                f"--claims-heading={self.claims_heading} marks the dispatcher's next stop: add --dispatch-claims."
+            )
         if self.labels not in ("heading", "stop"):
             raise ConfigError(f"--labels={self.labels!r} is unknown; use 'heading' or 'stop'.")
         for name in ("beta0", "beta_decay"):
@@ -244,11 +255,14 @@ teacher, the teacher's actions [A] and the policy's log-probabilities [A, 16 or 
 def label_episode(
     cfg: EnvConfig, policy: GreedyPolicy, teacher: PolicyBase, beta: float, rng: np.random.Generator,
     labels: Literal["heading", "stop"] = "heading", fit_floor: float = PRIOR_FLOOR, watch: StepWatch | None = None,
+    claims_heading: str = "table",
 ) -> EpisodeLabels:  # fmt: skip
     """Fly one episode of ``cfg`` with ``teacher`` observing every step (module docstring): each step is the
     teacher's joint move with probability ``beta``, else the policy's greedy one; every taxi's state is labelled
     with the teacher's action there (``labels="stop"``: at the level the network decides at, :func:`stop_labels`).
-    Labels the policy gives a log-probability at or below ``fit_floor`` are flown, never fitted."""
+    Labels the policy gives a log-probability at or below ``fit_floor`` are flown, never fitted. A policy that reads
+    the teacher's claims reads them, and with ``claims_heading="onward"`` its next stop's mark, as
+    :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy` gives them in flight."""
     env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
     obs, _ = env.reset(seed=0)
     policy.reset(env.sim)
@@ -258,9 +272,14 @@ def label_episode(
     steps = teacher_steps = 0
     while True:
         action = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
-        inputs = policy.network_input(obs)
         if policy.net.cfg.dispatch_claim_inputs:  # the teacher's claims after its act: as ClaimsFleetPolicy reads them
-            inputs = with_claims(inputs, teacher_claims(env, teacher))
+            claims = teacher_claims(env, teacher)
+            if claims_heading == "onward":
+                assert isinstance(teacher, ScheduleFleetPolicy)  # teacher_claims refuses any other
+                obs = {**obs, "stop_heading_mask": onward_marks(obs["stop_heading_mask"], claims, teacher)}
+            inputs = with_claims(policy.network_input(obs), claims)
+        else:
+            inputs = policy.network_input(obs)
         logits = policy.logits_of(inputs)  # [A, 16 or 17]
         own = policy.choose(obs, logits)  # [1, A] greedy, with the loop guard (as it flies)
         log_probs = torch.log_softmax(logits, -1).numpy()
@@ -388,7 +407,9 @@ def _collect_round(
               "teacher_steps": 0}  # fmt: skip
     for cfg in training_episodes(args, r):
         teacher = make_teacher(args.teacher, cfg.num_taxis)
-        episode = label_episode(cfg, policy, teacher, args.beta(r), rng, args.labels, args.fit_floor())
+        episode = label_episode(
+            cfg, policy, teacher, args.beta(r), rng, args.labels, args.fit_floor(), claims_heading=args.claims_heading
+        )
         data.add(episode.obs, episode.labels, episode.corrected)
         counts["new_samples"] += len(episode.labels)
         counts["corrections"] += int(episode.corrected.sum())
