@@ -125,6 +125,13 @@ RECORDED: dict[str, tuple[str, dict]] = {
                     "2026-12-04-fleet-finetune/ppoB_last")},
     "fleet_claims:source=reports/2026-12-04-fleet-val50/claims_hover01_r3.pt,hover_when_idle=true": (
         "fleet_claims", {"source": "reports/2026-12-04-fleet-val50/claims_hover01_r3.pt", "hover_when_idle": True}),
+    # the claims networks reading onward's heading mark, the last also stepping aside
+    # (reports/2026-12-05-fleet-onward-marks)
+    **{f"fleet_claims:source=reports/{path}.pt,heading=onward{way}": (
+        "fleet_claims", {"source": f"reports/{path}.pt", "heading": "onward", **({"make_way": True} if way else {})})
+       for path, way in (("2026-12-04-fleet-val50/claims_hover01_r3", ""),
+                         ("2026-12-05-fleet-onward-marks/marks_dagger_r3", ""),
+                         ("2026-12-04-fleet-val50/claims_hover01_r3", ",make_way=true"))},
     **{"batch_assignment_value:value_price_s=100,wait=1,release=true,unassigned_price_s=1000,unassigned_guard_s=600,"
        f"heading={rule}": ("batch_assignment_value", {"value_price_s": 100.0, "wait": 1.0, "release": True,
                                                       "unassigned_price_s": 1000.0, "unassigned_guard_s": 600.0,
@@ -144,7 +151,7 @@ def test_the_recorded_names_are_exactly_those_of_the_committed_csvs() -> None:
             for row in csv.DictReader(f):
                 recorded |= {row[c] for c in ("method", "dispatcher") if row.get(c)}
     assert recorded == set(RECORDED) | set(LABELS)
-    assert len(recorded) == 95
+    assert len(recorded) == 98
 
 
 @pytest.mark.parametrize("name", sorted(RECORDED))
