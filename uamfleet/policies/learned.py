@@ -186,7 +186,7 @@ class FleetClaimsOptions:
     ``table`` (the env's stop heading marks) or ``onward`` (each taxi's next stop marked, on the move that makes it,
     with the move that ends nearest the stop after it on the dispatcher's schedule:
     :func:`~uamfleet.rl.fleet_claims.onward_marks`). ``make_way``: under the separation shield a hovering or idle
-    taxi steps out of a moving taxi's way, as the dispatchers' do (:func:`uamfleet.baselines.fleet_steering.make_way`;
+    taxi steps out of a moving taxi's way, as the dispatchers do (:func:`uamfleet.baselines.fleet_steering.make_way`;
     off by default, so the recorded names fly as they flew)."""
 
     source: str = "berlin_fleet"
