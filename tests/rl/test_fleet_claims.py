@@ -232,11 +232,13 @@ def test_onward_marks_are_the_onward_dispatchers_move_where_it_makes_a_stop_and_
 
 
 def test_a_claims_policy_with_onward_marks_flies_by_its_registry_name_and_a_bad_heading_is_named() -> None:
-    name = "fleet_claims:heading=onward"
-    policy = policies.make_named(name)
-    assert policy.heading == "onward"
-    traj = fly(scene(taxis=2, requests=6, split="validation"), policy)
-    assert traj.terminated
+    """By name, ``heading=onward`` flies other moves than ``heading=table`` on the same scene (the marks reach the
+    network), and an unknown heading is refused, naming it."""
+    cfg = scene(taxis=3, requests=10)
+    flights = {h: fly(cfg, policies.make_named(f"fleet_claims:heading={h}")) for h in ("table", "onward")}
+    assert policies.make_named("fleet_claims:heading=onward").heading == "onward"
+    assert flights["onward"].terminated
+    assert not np.array_equal(flights["onward"].positions_m, flights["table"].positions_m)
     with pytest.raises(policies.PolicyNameError, match="heading='sideways'"):
         policies.make_named("fleet_claims:heading=sideways")
 
@@ -296,3 +298,28 @@ def test_make_way_moves_a_hovering_taxi_out_of_the_path_of_a_taxi_with_a_stop() 
     headings = np.flatnonzero(s.action_mask[0, other, :16])
     clearance = np.linalg.norm(s.pos_m[0, other] + env.sim.world.moves_m[headings] - move_end, axis=-1)
     assert chosen[True][other] == headings[int(np.argmax(clearance))]
+
+
+def test_a_network_trained_on_onward_marks_flies_them_by_default_and_training_reads_what_flight_reads(
+    tmp_path,
+) -> None:  # fmt: skip
+    """One DAgger round on the marks (teacher: the onward dispatcher) records them in the checkpoint, so its registry
+    name flies them without ``heading=``. Then the same network, labelled with the policy flying every step (beta 0,
+    the onward dispatcher watching), flies exactly the moves it flies by its registry name beside the chosen
+    dispatcher: training and flight give the network the same claims and marks."""
+    from uamfleet.rl.fleet_imitation import label_episode
+    from uamfleet.policies.learned import trained_claims_heading
+
+    args = FleetImitationArgs(rounds=1, mixture=("2x12",), labels="stop", dispatch_claims=True,
+                              claims_heading="onward", teacher=ONWARD, run_dir=tmp_path, run_name="marks")  # fmt: skip
+    fleet_imitate(args)
+    source = tmp_path / "marks" / "round0.pt"
+    assert trained_claims_heading(str(source)) == "onward" and trained_claims_heading("berlin_fleet") == "table"
+    flown = policies.make_named(f"fleet_claims:source={source}")
+    assert flown.heading == "onward"
+    cfg = scene(taxis=3, requests=10, split="validation")
+    traj = fly(cfg, flown)
+    labelled = label_episode(cfg, flown.policy, make_teacher(ONWARD, 3), 0.0, np.random.default_rng(0), "stop",
+                             -np.inf, claims_heading="onward")  # fmt: skip
+    by_name = np.stack([np.asarray(e.actions).reshape(-1) for e in traj.events])
+    np.testing.assert_array_equal(labelled.flown, by_name)

@@ -185,21 +185,23 @@ class FleetClaimsOptions:
     for a network that may hover at any step; :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy`). ``heading``:
     ``table`` (the env's stop heading marks) or ``onward`` (each taxi's next stop marked, on the move that makes it,
     with the move that ends nearest the stop after it on the dispatcher's schedule:
-    :func:`~uamfleet.rl.fleet_claims.onward_marks`). ``make_way``: under the separation shield a hovering or idle
-    taxi steps out of a moving taxi's way, as the dispatchers do (:func:`uamfleet.baselines.fleet_steering.make_way`;
-    off by default, so the recorded names fly as they flew)."""
+    :func:`~uamfleet.rl.fleet_claims.onward_marks`); unset, the marks the checkpoint was trained on (``uamfleet
+    fleet-imitate --claims-heading``, recorded in it), else ``table``. ``make_way``: under the separation shield a
+    hovering or idle taxi steps out of a moving taxi's way, as the dispatchers do
+    (:func:`uamfleet.baselines.fleet_steering.make_way`; off by default, so the recorded names fly as they flew)."""
 
     source: str = "berlin_fleet"
     passenger_window: int = 24
     arrival_window_s: float = FLEET_ARRIVAL_WINDOW_S
     hover_when_idle: bool = False
-    heading: str = "table"
+    heading: str | None = None
     make_way: bool = False
 
     def __post_init__(self) -> None:
         check_integer("passenger_window", self.passenger_window, 1, MAX_PASSENGERS, fix=" (e.g. 24)")
         check_number("arrival_window_s", self.arrival_window_s, positive=True)
-        check_claims_heading(self.heading)
+        if self.heading is not None:
+            check_claims_heading(self.heading)
 
 
 def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
@@ -209,9 +211,17 @@ def fleet_claims(options: FleetClaimsOptions) -> ClaimsFleetPolicy:
     policy = load(LearnedOptions(source=options.source, passenger_window=options.passenger_window))
     policy = with_dispatch_claims(policy)  # a copy reading claims at zero weight, unless it reads them already
     teacher = make_flown(CHOSEN_DISPATCHER, arrival_window_s=options.arrival_window_s)
+    heading = options.heading if options.heading is not None else trained_claims_heading(options.source)
     return ClaimsFleetPolicy(
-        policy, teacher, hover_when_idle=options.hover_when_idle, heading=options.heading, make_way=options.make_way
+        policy, teacher, hover_when_idle=options.hover_when_idle, heading=heading, make_way=options.make_way
     )
+
+
+def trained_claims_heading(source: str) -> str:
+    """The stop heading marks the fleet policy of ``source`` (a shipped name or a checkpoint file) was trained on:
+    its last ``uamfleet fleet-imitate`` run's ``--claims-heading``, ``table`` for any other policy."""
+    options = Checkpoint.load(checkpoint_source(source)).args.get("fleet_imitation") or {}
+    return check_claims_heading(options.get("claims_heading", "table"))
 
 
 register("fleet_claims", "dispatcher", FleetClaimsOptions, lambda o, _b: fleet_claims(o))
@@ -229,4 +239,5 @@ __all__ = [
     "pretrained_path",
     "spec_of",
     "traced_policy",
+    "trained_claims_heading",
 ]

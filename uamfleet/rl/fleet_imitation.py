@@ -262,7 +262,8 @@ def label_episode(
     with the teacher's action there (``labels="stop"``: at the level the network decides at, :func:`stop_labels`).
     Labels the policy gives a log-probability at or below ``fit_floor`` are flown, never fitted. A policy that reads
     the teacher's claims reads them, and with ``claims_heading="onward"`` its next stop's mark, as
-    :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy` gives them in flight."""
+    :class:`~uamfleet.rl.fleet_claims.ClaimsFleetPolicy` gives them in flight; its own moves are its greedy ones,
+    without that policy's decoding rules (``hover_when_idle``, ``make_way``)."""
     env = VectorEnv(cfg, num_envs=1, autoreset=False, observer=observer_of(policy))
     obs, _ = env.reset(seed=0)
     policy.reset(env.sim)
