@@ -147,6 +147,18 @@ def with_claims(inputs: dict[str, np.ndarray], claims: np.ndarray) -> dict[str, 
     return {**inputs, DISPATCH_CLAIMS_FIELD: claims.reshape(-1, *claims.shape[-2:]).astype(np.float32)}
 
 
+def claims_view(
+    policy: GreedyPolicy, obs: dict[str, np.ndarray], claims: np.ndarray, dispatcher: ScheduleFleetPolicy,
+    heading: str = "table",
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:  # fmt: skip
+    """What a claims policy's network reads of env 0's observation ``obs``, in flight and in training alike: (the
+    observation, with ``heading="onward"`` its next stops' marks set by :func:`onward_marks`; the network's rows of
+    it with the ``dispatcher``'s ``claims`` [A, K, 4] added, :func:`with_claims`)."""
+    if heading == "onward":
+        obs = {**obs, "stop_heading_mask": onward_marks(obs["stop_heading_mask"], claims, dispatcher)}
+    return obs, with_claims(policy.network_input(obs), claims)
+
+
 class ClaimsFleetPolicy(PolicyBase):
     """A fleet policy whose network reads ``dispatcher``'s claims (module docstring), acting greedily through its
     loop guard as :class:`GreedyPolicy` does; ``dispatcher`` (a schedule dispatcher, fresh or reused) watches every
@@ -199,10 +211,7 @@ class ClaimsFleetPolicy(PolicyBase):
         if obs["action_mask"].shape[0] != 1:
             raise ConfigError("a ClaimsFleetPolicy flies one env at a time (its dispatcher watches env 0).")
         self.dispatcher.act(obs)  # its schedules advance by this step, as when it flies
-        claims = self.claims()
-        if self.heading == "onward":
-            obs = {**obs, "stop_heading_mask": onward_marks(obs["stop_heading_mask"], claims, self.dispatcher)}
-        inputs = with_claims(self.policy.network_input(obs), claims)
+        obs, inputs = claims_view(self.policy, obs, self.claims(), self.dispatcher, self.heading)
         logits = self.policy.logits_of(inputs)
         if self.hover_when_idle and logits.shape[-1] > HOVER_ACTION:
             busy = [a for a in range(logits.shape[0]) if open_stops(self.dispatcher, a)]
@@ -224,6 +233,7 @@ __all__ = [
     "PASSENGER_EMBED",
     "ClaimsFleetPolicy",
     "check_claims_heading",
+    "claims_view",
     "dispatch_claims",
     "onward_marks",
     "open_stops",

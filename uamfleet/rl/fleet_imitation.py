@@ -53,7 +53,7 @@ from uamfleet.rl.checkpoint import Checkpoint, checkpoint_source
 from uamfleet.rl.expert_iteration import ExItOptions, LabelSet
 from uamfleet.rl.expert_iteration import fit as exit_fit
 from uamfleet.rl.fleet_claims import (
-    CLAIM_SCORE, check_claims_heading, dispatch_claims, onward_marks, with_claims, with_dispatch_claims,
+    CLAIM_SCORE, check_claims_heading, claims_view, dispatch_claims, with_dispatch_claims,
 )  # fmt: skip
 from uamfleet.rl.heads import NOT_THIS, PRIOR_FLOOR
 from uamfleet.rl.hover import NEW_PARAMETERS, with_hover_anytime
@@ -275,10 +275,8 @@ def label_episode(
         action = np.asarray(teacher.act(obs), np.int64)  # [1, A]: its schedules advance by this step too
         if policy.net.cfg.dispatch_claim_inputs:  # the teacher's claims after its act: as ClaimsFleetPolicy reads them
             claims = teacher_claims(env, teacher)
-            if claims_heading == "onward":
-                assert isinstance(teacher, ScheduleFleetPolicy)  # teacher_claims refuses any other
-                obs = {**obs, "stop_heading_mask": onward_marks(obs["stop_heading_mask"], claims, teacher)}
-            inputs = with_claims(policy.network_input(obs), claims)
+            assert isinstance(teacher, ScheduleFleetPolicy)  # teacher_claims refuses any other
+            obs, inputs = claims_view(policy, obs, claims, teacher, claims_heading)
         else:
             inputs = policy.network_input(obs)
         logits = policy.logits_of(inputs)  # [A, 16 or 17]
