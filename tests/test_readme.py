@@ -518,13 +518,14 @@ def fleet_readme_claims() -> list[str]:
 
 
 SETTINGS_42 = (("berlin", "4x48"), ("berlin", "8x96"), ("detroit3gpp", "4x24"))
-"""Issue 42's settings: (family, setting)."""
+"""The fleet target's settings: (family, setting)."""
 
 
 def below_the_chosen(by: dict, method: str) -> tuple[float, float]:
-    """``method`` on the 100 test episodes of each of issue 42's settings, paired with the chosen dispatcher's own
-    test rows: everyone delivered, no loss of separation, less distance per delivered passenger and shorter median
-    and p95 waits, every interval excluding zero. The least and the most % less distance (ratio of means)."""
+    """``method`` on the 100 test episodes of each of the fleet target's settings, paired with the chosen
+    dispatcher's own test rows: everyone delivered, no loss of separation, less distance per delivered passenger and
+    shorter median and p95 waits, every interval excluding zero. The least and the most % less distance (ratio of
+    means)."""
     shares = []
     for family, setting in SETTINGS_42:
         mine, base = by[(family, setting, method)], by[(family, setting, CHOSEN_DISPATCHER)]

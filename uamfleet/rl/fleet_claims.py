@@ -172,9 +172,7 @@ class ClaimsFleetPolicy(PolicyBase):
     or one with no open stop on the dispatcher's schedule, steps out of the way of a taxi whose next move would pass
     within the separation of it, by the dispatchers' own rule
     (:func:`~uamfleet.baselines.fleet_steering.make_way`): the shield keeps a hover and turns the other taxi aside,
-    so a taxi hovering in a passage can hold a taxi with a rider back until the time limit, as it held the
-    dispatchers' before they stepped aside (reports/2026-12-05-fleet-onward-marks/: one rider short in 100 test
-    episodes of Berlin 8 x 96 without it)."""
+    so without it a taxi hovering in a passage can hold a taxi with a rider back until the time limit."""
 
     def __init__(
         self, policy: GreedyPolicy, dispatcher: ScheduleFleetPolicy, hover_when_idle: bool = False,
